@@ -1,0 +1,106 @@
+// The whole pipeline in one function (DESIGN.md):
+//   load -> prepare (normals, tangents, cage) -> raster -> trace -> encode
+//        -> dilate -> write
+// Options are plain data, kept apart from argument parsing: the library never
+// sees argv. Every numerical fallback taken on the way is counted in the
+// report.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "nmbake/common.hpp"
+#include "nmbake/dilate.hpp"
+#include "nmbake/encode.hpp"
+#include "nmbake/image.hpp"
+#include "nmbake/load.hpp"
+#include "nmbake/raster.hpp"
+#include "nmbake/surface.hpp"
+#include "nmbake/trace.hpp"
+
+namespace nmbake {
+
+// A ray distance as the user gave it: scene units, percent of the low mesh's
+// bounding-box diagonal, or estimated from the meshes.
+struct Distance {
+  enum class Kind : std::uint8_t { automatic, absolute, percent };
+  Kind kind = Kind::automatic;
+  float value = 0.0f;
+};
+// "auto", "0.05", "2%". Returns false on anything else (negative, NaN, junk).
+bool parse_distance(const std::string& text, Distance& out);
+std::string to_string(const Distance& distance);
+
+struct OutputSpec {
+  std::string path;
+  PixelFormat format = PixelFormat::png16;
+};
+
+struct BakeOptions {
+  std::string low_path;
+  std::string high_path;
+  std::string cage_path;  // empty: averaged cage
+  std::vector<OutputSpec> outputs;
+  int width = 2048;
+  int height = 2048;
+  int samples = 4;
+  NormalSpace space = NormalSpace::tangent;
+  GreenChannel green = GreenChannel::up;
+  Distance front;  // auto
+  Distance back;   // auto
+  HitRule hit = HitRule::first;
+  CageMode cage_mode = CageMode::averaged;  // `mesh` is implied by cage_path
+  bool ignore_backfaces = false;
+  HighNormals high_normals = HighNormals::smooth;
+  TangentEncode tangent_encode = TangentEncode::inverse;
+  BuildQuality build_quality = BuildQuality::medium;
+  int padding = 16;
+  std::string debug_dump_prefix;  // non-empty: also write coverage / miss / distance images
+};
+
+// Checks options that need no file: sizes, sample count, outputs and formats.
+Status validate_options(const BakeOptions& options);
+
+struct StageTime {
+  std::string name;
+  double seconds = 0.0;
+};
+
+struct BakeReport {
+  std::string low_path, high_path, cage_path;
+  std::vector<std::string> outputs;
+  int width = 0, height = 0, samples = 0;
+  std::uint64_t low_triangles = 0, high_triangles = 0, high_vertices = 0;
+  float front = 0.0f, back = 0.0f;  // resolved, scene units
+  bool distances_estimated = false;
+  float low_diagonal = 0.0f;
+  LoadStats low_load, high_load;
+  MeshStats low_mesh, high_mesh;
+  TangentStats tangents;
+  RasterStats raster;
+  TraceStats trace;
+  EncodeStats encode;
+  DilateStats dilate;
+  std::uint64_t estimate_probes = 0, estimate_probe_misses = 0;
+  std::vector<StageTime> stages;
+  double total_seconds = 0.0;
+  std::uint64_t peak_rss_bytes = 0;
+  int threads = 0;
+
+  double miss_rate() const;   // misses / samples traced
+  double coverage() const;    // covered texels / all texels
+  std::string to_json() const;
+  std::string summary_line() const;
+};
+
+// Called with a stage name and the fraction done (0..1) of that stage; from
+// the calling thread only.
+using ProgressFn = std::function<void(const char* stage, double fraction)>;
+
+// Runs one bake. Nothing is written unless every stage succeeded; each output
+// is written atomically.
+Status bake(const BakeOptions& options, BakeReport& report, const ProgressFn& progress = {});
+
+}  // namespace nmbake

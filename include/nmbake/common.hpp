@@ -1,0 +1,66 @@
+// Shared vocabulary of every stage: status values for input/I-O problems and
+// the always-on invariant check.
+//
+// Errors come in three tiers (STYLE.md):
+//   * invariants: NMBAKE_CHECK (always on) aborts with file:line;
+//   * input and I/O problems: a Status with a message that names the file and
+//     the place (line, byte offset) and the reason;
+//   * the CLI maps Status codes to the exit codes of DESIGN.md.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <utility>
+
+namespace nmbake {
+
+enum class StatusCode : std::uint8_t {
+  ok = 0,
+  bad_input,  // a file or option the user gave is wrong (exit code 2)
+  io,         // reading or writing failed (exit code 2)
+  internal,   // a bug or an environment failure (exit code 3)
+};
+
+class [[nodiscard]] Status {
+ public:
+  Status() = default;
+  static Status ok() { return {}; }
+  static Status bad_input(std::string message) { return {StatusCode::bad_input, std::move(message)}; }
+  static Status io(std::string message) { return {StatusCode::io, std::move(message)}; }
+  static Status internal(std::string message) { return {StatusCode::internal, std::move(message)}; }
+
+  bool is_ok() const { return code_ == StatusCode::ok; }
+  explicit operator bool() const { return is_ok(); }
+  StatusCode code() const { return code_; }
+  const std::string& message() const { return message_; }
+
+ private:
+  Status(StatusCode code, std::string message) : code_(code), message_(std::move(message)) {}
+  StatusCode code_ = StatusCode::ok;
+  std::string message_;
+};
+
+[[noreturn]] void check_failed(const char* expression, const char* file, int line, const char* message);
+
+}  // namespace nmbake
+
+// Always on, in every build type: an invariant of the program, not of the input.
+#define NMBAKE_CHECK(cond, msg)                                     \
+  do {                                                              \
+    if (!(cond)) ::nmbake::check_failed(#cond, __FILE__, __LINE__, (msg)); \
+  } while (0)
+
+#ifdef NDEBUG
+#define NMBAKE_DCHECK(cond, msg) \
+  do {                           \
+  } while (0)
+#else
+#define NMBAKE_DCHECK(cond, msg) NMBAKE_CHECK(cond, msg)
+#endif
+
+// Propagates a non-ok Status to the caller.
+#define NMBAKE_TRY(expr)                           \
+  do {                                             \
+    ::nmbake::Status nmbake_status_ = (expr);      \
+    if (!nmbake_status_.is_ok()) return nmbake_status_; \
+  } while (0)

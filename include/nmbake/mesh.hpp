@@ -1,0 +1,72 @@
+// The mesh data model: one plain, indexed struct-of-arrays triangle mesh for
+// both the high and the low mesh (DESIGN.md, "Two meshes, two data models").
+//
+// * A vertex is a unique combination of the attributes that were loaded: for
+//   the high mesh that is position (+ normal), never UV, so the high mesh is
+//   never split along UV seams; for the low mesh position + normal + UV.
+// * `positions` of a high mesh are handed to Embree as a shared buffer;
+//   Embree reads 16 bytes for the last float3, so `pad_for_embree()` keeps one
+//   spare element of capacity behind the data.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+
+#include "nmbake/common.hpp"
+
+namespace nmbake {
+
+struct Mesh {
+  std::vector<glm::vec3> positions;
+  std::vector<glm::vec3> normals;  // empty, or one unit normal per vertex
+  std::vector<glm::vec2> uvs;      // empty, or one per vertex (v = 0 at the image bottom)
+  std::vector<std::uint32_t> indices;  // three per triangle, counter-clockwise = front
+
+  std::size_t vertex_count() const { return positions.size(); }
+  std::size_t triangle_count() const { return indices.size() / 3; }
+  bool has_normals() const { return !normals.empty(); }
+  bool has_uvs() const { return !uvs.empty(); }
+};
+
+// Counts of the numerical fallbacks taken while preparing a mesh.
+struct MeshStats {
+  std::uint64_t zero_area_triangles = 0;     // position area ~ 0: contribute no normal weight
+  std::uint64_t zero_length_normals = 0;     // file normal or accumulated normal of length ~0
+  std::uint64_t normals_computed = 0;        // vertices whose normal was computed, not loaded
+};
+
+// Rejects a mesh no later stage can use: NaN/Inf in any attribute, an index
+// out of range, attribute arrays of the wrong size, no triangles. `name` is
+// used in the message (the file path).
+Status validate_mesh(const Mesh& mesh, const std::string& name);
+
+// Area-weighted vertex normals (the cross product of two edges, unnormalised,
+// summed over the triangles around the vertex). A vertex whose sum has zero
+// length (only degenerate triangles around it) gets (0, 0, 1) and is counted.
+void compute_vertex_normals(Mesh& mesh, MeshStats& stats);
+
+// Normalises loaded normals; zero-length ones are replaced by the computed
+// area-weighted normal of the vertex (or (0, 0, 1)) and counted.
+void normalize_normals(Mesh& mesh, MeshStats& stats);
+
+// Normals averaged over all vertices that share a position (bitwise equal
+// coordinates), area-weighted: the direction the default cage is pushed along,
+// so that hard edges (split normals) do not open gaps in the cage.
+std::vector<glm::vec3> averaged_normals(const Mesh& mesh, MeshStats& stats);
+
+// Makes sure Embree may read 4 bytes past the last position (see above).
+void pad_for_embree(Mesh& mesh);
+
+// Axis-aligned bounds of the positions.
+struct Bounds {
+  glm::vec3 min{0.0f};
+  glm::vec3 max{0.0f};
+  float diagonal() const;
+};
+Bounds compute_bounds(const Mesh& mesh);
+
+}  // namespace nmbake

@@ -1,0 +1,46 @@
+// The low mesh flattened for raster, trace and encode: per-corner arrays,
+// three entries per triangle in triangle order (DESIGN.md: "flattened to
+// per-corner arrays (position, normal, uv, tangent)").
+#pragma once
+
+#include <cstddef>
+#include <vector>
+
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
+
+#include "nmbake/mesh.hpp"
+#include "nmbake/tangents.hpp"
+
+namespace nmbake {
+
+struct LowSurface {
+  std::vector<glm::vec3> position;
+  std::vector<glm::vec3> normal;       // unit shading normal
+  std::vector<glm::vec2> uv;
+  std::vector<glm::vec4> tangent;      // MikkTSpace: xyz, sign in w
+  std::vector<glm::vec3> cage_normal;  // unit averaged normal: where the default cage is pushed
+  std::vector<glm::vec3> cage_position;  // explicit cage mesh corners; empty without --cage
+
+  std::size_t triangle_count() const { return position.size() / 3; }
+  bool has_cage_mesh() const { return !cage_position.empty(); }
+};
+
+struct SurfaceStats {
+  MeshStats mesh;
+  TangentStats tangents;
+};
+
+// Builds the per-corner arrays from a low mesh with UVs and unit normals:
+// tangents (MikkTSpace) and averaged cage normals. `cage`, when not null,
+// must have the low mesh's triangle count; its positions are taken corner by
+// corner (checked by check_cage_topology first).
+LowSurface build_low_surface(const Mesh& low, const Mesh* cage, SurfaceStats& stats);
+
+// A cage mesh must have the same triangles as the low mesh: same triangle
+// count and, corner by corner, the same vertex identity pattern (two corners
+// share a low vertex position exactly when they share a cage position).
+Status check_cage_topology(const Mesh& low, const Mesh& cage, const std::string& cage_name);
+
+}  // namespace nmbake

@@ -1,0 +1,40 @@
+// Stage "tangents": MikkTSpace per-corner tangent frames of the low mesh.
+//
+// Implements the algorithm of Morten S. Mikkelsen's reference implementation
+// (mikktspace.c, "Simulation of wrinkled surfaces revisited", 2008) so that a
+// renderer that decodes with MikkTSpace sees exactly the frame we baked in:
+//   1. corners are welded by identical position, normal and UV;
+//   2. per triangle: the UV-gradient directions (vOs, vOt) projected into the
+//      plane of each corner normal, their magnitudes, the UV orientation
+//      (sign of the UV area) and degeneracy flags;
+//   3. per vertex, triangles of the same orientation that are connected
+//      through shared edges form a group; the group tangent is the sum of the
+//      per-triangle tangents projected onto the vertex normal, weighted by the
+//      corner angle, normalised;
+//   4. degenerate triangles (repeated vertex, zero UV area) take the frame of
+//      a corner of an ordinary triangle at the same vertex, or a fixed
+//      fallback.
+// Output: one tangent per corner (three per triangle, in triangle order),
+// xyz unit length and w = +1 or -1; the bitangent is w * cross(N, T).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <glm/vec4.hpp>
+
+#include "nmbake/mesh.hpp"
+
+namespace nmbake {
+
+struct TangentStats {
+  std::uint64_t degenerate_triangles = 0;  // zero position area or repeated vertex
+  std::uint64_t degenerate_uv_triangles = 0;  // zero UV area: no UV gradient
+  std::uint64_t fallback_tangents = 0;  // corners that got a fixed, orthogonal-to-N tangent
+};
+
+// `mesh` must have unit normals and UVs (one per vertex). Writes
+// 3 * triangle_count tangents.
+void compute_tangents(const Mesh& mesh, std::vector<glm::vec4>& corner_tangents, TangentStats& stats);
+
+}  // namespace nmbake

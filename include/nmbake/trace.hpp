@@ -1,0 +1,112 @@
+// Stage "trace": rays from the cage to the high mesh through Embree 3.
+//
+// Where a ray is built: make_ray() below, the one place. For every sample the
+// ray starts on the cage and points at the low surface (DESIGN.md, "Rays"):
+//   * averaged cage (default): origin = P + front * A, direction = -A, where
+//     P is the low surface point and A the normalised, barycentrically
+//     interpolated averaged normal; the ray searches [0, front + back];
+//   * interpolated cage: the same with the low shading normal instead of A
+//     (kept for the method comparison; it opens gaps at hard edges);
+//   * cage mesh: origin = the cage point with the same barycentrics,
+//     direction towards P, searching up to |P - origin| + back.
+// Hit rules: `first` keeps the first hit from the cage; `nearest` keeps the
+// hit nearest to the low surface point P (two rays from P, outwards up to the
+// cage and inwards up to back, the nearer hit wins).
+//
+// Embree's types stay in trace.cpp; HighScene is a move-only handle.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+
+#include "nmbake/common.hpp"
+#include "nmbake/mesh.hpp"
+#include "nmbake/raster.hpp"
+#include "nmbake/surface.hpp"
+
+namespace nmbake {
+
+enum class CageMode : std::uint8_t { averaged, interpolated, mesh };
+enum class HitRule : std::uint8_t { first, nearest };
+enum class BuildQuality : std::uint8_t { low, medium, high };
+
+struct RayOptions {
+  CageMode cage = CageMode::averaged;
+  HitRule hit = HitRule::first;
+  float front = 0.0f;  // scene units, already resolved from % / auto
+  float back = 0.0f;
+  bool ignore_backfaces = false;  // skip hits on high triangles facing along the ray
+};
+
+struct Ray {
+  glm::vec3 origin{0.0f};
+  glm::vec3 direction{0.0f, 0.0f, -1.0f};  // unit
+  float tfar = 0.0f;
+  glm::vec3 surface_point{0.0f};  // P: where the ray crosses the low surface (t = distance to P)
+  float t_surface = 0.0f;
+};
+
+// Builds the ray of one sample on triangle `tri` at barycentrics `b`
+// (weights of corners 1 and 2). Counted fallback: a zero-length interpolated
+// normal uses the triangle's face normal (`used_fallback` set).
+Ray make_ray(const LowSurface& surface, std::int32_t tri, glm::vec2 b, const RayOptions& options,
+             bool& used_fallback);
+
+// An Embree device + scene over a high mesh's shared buffers. The mesh must
+// outlive the scene and must not be modified while the scene exists.
+class HighScene {
+ public:
+  HighScene();
+  ~HighScene();
+  HighScene(HighScene&&) noexcept;
+  HighScene& operator=(HighScene&&) noexcept;
+  HighScene(const HighScene&) = delete;
+  HighScene& operator=(const HighScene&) = delete;
+
+  // Builds the BVH. `mesh` positions must be padded (pad_for_embree).
+  static Status build(const Mesh& mesh, BuildQuality quality, bool backface_filter, HighScene& out);
+
+  struct Impl;
+  Impl* impl() const { return impl_.get(); }
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+// One hit per sample (same indexing as TexelSamples).
+struct Hits {
+  std::vector<std::int32_t> triangle;  // high triangle, -1 = miss or no sample
+  std::vector<glm::vec2> bary;         // Embree's (u, v): weights of corners 1 and 2
+  std::vector<float> distance;         // signed distance from the low surface along the outward normal
+};
+
+struct TraceStats {
+  std::uint64_t rays = 0;    // Embree queries issued
+  std::uint64_t samples = 0;  // samples traced (a `nearest` sample issues two rays)
+  std::uint64_t hits = 0;
+  std::uint64_t misses = 0;
+  std::uint64_t ray_fallbacks = 0;  // zero-length interpolated normal: face normal used
+};
+
+// Traces every sample with triangle >= 0. Parallel over tiles of texels;
+// the result does not depend on the thread count. `progress` (may be empty)
+// is called from the calling thread with the fraction done.
+void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples& samples,
+           const RayOptions& options, Hits& hits, TraceStats& stats);
+
+// Ray distances found by probing: rays from fixed points of every low
+// triangle, outwards and inwards along the averaged normal, find how far the
+// high surface lies outside (front) and inside (back) the low one.
+struct DistanceEstimate {
+  float front = 0.0f;
+  float back = 0.0f;
+  std::uint64_t probes = 0;
+  std::uint64_t probe_misses = 0;  // probe points with no high surface within reach
+};
+DistanceEstimate estimate_distances(const HighScene& scene, const LowSurface& surface, float diagonal);
+
+}  // namespace nmbake

@@ -1,0 +1,38 @@
+// Helpers shared by the tests: temporary folders, running the CLI, small meshes.
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+namespace nmbake::test {
+
+// A fresh, empty folder under the system temp dir, removed by the destructor.
+class TempDir {
+ public:
+  TempDir();
+  ~TempDir();
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  const std::filesystem::path& path() const { return path_; }
+  std::string file(const std::string& name) const { return (path_ / name).string(); }
+
+ private:
+  std::filesystem::path path_;
+};
+
+// Writes `text` to `path` (overwriting).
+void write_text(const std::string& path, const std::string& text);
+
+struct CommandResult {
+  int exit_code = -1;
+  std::string output;  // stdout and stderr together
+};
+// Runs a shell command line, capturing its output.
+CommandResult run_command(const std::string& command_line);
+
+// Paths of the built programs and of the source tree.
+std::string cli_path();
+std::string gen_path();
+std::string source_dir();
+
+}  // namespace nmbake::test
