@@ -1,1 +1,213 @@
-// (in progress)
+// Job files (TOML, through toml++) and the option words shared with the CLI.
+#include "nmbake/job.hpp"
+
+#include <filesystem>
+#include <set>
+#include <sstream>
+
+#include <toml++/toml.h>
+
+namespace nmbake {
+
+bool parse_normal_space(const std::string& t, NormalSpace& out) {
+  if (t == "tangent") out = NormalSpace::tangent;
+  else if (t == "object") out = NormalSpace::object;
+  else return false;
+  return true;
+}
+bool parse_green_channel(const std::string& t, GreenChannel& out) {
+  if (t == "up" || t == "opengl") out = GreenChannel::up;
+  else if (t == "down" || t == "directx") out = GreenChannel::down;
+  else return false;
+  return true;
+}
+bool parse_hit_rule(const std::string& t, HitRule& out) {
+  if (t == "first") out = HitRule::first;
+  else if (t == "nearest") out = HitRule::nearest;
+  else return false;
+  return true;
+}
+bool parse_high_normals(const std::string& t, HighNormals& out) {
+  if (t == "smooth") out = HighNormals::smooth;
+  else if (t == "face") out = HighNormals::face;
+  else return false;
+  return true;
+}
+bool parse_cage_mode(const std::string& t, CageMode& out) {
+  if (t == "averaged") out = CageMode::averaged;
+  else if (t == "interpolated") out = CageMode::interpolated;
+  else return false;
+  return true;
+}
+bool parse_build_quality(const std::string& t, BuildQuality& out) {
+  if (t == "low") out = BuildQuality::low;
+  else if (t == "medium") out = BuildQuality::medium;
+  else if (t == "high") out = BuildQuality::high;
+  else return false;
+  return true;
+}
+bool parse_tangent_encode(const std::string& t, TangentEncode& out) {
+  if (t == "inverse") out = TangentEncode::inverse;
+  else if (t == "transpose") out = TangentEncode::transpose;
+  else return false;
+  return true;
+}
+
+namespace {
+
+std::string where(const std::string& path, const toml::node& node) {
+  const toml::source_region& src = node.source();
+  return path + ":" + std::to_string(src.begin.line);
+}
+
+std::string resolve_path(const std::filesystem::path& folder, const std::string& p) {
+  const std::filesystem::path path(p);
+  return path.is_absolute() ? p : (folder / path).lexically_normal().string();
+}
+
+// Applies one key of [defaults] or [[bake]] to the options.
+Status apply_key(const std::string& file, const std::filesystem::path& folder, const std::string& key,
+                 const toml::node& value, bool in_bake, BakeJob& job) {
+  BakeOptions& o = job.options;
+  auto bad = [&](const std::string& why) { return Status::bad_input(where(file, value) + ": " + key + ": " + why); };
+  auto get_string = [&](std::string& out) -> bool {
+    if (auto s = value.value<std::string>()) {
+      out = *s;
+      return true;
+    }
+    return false;
+  };
+  auto get_int = [&](int& out) -> bool {
+    if (auto i = value.value<std::int64_t>(); i && value.is_integer()) {
+      if (*i < -2147483647 || *i > 2147483647) return false;
+      out = static_cast<int>(*i);
+      return true;
+    }
+    return false;
+  };
+  std::string text;
+  if (key == "size") {
+    int size = 0;
+    if (!get_int(size)) return bad("expected an integer");
+    o.width = o.height = size;
+  } else if (key == "width") {
+    if (!get_int(o.width)) return bad("expected an integer");
+  } else if (key == "height") {
+    if (!get_int(o.height)) return bad("expected an integer");
+  } else if (key == "samples") {
+    if (!get_int(o.samples)) return bad("expected an integer");
+  } else if (key == "padding") {
+    if (!get_int(o.padding)) return bad("expected an integer");
+  } else if (key == "space") {
+    if (!get_string(text) || !parse_normal_space(text, o.space)) return bad("expected \"tangent\" or \"object\"");
+  } else if (key == "green") {
+    if (!get_string(text) || !parse_green_channel(text, o.green)) return bad("expected \"up\" or \"down\"");
+  } else if (key == "hit") {
+    if (!get_string(text) || !parse_hit_rule(text, o.hit)) return bad("expected \"first\" or \"nearest\"");
+  } else if (key == "high_normals") {
+    if (!get_string(text) || !parse_high_normals(text, o.high_normals)) return bad("expected \"smooth\" or \"face\"");
+  } else if (key == "cage_mode") {
+    if (!get_string(text) || !parse_cage_mode(text, o.cage_mode)) return bad("expected \"averaged\" or \"interpolated\"");
+  } else if (key == "build_quality") {
+    if (!get_string(text) || !parse_build_quality(text, o.build_quality)) return bad("expected \"low\", \"medium\" or \"high\"");
+  } else if (key == "ignore_backfaces") {
+    if (auto b = value.value<bool>(); b && value.is_boolean()) o.ignore_backfaces = *b;
+    else return bad("expected true or false");
+  } else if (key == "front" || key == "back") {
+    Distance d;
+    if (value.is_number()) {
+      const double v = *value.value<double>();
+      if (!(v >= 0.0)) return bad("expected a distance >= 0");
+      d.kind = Distance::Kind::absolute;
+      d.value = static_cast<float>(v);
+    } else if (!get_string(text) || !parse_distance(text, d)) {
+      return bad("expected a number, \"N%\" or \"auto\"");
+    }
+    (key == "front" ? o.front : o.back) = d;
+  } else if (key == "cage") {
+    if (!get_string(text)) return bad("expected a path");
+    o.cage_path = resolve_path(folder, text);
+  } else if (in_bake && key == "name") {
+    if (!get_string(job.name)) return bad("expected a string");
+  } else if (in_bake && (key == "low" || key == "high" || key == "report" || key == "debug_dump")) {
+    if (!get_string(text)) return bad("expected a path");
+    const std::string p = resolve_path(folder, text);
+    if (key == "low") o.low_path = p;
+    else if (key == "high") o.high_path = p;
+    else if (key == "report") job.report_path = p;
+    else o.debug_dump_prefix = p;
+  } else if (in_bake && key == "outputs") {
+    const toml::array* list = value.as_array();
+    if (!list) return bad("expected a list of paths or { path = .., format = .. } tables");
+    for (const toml::node& item : *list) {
+      OutputSpec out;
+      std::string path, format;
+      if (auto s = item.value<std::string>()) {
+        path = *s;
+      } else if (const toml::table* t = item.as_table()) {
+        if (auto p = (*t)["path"].value<std::string>()) path = *p;
+        if (auto f = (*t)["format"].value<std::string>()) format = *f;
+      }
+      if (path.empty()) return Status::bad_input(where(file, item) + ": outputs: each output needs a path");
+      out.path = resolve_path(folder, path);
+      const bool ok = format.empty() ? pixel_format_from_path(out.path, out.format) : parse_pixel_format(format, out.format);
+      if (!ok) {
+        return Status::bad_input(where(file, item) + ": outputs: " +
+                                 (format.empty() ? "unknown image extension of " + path + " (use .png, .tif, .tiff, .exr)"
+                                                 : "unknown format \"" + format + "\" (png8, png16, tiff16, exr-half, exr-float)"));
+      }
+      o.outputs.push_back(out);
+    }
+  } else {
+    return Status::bad_input(where(file, value) + ": unknown key \"" + key + "\"" +
+                             (in_bake ? std::string() : std::string(" in [defaults]")));
+  }
+  return Status::ok();
+}
+
+}  // namespace
+
+Status load_job_file(const std::string& path, std::vector<BakeJob>& jobs) {
+  jobs.clear();
+  toml::table root;
+  try {
+    root = toml::parse_file(path);
+  } catch (const toml::parse_error& e) {
+    const auto& src = e.source();
+    std::string message(e.description());
+    if (src.begin.line == 0) return Status::bad_input(path + ": cannot read the job file: " + message);
+    return Status::bad_input(path + ":" + std::to_string(src.begin.line) + ": " + message);
+  }
+  const std::filesystem::path folder = std::filesystem::path(path).parent_path();
+
+  BakeJob defaults;
+  for (const auto& [key, value] : root) {
+    const std::string k(key.str());
+    if (k != "defaults" && k != "bake") {
+      return Status::bad_input(where(path, value) + ": unknown top-level key \"" + k + "\" (expected [defaults] and [[bake]])");
+    }
+  }
+  if (const toml::node_view d = root["defaults"]) {
+    const toml::table* table = d.as_table();
+    if (!table) return Status::bad_input(path + ": [defaults] must be a table");
+    for (const auto& [key, value] : *table) NMBAKE_TRY(apply_key(path, folder, std::string(key.str()), value, false, defaults));
+  }
+  const toml::array* bakes = root["bake"].as_array();
+  if (!bakes || bakes->empty()) return Status::bad_input(path + ": no [[bake]] entries");
+  int index = 0;
+  for (const toml::node& node : *bakes) {
+    ++index;
+    const toml::table* table = node.as_table();
+    if (!table) return Status::bad_input(where(path, node) + ": each [[bake]] must be a table");
+    BakeJob job = defaults;
+    job.name = "bake " + std::to_string(index);
+    for (const auto& [key, value] : *table) NMBAKE_TRY(apply_key(path, folder, std::string(key.str()), value, true, job));
+    if (job.options.low_path.empty() || job.options.high_path.empty() || job.options.outputs.empty()) {
+      return Status::bad_input(where(path, node) + ": [[bake]] \"" + job.name + "\" needs low, high and outputs");
+    }
+    jobs.push_back(std::move(job));
+  }
+  return Status::ok();
+}
+
+}  // namespace nmbake

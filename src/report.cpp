@@ -1,1 +1,92 @@
-// (in progress)
+// The bake report: every counter of every stage, as JSON and as one line.
+#include <cstdio>
+
+#include <nlohmann/json.hpp>
+
+#include "nmbake/bake.hpp"
+
+namespace nmbake {
+
+double BakeReport::miss_rate() const {
+  return trace.samples > 0 ? static_cast<double>(trace.misses) / static_cast<double>(trace.samples) : 0.0;
+}
+
+double BakeReport::coverage() const {
+  const double texels = static_cast<double>(width) * static_cast<double>(height);
+  return texels > 0.0 ? static_cast<double>(raster.covered_texels) / texels : 0.0;
+}
+
+std::string BakeReport::to_json() const {
+  using nlohmann::ordered_json;
+  ordered_json j;
+  j["low"] = low_path;
+  j["high"] = high_path;
+  j["cage"] = cage_path;
+  j["outputs"] = outputs;
+  j["width"] = width;
+  j["height"] = height;
+  j["samples_per_texel"] = samples;
+  j["threads"] = threads;
+  j["low_triangles"] = low_triangles;
+  j["high_triangles"] = high_triangles;
+  j["high_vertices"] = high_vertices;
+  j["distances"] = {{"front", front},
+                    {"back", back},
+                    {"estimated", distances_estimated},
+                    {"low_bbox_diagonal", low_diagonal},
+                    {"probes", estimate_probes},
+                    {"probe_misses", estimate_probe_misses}};
+  j["coverage"] = {{"covered_texels", raster.covered_texels}, {"fraction", coverage()}};
+  j["rays"] = {{"samples_traced", trace.samples},
+               {"rays", trace.rays},
+               {"hits", trace.hits},
+               {"misses", trace.misses},
+               {"miss_rate", miss_rate()}};
+  j["fallbacks"] = {
+      {"low_zero_area_triangles", low_mesh.zero_area_triangles},
+      {"low_zero_length_normals", low_mesh.zero_length_normals},
+      {"low_normals_computed", low_mesh.normals_computed},
+      {"high_zero_area_triangles", high_mesh.zero_area_triangles},
+      {"high_zero_length_normals", high_mesh.zero_length_normals},
+      {"high_normals_computed", high_mesh.normals_computed},
+      {"tangent_degenerate_triangles", tangents.degenerate_triangles},
+      {"tangent_degenerate_uv_triangles", tangents.degenerate_uv_triangles},
+      {"tangent_fallbacks", tangents.fallback_tangents},
+      {"raster_degenerate_uv_triangles", raster.degenerate_uv_triangles},
+      {"raster_border_samples", raster.border_samples},
+      {"raster_overlapping_samples", raster.overlapping_samples},
+      {"ray_fallbacks", trace.ray_fallbacks},
+      {"encode_singular_frames", encode.singular_frames},
+      {"encode_zero_high_normals", encode.zero_high_normals},
+      {"encode_zero_results", encode.zero_results},
+      {"dilate_filled_texels", dilate.filled_texels},
+      {"load_skipped_faces", low_load.degenerate_faces + high_load.degenerate_faces},
+  };
+  ordered_json stage_json = ordered_json::object();
+  for (const StageTime& s : stages) stage_json[s.name] = s.seconds;
+  j["seconds"] = stage_json;
+  j["total_seconds"] = total_seconds;
+  const double trace_seconds = [&] {
+    for (const StageTime& s : stages)
+      if (s.name == "trace") return s.seconds;
+    return 0.0;
+  }();
+  j["rays_per_second"] = trace_seconds > 0.0 ? static_cast<double>(trace.rays) / trace_seconds : 0.0;
+  j["peak_rss_bytes"] = peak_rss_bytes;
+  j["input_bytes"] = {{"low", low_load.bytes}, {"high", high_load.bytes}};
+  return j.dump(2) + "\n";
+}
+
+std::string BakeReport::summary_line() const {
+  char line[512];
+  std::snprintf(line, sizeof line,
+                "baked %dx%d x%d spp: %.1f%% texels covered, %llu rays, %llu misses (%.3f%%), "
+                "front %.4g back %.4g%s, %.2f s, peak %.0f MiB",
+                width, height, samples, 100.0 * coverage(), static_cast<unsigned long long>(trace.rays),
+                static_cast<unsigned long long>(trace.misses), 100.0 * miss_rate(), front, back,
+                distances_estimated ? " (auto)" : "", total_seconds,
+                static_cast<double>(peak_rss_bytes) / (1024.0 * 1024.0));
+  return line;
+}
+
+}  // namespace nmbake

@@ -17,6 +17,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -96,7 +97,8 @@ struct TraceStats {
 // the result does not depend on the thread count. `progress` (may be empty)
 // is called from the calling thread with the fraction done.
 void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples& samples,
-           const RayOptions& options, Hits& hits, TraceStats& stats);
+           const RayOptions& options, Hits& hits, TraceStats& stats,
+           const std::function<void(double)>& progress = {});
 
 // Ray distances found by probing: rays from fixed points of every low
 // triangle, outwards and inwards along the averaged normal, find how far the

@@ -1,1 +1,44 @@
-int main() { return 0; }
+// nmbake: the command-line front end. Argument parsing lives here and in the
+// command files; the library only ever sees option structs.
+#include <cstdio>
+#include <exception>
+#include <memory>
+
+#include <CLI/CLI.hpp>
+#include <tbb/global_control.h>
+
+#include "commands.hpp"
+
+int main(int argc, char** argv) {
+  using namespace nmbake::cli;
+  CLI::App app{"nmbake: bakes the detail of a high-poly mesh into a normal map of a low-poly mesh"};
+  app.set_version_flag("--version", "nmbake 0.1.0");
+  app.require_subcommand(1);
+  app.fallthrough();  // --threads, -q, -v also after the subcommand
+  app.get_formatter()->column_width(36);
+  GlobalOptions global;
+  app.add_option("--threads", global.threads, "worker threads, 0 = all cores")->default_val(0)->check(CLI::Range(0, 1024));
+  app.add_flag("-q,--quiet", global.quiet, "print nothing but errors");
+  app.add_flag("-v,--verbose", global.verbose, "print the stage times");
+
+  const Runner bake = add_bake_command(app, global);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    return code == 0 ? kSuccess : kBadInput;
+  }
+  try {
+    std::unique_ptr<tbb::global_control> limit;
+    if (global.threads > 0) {
+      limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                    static_cast<std::size_t>(global.threads));
+    }
+    if (app.got_subcommand("bake")) return bake();
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "nmbake: internal error: %s\n", e.what());
+    return kInternal;
+  }
+  return kBadInput;
+}

@@ -1,0 +1,46 @@
+// Job files: several bakes described in TOML (schema in README.md, example in
+// scenes/moon.toml). Paths in a job file are relative to the job file's folder.
+//
+//   [defaults]                  # optional, applies to every [[bake]]
+//   size = 2048                 # or width = .. / height = ..
+//   samples = 4
+//   [[bake]]
+//   name = "moon"
+//   low = "generated/moon_low.obj"
+//   high = "generated/moon_high.ply"
+//   outputs = ["out/moon_normal.png", { path = "out/moon_normal.exr", format = "exr-half" }]
+//   report = "out/moon_report.json"
+//
+// Keys of [defaults] and [[bake]]: size, width, height, samples, space,
+// green, front, back, hit, cage_mode, ignore_backfaces, high_normals, padding,
+// build_quality, cage; [[bake]] alone: name, low, high, outputs, report,
+// debug_dump. Unknown keys are errors (a typo must not silently bake with a
+// default).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "nmbake/bake.hpp"
+
+namespace nmbake {
+
+struct BakeJob {
+  std::string name;
+  BakeOptions options;
+  std::string report_path;  // empty: no JSON report
+};
+
+Status load_job_file(const std::string& path, std::vector<BakeJob>& jobs);
+
+// Option values as text, shared by the CLI and job files. Each returns false
+// for an unknown word.
+bool parse_normal_space(const std::string& text, NormalSpace& out);   // tangent | object
+bool parse_green_channel(const std::string& text, GreenChannel& out);  // up | down (also opengl | directx)
+bool parse_hit_rule(const std::string& text, HitRule& out);            // first | nearest
+bool parse_high_normals(const std::string& text, HighNormals& out);    // smooth | face
+bool parse_cage_mode(const std::string& text, CageMode& out);          // averaged | interpolated
+bool parse_build_quality(const std::string& text, BuildQuality& out);  // low | medium | high
+bool parse_tangent_encode(const std::string& text, TangentEncode& out);  // inverse | transpose
+
+}  // namespace nmbake
