@@ -22,6 +22,7 @@ int main(int argc, char** argv) {
   app.add_flag("-v,--verbose", global.verbose, "print the stage times");
 
   const Runner bake = add_bake_command(app, global);
+  const Runner preview = add_preview_command(app, global);
 
   try {
     app.parse(argc, argv);
@@ -36,6 +37,7 @@ int main(int argc, char** argv) {
                                                     static_cast<std::size_t>(global.threads));
     }
     if (app.got_subcommand("bake")) return bake();
+    if (app.got_subcommand("preview")) return preview();
   } catch (const std::exception& e) {
     std::fprintf(stderr, "nmbake: internal error: %s\n", e.what());
     return kInternal;

@@ -1,0 +1,298 @@
+// End-to-end bakes of analytic scenes, scored against the true normal, plus
+// determinism and the bad-input contract of the CLI.
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <iterator>
+
+#include <gtest/gtest.h>
+#include <glm/geometric.hpp>
+#include <tbb/global_control.h>
+
+#include "nmbake/bake.hpp"
+#include "scenes.hpp"
+#include "test_util.hpp"
+
+namespace nmbake {
+namespace {
+
+float angle_degrees(const glm::vec3& a, const glm::vec3& b) {
+  const float c = glm::dot(glm::normalize(a), glm::normalize(b));
+  return glm::degrees(std::acos(std::clamp(c, -1.0f, 1.0f)));
+}
+
+struct ErrorStats {
+  double mean = 0.0, p99 = 0.0, max = 0.0;
+  std::size_t count = 0, non_finite = 0;
+};
+
+ErrorStats summarize(std::vector<float> errors, std::size_t non_finite) {
+  ErrorStats s;
+  s.count = errors.size();
+  s.non_finite = non_finite;
+  if (errors.empty()) return s;
+  double sum = 0.0;
+  for (float e : errors) sum += e;
+  s.mean = sum / static_cast<double>(errors.size());
+  std::sort(errors.begin(), errors.end());
+  s.p99 = errors[std::min(errors.size() - 1, static_cast<std::size_t>(0.99 * static_cast<double>(errors.size())))];
+  s.max = errors.back();
+  return s;
+}
+
+std::size_t count_non_finite(const Image& image) {
+  return static_cast<std::size_t>(
+      std::count_if(image.pixels.begin(), image.pixels.end(), [](float v) { return !std::isfinite(v); }));
+}
+
+glm::vec3 decode_texel(const Image& image, int x, int y) {
+  const float* p = image.at(x, y);
+  return glm::vec3(2.0f * p[0] - 1.0f, 2.0f * p[1] - 1.0f, 2.0f * p[2] - 1.0f);
+}
+
+std::string read_bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// Heightfield over a plane: flat low grid, so the tangent frame is the
+// identity and the map must hold normalize(-dh/dx, -dh/dy, 1) directly.
+TEST(EndToEnd, HeightfieldMatchesAnalyticNormals) {
+  test::TempDir dir;
+  scenes::HeightfieldParams params;
+  params.high_cells = 384;
+  const scenes::ScenePair scene = scenes::make_heightfield(params);
+  ASSERT_TRUE(save_mesh(dir.file("low.obj"), scene.low).is_ok());
+  ASSERT_TRUE(save_mesh(dir.file("high.ply"), scene.high).is_ok());
+
+  BakeOptions o;
+  o.low_path = dir.file("low.obj");
+  o.high_path = dir.file("high.ply");
+  o.outputs = {{dir.file("map.exr"), PixelFormat::exr_float}};
+  o.width = o.height = 256;
+  o.samples = 4;
+  BakeReport report;
+  const Status s = bake(o, report);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  EXPECT_EQ(report.trace.misses, 0u);
+  EXPECT_DOUBLE_EQ(report.coverage(), 1.0);
+
+  Image map;
+  ASSERT_TRUE(read_image(dir.file("map.exr"), map).is_ok());
+  const std::vector<glm::vec2> offsets = sample_offsets(o.samples);
+  std::vector<float> errors;
+  for (int y = 0; y < map.height; ++y) {
+    for (int x = 0; x < map.width; ++x) {
+      glm::vec3 expected(0.0f);
+      for (const glm::vec2& off : offsets) {
+        const float u = (static_cast<float>(x) + off.x) / static_cast<float>(map.width);
+        const float v = 1.0f - (static_cast<float>(y) + off.y) / static_cast<float>(map.height);
+        expected += scenes::heightfield_normal(params, u * params.size, v * params.size);
+      }
+      errors.push_back(angle_degrees(decode_texel(map, x, y), expected));
+    }
+  }
+  const ErrorStats e = summarize(errors, count_non_finite(map));
+  std::printf("heightfield 256^2 x4: mean %.4f p99 %.4f max %.4f deg\n", e.mean, e.p99, e.max);
+  EXPECT_EQ(e.non_finite, 0u);
+  EXPECT_LT(e.mean, 0.1);
+  EXPECT_LT(e.p99, 1.0);
+}
+
+// Displaced sphere: a curved low mesh, so this checks the MikkTSpace frame,
+// the exact-inverse encode and the averaged cage together. The truth: the
+// analytic surface intersected along the bake's own ray, its analytic normal
+// expressed through the same frame.
+TEST(EndToEnd, DisplacedSphereMatchesAnalyticNormals) {
+  test::TempDir dir;
+  scenes::SphereParams params;
+  params.high_cells = 192;
+  const scenes::ScenePair scene = scenes::make_displaced_sphere(params);
+  ASSERT_TRUE(save_mesh(dir.file("low.obj"), scene.low).is_ok());
+  ASSERT_TRUE(save_mesh(dir.file("high.ply"), scene.high).is_ok());
+
+  BakeOptions o;
+  o.low_path = dir.file("low.obj");
+  o.high_path = dir.file("high.ply");
+  o.outputs = {{dir.file("map.exr"), PixelFormat::exr_float}};
+  o.width = o.height = 256;
+  o.samples = 1;
+  o.padding = 0;
+  BakeReport report;
+  const Status s = bake(o, report);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  EXPECT_EQ(report.trace.misses, 0u);
+
+  // Re-create the bake's samples and rays.
+  Mesh low;
+  LoadStats load_stats;
+  ASSERT_TRUE(load_mesh(dir.file("low.obj"), LoadOptions{}, low, load_stats).is_ok());
+  MeshStats mesh_stats;
+  normalize_normals(low, mesh_stats);
+  SurfaceStats surface_stats;
+  const LowSurface surface = build_low_surface(low, nullptr, surface_stats);
+  TexelSamples samples;
+  RasterStats raster_stats;
+  rasterize(surface, o.width, o.height, o.samples, samples, raster_stats);
+  RayOptions rays;
+  rays.front = report.front;
+  rays.back = report.back;
+
+  Image map;
+  ASSERT_TRUE(read_image(dir.file("map.exr"), map).is_ok());
+  std::vector<float> errors;
+  for (int y = 0; y < map.height; ++y) {
+    for (int x = 0; x < map.width; ++x) {
+      const std::size_t texel = static_cast<std::size_t>(y) * map.width + x;
+      if (!samples.coverage[texel]) continue;
+      const std::int32_t tri = samples.triangle[texel];
+      ASSERT_GE(tri, 0);
+      const glm::vec2 b = samples.bary[texel];
+      bool fallback = false;
+      const Ray ray = make_ray(surface, tri, b, rays, fallback);
+      // Bisection on g(t) = |p| - r(p / |p|): positive outside the surface.
+      auto g = [&](float t) {
+        const glm::vec3 p = ray.origin + t * ray.direction;
+        return glm::length(p) - scenes::sphere_radius(params, glm::normalize(p));
+      };
+      float lo = 0.0f, hi = ray.tfar;
+      ASSERT_GT(g(lo), 0.0f);
+      ASSERT_LT(g(hi), 0.0f);
+      for (int i = 0; i < 60; ++i) {
+        const float mid = 0.5f * (lo + hi);
+        (g(mid) > 0.0f ? lo : hi) = mid;
+      }
+      const glm::vec3 hit = ray.origin + 0.5f * (lo + hi) * ray.direction;
+      const glm::vec3 truth = scenes::sphere_normal(params, glm::normalize(hit));
+      const std::size_t base = 3 * static_cast<std::size_t>(tri);
+      const auto lerp = [&](const auto& c) { return c[base] * (1.0f - b.x - b.y) + c[base + 1] * b.x + c[base + 2] * b.y; };
+      const glm::vec4 tw = lerp(surface.tangent);
+      const glm::vec3 decoded = tangent_to_world(decode_texel(map, x, y), glm::vec3(tw), lerp(surface.normal), tw.w < 0.0f ? -1.0f : 1.0f);
+      errors.push_back(angle_degrees(decoded, truth));
+    }
+  }
+  const ErrorStats e = summarize(errors, count_non_finite(map));
+  std::printf("displaced sphere 256^2 x1: %zu texels, mean %.4f p99 %.4f max %.4f deg\n", e.count, e.mean, e.p99, e.max);
+  EXPECT_GT(e.count, 256u * 256u / 2u);
+  EXPECT_EQ(e.non_finite, 0u);
+  EXPECT_LT(e.mean, 0.1);
+  EXPECT_LT(e.p99, 1.0);
+}
+
+class CliBake : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    scenes::HeightfieldParams params;
+    params.high_cells = 64;
+    const scenes::ScenePair scene = scenes::make_heightfield(params);
+    ASSERT_TRUE(save_mesh(dir.file("low.obj"), scene.low).is_ok());
+    ASSERT_TRUE(save_mesh(dir.file("high.obj"), scene.high).is_ok());
+  }
+  test::CommandResult bake(const std::string& args) {
+    return test::run_command(test::cli_path() + " bake " + args);
+  }
+  std::string low() const { return dir.file("low.obj"); }
+  std::string high() const { return dir.file("high.obj"); }
+  test::TempDir dir;
+};
+
+TEST_F(CliBake, SameBytesWithOneAndTwoThreads) {
+  const std::string common = " --low " + low() + " --high " + high() + " --size 128 --samples 4 -q";
+  const auto a = bake(common + " --threads 1 -o " + dir.file("a.png") + " -o " + dir.file("a.exr"));
+  const auto b = bake(common + " --threads 2 -o " + dir.file("b.png") + " -o " + dir.file("b.exr"));
+  ASSERT_EQ(a.exit_code, 0) << a.output;
+  ASSERT_EQ(b.exit_code, 0) << b.output;
+  EXPECT_EQ(read_bytes(dir.file("a.png")), read_bytes(dir.file("b.png")));
+  EXPECT_EQ(read_bytes(dir.file("a.exr")), read_bytes(dir.file("b.exr")));
+  EXPECT_GT(read_bytes(dir.file("a.png")).size(), 1000u);
+}
+
+TEST_F(CliBake, PngAndExrAgreeTo16Bits) {
+  const auto r = bake("--low " + low() + " --high " + high() + " --size 64 -q -o " + dir.file("m.png") + " -o " +
+                      dir.file("m.exr") + " --report " + dir.file("r.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  Image png, exr;
+  ASSERT_TRUE(read_image(dir.file("m.png"), png).is_ok());
+  ASSERT_TRUE(read_image(dir.file("m.exr"), exr).is_ok());
+  ASSERT_EQ(png.pixels.size(), exr.pixels.size());
+  float worst = 0.0f;
+  for (std::size_t i = 0; i < png.pixels.size(); ++i) worst = std::max(worst, std::fabs(png.pixels[i] - exr.pixels[i]));
+  EXPECT_LE(worst, 0.5f / 65535.0f + 1e-7f);
+  EXPECT_EQ(count_non_finite(exr), 0u);
+  const std::string json = read_bytes(dir.file("r.json"));
+  for (const char* key : {"\"misses\"", "\"rays\"", "\"seconds\"", "\"peak_rss_bytes\"", "\"tangent_fallbacks\""}) {
+    EXPECT_NE(json.find(key), std::string::npos) << key;
+  }
+}
+
+TEST_F(CliBake, JobFileBakesEveryEntry) {
+  test::write_text(dir.file("job.toml"), "[defaults]\nsize = 32\nsamples = 1\n"
+                                         "[[bake]]\nlow = \"low.obj\"\nhigh = \"high.obj\"\noutputs = [\"j1.png\"]\n"
+                                         "[[bake]]\nlow = \"low.obj\"\nhigh = \"high.obj\"\noutputs = [\"j2.exr\"]\n"
+                                         "space = \"object\"\nreport = \"j2.json\"\n");
+  const auto r = bake(dir.file("job.toml"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(std::filesystem::exists(dir.file("j1.png")));
+  EXPECT_TRUE(std::filesystem::exists(dir.file("j2.exr")));
+  EXPECT_TRUE(std::filesystem::exists(dir.file("j2.json")));
+}
+
+TEST_F(CliBake, EverythingMissedWarnsAndGateFails) {
+  Mesh far;
+  LoadStats ls;
+  ASSERT_TRUE(load_mesh(high(), LoadOptions{}, far, ls).is_ok());
+  for (glm::vec3& p : far.positions) p.z += 10.0f;
+  ASSERT_TRUE(save_mesh(dir.file("far.obj"), far).is_ok());
+  const auto r = bake("--low " + low() + " --high " + dir.file("far.obj") +
+                      " --size 32 --front 0.1 --back 0.1 --max-miss-rate 0.5 -o " + dir.file("m.png"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("every ray missed"), std::string::npos) << r.output;
+  Image map;
+  ASSERT_TRUE(read_image(dir.file("m.png"), map).is_ok());  // a flat map: every texel (0, 0, 1)
+  EXPECT_NEAR(map.at(10, 10)[2], 1.0f, 1e-4f);
+}
+
+// Bad input: exit code 2, a message naming the file and the reason, no map.
+TEST_F(CliBake, BadInputsExitTwoAndWriteNothing) {
+  test::write_text(dir.file("truncated.obj"), "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2/");
+  test::write_text(dir.file("range.obj"), "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 7/1\n");
+  test::write_text(dir.file("nan.obj"), "v 0 0 0\nv nan 0 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 3/1\n");
+  test::write_text(dir.file("nouv.obj"), "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n");
+  struct Case {
+    std::string args, must_mention;
+  };
+  const std::string out = " -o " + dir.file("out.png");
+  const std::vector<Case> cases = {
+      {"--low " + dir.file("missing.obj") + " --high " + high() + out, "missing.obj"},
+      {"--low " + dir.file("truncated.obj") + " --high " + high() + out, "truncated.obj"},
+      {"--low " + dir.file("range.obj") + " --high " + high() + out, "range.obj"},
+      {"--low " + dir.file("nan.obj") + " --high " + high() + out, "nan.obj"},
+      {"--low " + low() + " --high " + dir.file("nan.obj") + out, "nan.obj"},
+      {"--low " + dir.file("nouv.obj") + " --high " + high() + out, "UV"},
+      {"--low " + low() + " --high " + high() + " --size 0" + out, "size"},
+      {"--low " + low() + " --high " + high() + " --samples 3" + out, "samples"},
+      {"--low " + low() + " --high " + high() + " --front -1" + out, "front"},
+      {"--low " + low() + " --high " + high() + " -o " + dir.file("no/such/folder/m.png"), "folder"},
+      {"--low " + low() + " --high " + high() + " -o " + dir.file("m.bmp"), "extension"},
+      {"--low " + low() + " --high " + high() + " --cage " + dir.file("truncated.obj") + out, "truncated.obj"},
+  };
+  for (const Case& c : cases) {
+    const auto r = bake(c.args);
+    EXPECT_EQ(r.exit_code, 2) << c.args << "\n" << r.output;
+    EXPECT_NE(r.output.find(c.must_mention), std::string::npos) << c.args << "\n" << r.output;
+    EXPECT_FALSE(std::filesystem::exists(dir.file("out.png"))) << c.args;
+  }
+  for (const auto& entry : std::filesystem::directory_iterator(dir.path())) {
+    EXPECT_EQ(entry.path().filename().string().find("tmp"), std::string::npos) << entry.path();
+  }
+}
+
+TEST_F(CliBake, CageMeshWithOtherTopologyIsRejected) {
+  test::write_text(dir.file("cage.obj"), "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n");
+  const auto r = bake("--low " + low() + " --high " + high() + " --cage " + dir.file("cage.obj") + " -o " + dir.file("m.png"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("topology"), std::string::npos) << r.output;
+}
+
+}  // namespace
+}  // namespace nmbake

@@ -1,0 +1,189 @@
+#include <cmath>
+
+#include <gtest/gtest.h>
+#include <glm/geometric.hpp>
+
+#include "nmbake/trace.hpp"
+
+namespace nmbake {
+namespace {
+
+// A low quad [0,1]^2 at z = 0 (two triangles, normal +z) as a LowSurface.
+LowSurface low_quad() {
+  LowSurface s;
+  const glm::vec3 p[4] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+  for (int c : {0, 1, 2, 0, 2, 3}) {
+    s.position.push_back(p[c]);
+    s.uv.push_back({p[c].x, p[c].y});
+    s.normal.push_back({0, 0, 1});
+    s.cage_normal.push_back({0, 0, 1});
+    s.tangent.push_back({1, 0, 0, 1});
+  }
+  return s;
+}
+
+// Adds a square [-1,2]^2 at height z, facing +z (or -z when flipped).
+void add_layer(Mesh& m, float z, bool flipped) {
+  const auto base = static_cast<std::uint32_t>(m.positions.size());
+  m.positions.insert(m.positions.end(), {{-1, -1, z}, {2, -1, z}, {2, 2, z}, {-1, 2, z}});
+  if (flipped) {
+    m.indices.insert(m.indices.end(), {base, base + 2, base + 1, base, base + 3, base + 2});
+  } else {
+    m.indices.insert(m.indices.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
+  }
+}
+
+TexelSamples samples_at(const std::vector<glm::vec2>& uv) {
+  TexelSamples t;
+  t.width = static_cast<int>(uv.size());
+  t.height = 1;
+  t.samples = 1;
+  for (const glm::vec2& p : uv) {
+    // On triangle 0 (corners (0,0), (1,0), (1,1)): p = b1 (1,0) + b2 (1,1).
+    t.triangle.push_back(0);
+    t.bary.push_back({p.x - p.y, p.y});
+  }
+  t.coverage.assign(uv.size(), 1);
+  return t;
+}
+
+TEST(Trace, MakeRayFollowsTheAveragedCage) {
+  const LowSurface s = low_quad();
+  RayOptions o;
+  o.front = 0.5f;
+  o.back = 0.25f;
+  bool fallback = true;
+  const Ray r = make_ray(s, 0, {0.25f, 0.25f}, o, fallback);
+  EXPECT_FALSE(fallback);
+  EXPECT_NEAR(r.surface_point.x, 0.5f, 1e-6f);
+  EXPECT_NEAR(r.surface_point.y, 0.25f, 1e-6f);
+  EXPECT_NEAR(r.origin.z, 0.5f, 1e-6f);
+  EXPECT_NEAR(r.direction.z, -1.0f, 1e-6f);
+  EXPECT_NEAR(r.tfar, 0.75f, 1e-6f);
+}
+
+TEST(Trace, ZeroNormalUsesFaceNormal) {
+  LowSurface s = low_quad();
+  s.cage_normal.assign(6, glm::vec3(0.0f));
+  RayOptions o;
+  o.front = 1.0f;
+  bool fallback = false;
+  const Ray r = make_ray(s, 0, {0.3f, 0.3f}, o, fallback);
+  EXPECT_TRUE(fallback);
+  EXPECT_NEAR(r.direction.z, -1.0f, 1e-6f);
+}
+
+TEST(Trace, FirstAndNearestHits) {
+  const LowSurface s = low_quad();
+  Mesh high;
+  add_layer(high, 0.4f, false);    // far outside: first from the cage
+  add_layer(high, -0.05f, false);  // just inside: nearest to the low surface
+  pad_for_embree(high);
+  HighScene scene;
+  ASSERT_TRUE(HighScene::build(high, BuildQuality::medium, false, scene).is_ok());
+  const TexelSamples t = samples_at({{0.5f, 0.25f}, {0.9f, 0.1f}});
+  RayOptions o;
+  o.front = 0.5f;
+  o.back = 0.1f;
+
+  Hits hits;
+  TraceStats stats;
+  trace(scene, s, t, o, hits, stats);
+  EXPECT_EQ(stats.hits, 2u);
+  EXPECT_EQ(stats.misses, 0u);
+  EXPECT_EQ(hits.triangle[0] / 2, 0);  // layer 0
+  EXPECT_NEAR(hits.distance[0], 0.4f, 1e-5f);
+
+  o.hit = HitRule::nearest;
+  Hits nearest;
+  TraceStats nstats;
+  trace(scene, s, t, o, nearest, nstats);
+  EXPECT_EQ(nstats.rays, 4u);  // two per sample
+  EXPECT_EQ(nearest.triangle[0] / 2, 1);
+  EXPECT_NEAR(nearest.distance[0], -0.05f, 1e-5f);
+  EXPECT_NEAR(nearest.distance[1], -0.05f, 1e-5f);
+}
+
+TEST(Trace, MissesAreCountedAndMarked) {
+  const LowSurface s = low_quad();
+  Mesh high;
+  add_layer(high, 2.0f, false);  // out of reach
+  pad_for_embree(high);
+  HighScene scene;
+  ASSERT_TRUE(HighScene::build(high, BuildQuality::low, false, scene).is_ok());
+  TexelSamples t = samples_at({{0.5f, 0.25f}, {0.5f, 0.25f}});
+  t.triangle[1] = -1;  // an empty sample: not traced at all
+  RayOptions o;
+  o.front = 0.5f;
+  o.back = 0.5f;
+  Hits hits;
+  TraceStats stats;
+  trace(scene, s, t, o, hits, stats);
+  EXPECT_EQ(stats.samples, 1u);
+  EXPECT_EQ(stats.misses, 1u);
+  EXPECT_EQ(hits.triangle[0], -1);
+  EXPECT_EQ(hits.triangle[1], -1);
+}
+
+TEST(Trace, IgnoreBackfacesSkipsFlippedLayer) {
+  const LowSurface s = low_quad();
+  Mesh high;
+  add_layer(high, 0.3f, true);   // faces -z: seen from the cage it is a back face
+  add_layer(high, 0.1f, false);
+  pad_for_embree(high);
+  RayOptions o;
+  o.front = 0.5f;
+  o.back = 0.1f;
+  const TexelSamples t = samples_at({{0.5f, 0.25f}});
+  for (bool ignore : {false, true}) {
+    HighScene scene;
+    ASSERT_TRUE(HighScene::build(high, BuildQuality::medium, ignore, scene).is_ok());
+    Hits hits;
+    TraceStats stats;
+    trace(scene, s, t, o, hits, stats);
+    ASSERT_GE(hits.triangle[0], 0);
+    EXPECT_EQ(hits.triangle[0] / 2, ignore ? 1 : 0);
+  }
+}
+
+TEST(Trace, CageMeshRaysStartOnTheCage) {
+  LowSurface s = low_quad();
+  for (const glm::vec3& p : s.position) s.cage_position.push_back(p + glm::vec3(0.0f, 0.0f, 0.3f));
+  Mesh high;
+  add_layer(high, 0.2f, false);
+  add_layer(high, 0.5f, false);  // above the cage: never seen
+  pad_for_embree(high);
+  HighScene scene;
+  ASSERT_TRUE(HighScene::build(high, BuildQuality::medium, false, scene).is_ok());
+  RayOptions o;
+  o.cage = CageMode::mesh;
+  o.back = 0.1f;
+  const TexelSamples t = samples_at({{0.5f, 0.25f}});
+  Hits hits;
+  TraceStats stats;
+  trace(scene, s, t, o, hits, stats);
+  ASSERT_GE(hits.triangle[0], 0);
+  EXPECT_EQ(hits.triangle[0] / 2, 0);
+  EXPECT_NEAR(hits.distance[0], 0.2f, 1e-5f);
+}
+
+TEST(Trace, EstimatedDistancesCoverTheOffset) {
+  const LowSurface s = low_quad();
+  Mesh high;
+  // A high surface 0.03 above the low one over x < 0.5 and 0.05 below over x >= 0.5.
+  high.positions = {{-1, -1, 0.03f}, {0.5f, -1, 0.03f}, {0.5f, 2, 0.03f}, {-1, 2, 0.03f},
+                    {0.5f, -1, -0.05f}, {2, -1, -0.05f}, {2, 2, -0.05f}, {0.5f, 2, -0.05f}};
+  high.indices = {0, 1, 2, 0, 2, 3, 4, 5, 6, 4, 6, 7};
+  pad_for_embree(high);
+  HighScene scene;
+  ASSERT_TRUE(HighScene::build(high, BuildQuality::medium, false, scene).is_ok());
+  const DistanceEstimate e = estimate_distances(scene, s, std::sqrt(2.0f));
+  EXPECT_GT(e.probes, 1000u);
+  EXPECT_GE(e.front, 0.03f);
+  EXPECT_LT(e.front, 0.1f);
+  EXPECT_GE(e.back, 0.05f);
+  EXPECT_LT(e.back, 0.12f);
+}
+
+}  // namespace
+}  // namespace nmbake
