@@ -1,1 +1,241 @@
-// (in progress)
+// Mesh utilities: validation, bounds, and vertex normals weighted by triangle
+// area (the unnormalised face normal, i.e. twice the area times the unit
+// normal, summed per vertex: the "area" weighting compared by N. Max,
+// "Weights for Computing Vertex Normals from Facet Normals", JGT 4(2), 1999).
+//
+// Area-weighted sums depend on how polygons were triangulated (a quad corner
+// on the diagonal gets twice the weight of one off it); angle weighting
+// (Thürmer & Wüthrich 1998) would not. The contract asks for area weighting.
+#include "nmbake/mesh.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <numeric>
+#include <string>
+
+#include <glm/common.hpp>
+#include <glm/geometric.hpp>
+
+namespace nmbake {
+namespace {
+
+// A triangle whose doubled area is below this fraction of its longest edge
+// squared is a sliver or a point: float rounding already decides the direction
+// of its cross product, so it gets no weight.
+constexpr float kDegenerateAreaRatio = 1e-7f;
+
+// Scales to unit length without overflow or underflow in the squares; false
+// when the vector is zero or not finite.
+bool normalize_safe(glm::vec3& n) {
+  const float largest = std::max({std::fabs(n.x), std::fabs(n.y), std::fabs(n.z)});
+  if (!(largest > 0.0f) || !std::isfinite(largest)) return false;
+  const glm::vec3 scaled = n / largest;
+  n = scaled / glm::length(scaled);
+  return true;
+}
+
+// Power of two that brings the largest |coordinate| to about 1: edge cross
+// products can neither overflow nor underflow float, and scaling by it is
+// exact, so results do not depend on where the mesh sits in float range.
+float exact_unit_scale(const Mesh& mesh) {
+  float largest = 0.0f;
+  for (const glm::vec3& p : mesh.positions) largest = std::max({largest, std::fabs(p.x), std::fabs(p.y), std::fabs(p.z)});
+  if (!(largest > 0.0f) || !std::isfinite(largest)) return 1.0f;
+  int exponent = 0;
+  std::frexp(largest, &exponent);
+  return std::ldexp(1.0f, -exponent);
+}
+
+// Per vertex: the sum of the (scaled) cross products of the triangles around
+// it. Sequential, so the sums are the same on every run.
+std::vector<glm::vec3> area_weighted_sums(const Mesh& mesh, MeshStats& stats) {
+  std::vector<glm::vec3> sums(mesh.vertex_count(), glm::vec3(0.0f));
+  const float scale = exact_unit_scale(mesh);
+  for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
+    const std::uint32_t a = mesh.indices[3 * t];
+    const std::uint32_t b = mesh.indices[3 * t + 1];
+    const std::uint32_t c = mesh.indices[3 * t + 2];
+    const glm::vec3 pa = mesh.positions[a] * scale;
+    const glm::vec3 ab = mesh.positions[b] * scale - pa;
+    const glm::vec3 ac = mesh.positions[c] * scale - pa;
+    const glm::vec3 bc = ac - ab;
+    const glm::vec3 cross = glm::cross(ab, ac);
+    const float longest_squared = std::max({glm::dot(ab, ab), glm::dot(ac, ac), glm::dot(bc, bc)});
+    if (glm::length(cross) <= kDegenerateAreaRatio * longest_squared) {
+      ++stats.zero_area_triangles;
+      continue;
+    }
+    sums[a] += cross;
+    sums[b] += cross;
+    sums[c] += cross;
+  }
+  return sums;
+}
+
+const glm::vec3 kFallbackNormal(0.0f, 0.0f, 1.0f);
+
+std::string vec_text(const float* v, int n) {
+  std::string text = "(";
+  for (int i = 0; i < n; ++i) {
+    if (i > 0) text += ", ";
+    text += std::to_string(v[i]);
+  }
+  return text + ")";
+}
+
+bool finite3(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+
+}  // namespace
+
+Status validate_mesh(const Mesh& mesh, const std::string& name) {
+  const std::size_t vertex_count = mesh.vertex_count();
+  if (mesh.indices.size() % 3 != 0) {
+    return Status::bad_input(name + ": index count " + std::to_string(mesh.indices.size()) +
+                             " is not a multiple of 3");
+  }
+  if (mesh.indices.empty()) return Status::bad_input(name + ": no triangles");
+  if (vertex_count > 0xffffffffu) return Status::bad_input(name + ": too many vertices");
+  if (!mesh.normals.empty() && mesh.normals.size() != vertex_count) {
+    return Status::bad_input(name + ": " + std::to_string(mesh.normals.size()) + " normals for " +
+                             std::to_string(vertex_count) + " vertices");
+  }
+  if (!mesh.uvs.empty() && mesh.uvs.size() != vertex_count) {
+    return Status::bad_input(name + ": " + std::to_string(mesh.uvs.size()) + " UVs for " +
+                             std::to_string(vertex_count) + " vertices");
+  }
+  for (std::size_t i = 0; i < vertex_count; ++i) {
+    if (!finite3(mesh.positions[i])) {
+      return Status::bad_input(name + ": vertex " + std::to_string(i) + " has a non-finite position " +
+                               vec_text(&mesh.positions[i].x, 3));
+    }
+  }
+  for (std::size_t i = 0; i < mesh.normals.size(); ++i) {
+    if (!finite3(mesh.normals[i])) {
+      return Status::bad_input(name + ": vertex " + std::to_string(i) + " has a non-finite normal " +
+                               vec_text(&mesh.normals[i].x, 3));
+    }
+  }
+  for (std::size_t i = 0; i < mesh.uvs.size(); ++i) {
+    if (!std::isfinite(mesh.uvs[i].x) || !std::isfinite(mesh.uvs[i].y)) {
+      return Status::bad_input(name + ": vertex " + std::to_string(i) + " has a non-finite UV " +
+                               vec_text(&mesh.uvs[i].x, 2));
+    }
+  }
+  for (std::size_t i = 0; i < mesh.indices.size(); ++i) {
+    if (mesh.indices[i] >= vertex_count) {
+      return Status::bad_input(name + ": triangle " + std::to_string(i / 3) + " refers to vertex " +
+                               std::to_string(mesh.indices[i]) + " of " + std::to_string(vertex_count));
+    }
+  }
+  return Status::ok();
+}
+
+void compute_vertex_normals(Mesh& mesh, MeshStats& stats) {
+  std::vector<glm::vec3> sums = area_weighted_sums(mesh, stats);
+  for (glm::vec3& n : sums) {
+    if (!normalize_safe(n)) {
+      n = kFallbackNormal;
+      ++stats.zero_length_normals;
+    }
+  }
+  stats.normals_computed += sums.size();
+  mesh.normals = std::move(sums);
+}
+
+void normalize_normals(Mesh& mesh, MeshStats& stats) {
+  if (!mesh.has_normals()) {
+    // Nothing was loaded: every normal has to be computed.
+    compute_vertex_normals(mesh, stats);
+    return;
+  }
+  std::vector<std::size_t> broken;
+  for (std::size_t i = 0; i < mesh.normals.size(); ++i) {
+    if (!normalize_safe(mesh.normals[i])) broken.push_back(i);
+  }
+  if (broken.empty()) return;
+  const std::vector<glm::vec3> sums = area_weighted_sums(mesh, stats);
+  for (const std::size_t i : broken) {
+    ++stats.zero_length_normals;
+    glm::vec3 n = sums[i];
+    if (normalize_safe(n)) {
+      ++stats.normals_computed;
+      mesh.normals[i] = n;
+    } else {
+      mesh.normals[i] = kFallbackNormal;
+    }
+  }
+}
+
+std::vector<glm::vec3> averaged_normals(const Mesh& mesh, MeshStats& stats) {
+  const std::vector<glm::vec3> sums = area_weighted_sums(mesh, stats);
+  const std::size_t vertex_count = mesh.vertex_count();
+
+  // Group by the bit pattern of the position; adding +0 first turns -0 into
+  // +0, which are the same point. Index breaks ties, so the order is total
+  // and the sums below are added in the same order on every run.
+  auto key = [&](std::uint32_t i) {
+    std::array<std::uint32_t, 3> bits{};
+    for (int axis = 0; axis < 3; ++axis) {
+      const float coordinate = mesh.positions[i][axis] + 0.0f;
+      std::memcpy(&bits[static_cast<std::size_t>(axis)], &coordinate, sizeof(float));
+    }
+    return bits;
+  };
+  std::vector<std::uint32_t> order(vertex_count);
+  std::iota(order.begin(), order.end(), 0u);
+  std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+    const auto ka = key(a);
+    const auto kb = key(b);
+    return ka != kb ? ka < kb : a < b;
+  });
+
+  std::vector<glm::vec3> averaged(vertex_count, kFallbackNormal);
+  std::size_t group_begin = 0;
+  while (group_begin < vertex_count) {
+    std::size_t group_end = group_begin + 1;
+    const auto group_key = key(order[group_begin]);
+    while (group_end < vertex_count && key(order[group_end]) == group_key) ++group_end;
+    glm::vec3 total(0.0f);
+    for (std::size_t k = group_begin; k < group_end; ++k) total += sums[order[k]];
+    if (normalize_safe(total)) {
+      for (std::size_t k = group_begin; k < group_end; ++k) averaged[order[k]] = total;
+    } else {
+      // The faces around the point cancel (e.g. the two sides of a sheet):
+      // each vertex keeps its own normal, or (0, 0, 1).
+      for (std::size_t k = group_begin; k < group_end; ++k) {
+        const std::uint32_t i = order[k];
+        ++stats.zero_length_normals;
+        glm::vec3 own = mesh.has_normals() ? mesh.normals[i] : sums[i];
+        if (!normalize_safe(own)) {
+          own = sums[i];
+          if (!normalize_safe(own)) own = kFallbackNormal;
+        }
+        averaged[i] = own;
+      }
+    }
+    group_begin = group_end;
+  }
+  return averaged;
+}
+
+void pad_for_embree(Mesh& mesh) { mesh.positions.reserve(mesh.positions.size() + 1); }
+
+float Bounds::diagonal() const {
+  const glm::dvec3 extent = glm::dvec3(max) - glm::dvec3(min);
+  return static_cast<float>(std::sqrt(glm::dot(extent, extent)));
+}
+
+Bounds compute_bounds(const Mesh& mesh) {
+  Bounds bounds;
+  if (mesh.positions.empty()) return bounds;
+  bounds.min = bounds.max = mesh.positions.front();
+  for (const glm::vec3& p : mesh.positions) {
+    bounds.min = glm::min(bounds.min, p);
+    bounds.max = glm::max(bounds.max, p);
+  }
+  return bounds;
+}
+
+}  // namespace nmbake

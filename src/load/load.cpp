@@ -1,1 +1,251 @@
-// (in progress)
+// Stage "load": picks the parser by extension, streams the file through one
+// reusable buffer, then drops unreferenced vertices and validates the mesh.
+#include "nmbake/load.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <cerrno>
+#include <cstring>
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "load/parsers.hpp"
+
+namespace nmbake {
+namespace load_detail {
+
+namespace {
+// Large enough that read(2) calls are rare, small enough to stay in L2/L3-ish
+// territory and fault in once.
+constexpr std::size_t kBufferBytes = std::size_t{4} << 20;
+}  // namespace
+
+FileReader::~FileReader() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+Status FileReader::open(const std::string& path) {
+  path_ = path;
+  fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd_ < 0) return Status::bad_input(path + ": cannot open: " + std::strerror(errno));
+  struct stat info {};
+  if (::fstat(fd_, &info) != 0) return Status::bad_input(path + ": cannot open: " + std::strerror(errno));
+  if (S_ISDIR(info.st_mode)) return Status::bad_input(path + ": cannot open: " + std::strerror(EISDIR));
+  file_size_ = static_cast<std::uint64_t>(info.st_size);
+#ifdef POSIX_FADV_SEQUENTIAL
+  (void)::posix_fadvise(fd_, 0, 0, POSIX_FADV_SEQUENTIAL);
+#endif
+  buffer_.resize(kBufferBytes);
+  data_ = buffer_.data();
+  return Status::ok();
+}
+
+bool FileReader::fill(std::size_t count) {
+  if (eof_) return false;
+  // Keep the unread tail, move it to the front, and read behind it.
+  const std::size_t kept = end_ - pos_;
+  if (pos_ > 0) {
+    std::memmove(data_, data_ + pos_, kept);
+    buffer_offset_ += pos_;
+    pos_ = 0;
+    end_ = kept;
+  }
+  if (count > buffer_.size()) {
+    buffer_.resize(std::max(count, buffer_.size() * 2));
+    data_ = buffer_.data();
+  }
+  while (end_ < count || end_ < buffer_.size()) {
+    const ssize_t got = ::read(fd_, data_ + end_, buffer_.size() - end_);
+    if (got < 0) {
+      if (errno == EINTR) continue;
+      read_status_ = Status::io(path_ + ": read failed: " + std::strerror(errno));
+      eof_ = true;
+      break;
+    }
+    if (got == 0) {
+      eof_ = true;
+      break;
+    }
+    end_ += static_cast<std::size_t>(got);
+    if (end_ >= count) break;  // enough for the caller; do not block on more
+  }
+  return end_ - pos_ >= count;
+}
+
+bool FileReader::skip(std::uint64_t count) {
+  while (count > 0) {
+    if (end_ == pos_ && !fill(1)) return false;
+    const std::uint64_t step = std::min<std::uint64_t>(count, end_ - pos_);
+    pos_ += static_cast<std::size_t>(step);
+    count -= step;
+  }
+  return true;
+}
+
+bool FileReader::next_line_slow(std::string_view& line) {
+  // No newline in the buffered bytes: read more until one appears or the file
+  // ends; a line longer than the buffer grows it.
+  for (;;) {
+    const std::size_t scanned = end_ - pos_;
+    if (eof_) break;
+    fill(scanned + 1);
+    const char* newline = static_cast<const char*>(std::memchr(data_ + pos_ + scanned, '\n', end_ - pos_ - scanned));
+    if (newline != nullptr) return next_line(line);
+  }
+  if (pos_ == end_) return false;
+  // The last line has no newline.
+  line = std::string_view(data_ + pos_, end_ - pos_);
+  pos_ = end_;
+  ++line_number_;
+  if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+  return true;
+}
+
+namespace {
+
+const char* skip_plus(const char* first, const char* last) {
+  // from_chars rejects a leading '+', which some exporters write.
+  if (last - first > 1 && *first == '+' && first[1] != '-' && first[1] != '+') return first + 1;
+  return first;
+}
+
+bool mentions_negative_exponent(const char* first, const char* last) {
+  for (const char* p = first; p + 1 < last; ++p) {
+    if ((*p == 'e' || *p == 'E') && p[1] == '-') return true;
+  }
+  return false;
+}
+
+template <typename Real>
+NumberError parse_real(const char* first, const char* last, Real& value) {
+  first = skip_plus(first, last);
+  Real parsed = 0;
+  const auto [end, error] = std::from_chars(first, last, parsed);
+  if (error == std::errc::invalid_argument || end != last) return NumberError::syntax;
+  if (error == std::errc::result_out_of_range) {
+    // libstdc++ reports underflow as out of range too; a coordinate of 1e-50 is
+    // a zero, not a broken file.
+    if (!mentions_negative_exponent(first, last)) return NumberError::overflow;
+    value = *first == '-' ? -Real(0) : Real(0);
+    long double wide = 0;
+    const auto [wide_end, wide_error] = std::from_chars(first, last, wide);
+    if (wide_error == std::errc{} && wide_end == last) value = static_cast<Real>(wide);
+    return NumberError::none;
+  }
+  if (!std::isfinite(parsed)) return NumberError::non_finite;
+  value = parsed;
+  return NumberError::none;
+}
+
+}  // namespace
+
+NumberError parse_float(const char* first, const char* last, float& value) {
+  return parse_real(first, last, value);
+}
+
+NumberError parse_double(const char* first, const char* last, double& value) {
+  return parse_real(first, last, value);
+}
+
+NumberError parse_int(const char* first, const char* last, std::int64_t& value) {
+  first = skip_plus(first, last);
+  const auto [end, error] = std::from_chars(first, last, value);
+  if (error == std::errc::result_out_of_range) return NumberError::overflow;
+  if (error != std::errc{} || end != last) return NumberError::syntax;
+  return NumberError::none;
+}
+
+std::string number_error_text(NumberError error, std::string_view token) {
+  // Appended piecewise: GCC 12 warns falsely (-Wrestrict) on "'" + string.
+  std::string quoted(1, '\'');
+  quoted.append(token.substr(0, 64));
+  quoted.push_back('\'');
+  switch (error) {
+    case NumberError::none:
+      break;
+    case NumberError::syntax:
+      return token.empty() ? std::string("missing number") : "bad number " + quoted;
+    case NumberError::overflow:
+      return "number out of range " + quoted;
+    case NumberError::non_finite:
+      return "non-finite number " + quoted + " (NaN or Inf)";
+  }
+  return "bad number " + quoted;
+}
+
+Status text_error(const std::string& path, std::uint64_t line, const std::string& reason) {
+  return Status::bad_input(path + ":" + std::to_string(line) + ": " + reason);
+}
+
+Status binary_error(const std::string& path, std::uint64_t offset, const std::string& reason) {
+  return Status::bad_input(path + ": byte " + std::to_string(offset) + ": " + reason);
+}
+
+void drop_unreferenced_vertices(Mesh& mesh) {
+  const std::size_t vertex_count = mesh.positions.size();
+  constexpr std::uint32_t kUnused = 0xffffffffu;
+  std::vector<std::uint32_t> remap(vertex_count, kUnused);
+  for (const std::uint32_t index : mesh.indices) remap[index] = 0;
+  std::uint32_t kept_count = 0;
+  for (std::uint32_t& slot : remap) {
+    if (slot != kUnused) slot = kept_count++;
+  }
+  if (kept_count == vertex_count) return;
+  // Compact in place: a kept vertex only ever moves to a lower slot.
+  for (std::size_t old_index = 0; old_index < vertex_count; ++old_index) {
+    const std::uint32_t new_index = remap[old_index];
+    if (new_index == kUnused) continue;
+    mesh.positions[new_index] = mesh.positions[old_index];
+    if (mesh.has_normals()) mesh.normals[new_index] = mesh.normals[old_index];
+    if (mesh.has_uvs()) mesh.uvs[new_index] = mesh.uvs[old_index];
+  }
+  mesh.positions.resize(kept_count);
+  if (mesh.has_normals()) mesh.normals.resize(kept_count);
+  if (mesh.has_uvs()) mesh.uvs.resize(kept_count);
+  for (std::uint32_t& index : mesh.indices) index = remap[index];
+}
+
+}  // namespace load_detail
+
+namespace {
+
+std::string lower_extension(const std::string& path) {
+  const std::size_t slash = path.find_last_of('/');
+  const std::size_t dot = path.find_last_of('.');
+  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return {};
+  std::string extension = path.substr(dot);
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return extension;
+}
+
+}  // namespace
+
+Status load_mesh(const std::string& path, const LoadOptions& options, Mesh& out, LoadStats& stats) {
+  out = Mesh{};
+  stats = LoadStats{};
+  const std::string extension = lower_extension(path);
+  if (extension != ".obj" && extension != ".ply") {
+    return Status::bad_input(path + ": unknown mesh format '" + extension + "' (expected .obj or .ply)");
+  }
+  load_detail::FileReader reader;
+  NMBAKE_TRY(reader.open(path));
+  stats.bytes = reader.file_size();
+  Status status = extension == ".obj" ? load_detail::load_obj(path, reader, options, out, stats)
+                                      : load_detail::load_ply(path, reader, options, out, stats);
+  if (!reader.read_status().is_ok()) status = reader.read_status();
+  if (!status.is_ok()) {
+    out = Mesh{};
+    return status;
+  }
+  load_detail::drop_unreferenced_vertices(out);
+  stats.triangles = out.triangle_count();
+  status = validate_mesh(out, path);
+  if (!status.is_ok()) out = Mesh{};
+  return status;
+}
+
+}  // namespace nmbake

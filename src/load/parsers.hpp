@@ -1,0 +1,123 @@
+// Private to the load stage: the chunked file reader shared by the OBJ and PLY
+// parsers, the error-message helpers, and the per-format entry points.
+//
+// The reader keeps one fixed buffer (grown only for a line longer than it) and
+// refills it with read(2): a multi-gigabyte high mesh is streamed, not mapped
+// or slurped, so memory stays at the size of the mesh arrays and the buffer's
+// pages fault in once.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "nmbake/common.hpp"
+#include "nmbake/load.hpp"
+#include "nmbake/mesh.hpp"
+
+namespace nmbake::load_detail {
+
+class FileReader {
+ public:
+  FileReader() = default;
+  ~FileReader();
+  FileReader(const FileReader&) = delete;
+  FileReader& operator=(const FileReader&) = delete;
+
+  // bad_input "PATH: cannot open: REASON" when the file cannot be opened.
+  Status open(const std::string& path);
+  std::uint64_t file_size() const { return file_size_; }
+
+  // Text: the next line without its "\n" or "\r\n"; false at the end of the
+  // file (or after a read error, see read_status()). line_number() is the
+  // 1-based number of the line last returned.
+  bool next_line(std::string_view& line) {
+    const char* newline = static_cast<const char*>(std::memchr(data_ + pos_, '\n', end_ - pos_));
+    if (newline == nullptr) return next_line_slow(line);
+    const std::size_t length = static_cast<std::size_t>(newline - (data_ + pos_));
+    line = std::string_view(data_ + pos_, length);
+    pos_ += length + 1;
+    ++line_number_;
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    return true;
+  }
+  std::uint64_t line_number() const { return line_number_; }
+
+  // Binary: a pointer to the next `count` bytes (valid until the next call),
+  // consumed; nullptr when the file ends first (or on a read error).
+  const char* take(std::size_t count) {
+    if (end_ - pos_ < count && !fill(count)) return nullptr;
+    const char* bytes = data_ + pos_;
+    pos_ += count;
+    return bytes;
+  }
+  // Binary: consumes `count` bytes without keeping them; false when the file
+  // ends first.
+  bool skip(std::uint64_t count);
+  // Absolute file offset of the next unread byte.
+  std::uint64_t offset() const { return buffer_offset_ + pos_; }
+
+  // ok, or io "PATH: read failed: REASON" if read(2) failed.
+  const Status& read_status() const { return read_status_; }
+
+ private:
+  bool next_line_slow(std::string_view& line);
+  // Makes at least `count` bytes available after pos_; false at end of file.
+  bool fill(std::size_t count);
+
+  std::string path_;
+  int fd_ = -1;
+  std::uint64_t file_size_ = 0;
+  std::vector<char> buffer_;
+  char* data_ = nullptr;
+  std::size_t pos_ = 0;
+  std::size_t end_ = 0;
+  std::uint64_t buffer_offset_ = 0;  // file offset of buffer_[0]
+  std::uint64_t line_number_ = 0;
+  bool eof_ = false;
+  Status read_status_;
+};
+
+// ---- token helpers shared by the text parsers ----
+
+inline bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
+inline const char* skip_blanks(const char* p, const char* end) {
+  while (p < end && is_blank(*p)) ++p;
+  return p;
+}
+inline const char* skip_token(const char* p, const char* end) {
+  while (p < end && !is_blank(*p)) ++p;
+  return p;
+}
+
+enum class NumberError : std::uint8_t { none, syntax, overflow, non_finite };
+
+// Parses all of [first, last) as a number (a leading '+' is accepted; for
+// reals an underflow becomes a signed zero, an overflow or "inf"/"nan" an
+// error, so no NaN/Inf enters a mesh).
+NumberError parse_float(const char* first, const char* last, float& value);
+NumberError parse_double(const char* first, const char* last, double& value);
+NumberError parse_int(const char* first, const char* last, std::int64_t& value);
+// "bad number 'TOKEN'" and friends, for error messages.
+std::string number_error_text(NumberError error, std::string_view token);
+
+// "PATH:LINE: reason"
+Status text_error(const std::string& path, std::uint64_t line, const std::string& reason);
+// "PATH: byte OFFSET: reason"
+Status binary_error(const std::string& path, std::uint64_t offset, const std::string& reason);
+
+// Removes vertices that no triangle references, keeping the order of the
+// others and remapping the indices. Indices must already be in range.
+void drop_unreferenced_vertices(Mesh& mesh);
+
+// Fill `out` from the opened file; stats.bytes is set by the caller. They do
+// not call validate_mesh() or drop_unreferenced_vertices(): load_mesh does.
+Status load_obj(const std::string& path, FileReader& reader, const LoadOptions& options, Mesh& out,
+                LoadStats& stats);
+Status load_ply(const std::string& path, FileReader& reader, const LoadOptions& options, Mesh& out,
+                LoadStats& stats);
+
+}  // namespace nmbake::load_detail
