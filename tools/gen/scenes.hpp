@@ -8,8 +8,10 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 
 #include <glm/vec3.hpp>
+#include <glm/ext/vector_double3.hpp>
 
 #include "nmbake/mesh.hpp"
 
@@ -59,6 +61,18 @@ ScenePair make_displaced_sphere(const SphereParams& p);
 // Cube sphere with a given radius function (used by the sphere and the moon).
 // UVs: face f occupies cell (f % 3, f / 3) of a 3 x 2 grid, inset by
 // `uv_gutter` (in UV units) on every side. `with_uvs` false: no UVs.
+//
+// Faces in order +X, -X, +Y, -Y, +Z, -Z; on each, u grows with s and v with t
+// and cross(dP/ds, dP/dt) points outward, so charts are not mirrored and the
+// winding is counter-clockwise seen from outside. Cube points come from an
+// integer lattice shared by all faces, so seam vertices of neighbouring faces
+// have bitwise-identical positions. With UVs every face has its own vertices
+// (split along the seams); without UVs the seam vertices are shared, giving a
+// closed manifold (what area-weighted normals need). Normals are the unit
+// directions d (exact for a constant radius). `radius_of_direction` is called
+// in parallel and must be pure; its result only depends on d, so the mesh is
+// the same whatever the thread count. Requires 1 <= cells_per_face <= 8192 and
+// 0 <= uv_gutter < 1/6.
 Mesh make_cube_sphere(int cells_per_face, const std::function<float(const glm::vec3&)>& radius_of_direction,
                       bool with_uvs, float uv_gutter);
 
@@ -69,6 +83,12 @@ Mesh make_cube_sphere(int cells_per_face, const std::function<float(const glm::v
 // fractal terrain. High: cube sphere with high_cells per face (408 gives
 // ~2.0M triangles), area-weighted normals computed from the mesh. Low: the
 // plain sphere with low_cells per face, one UV chart per face.
+// The moon's radius always stays within radius * (1 +- moon_relief_limit):
+// crater and terrain heights are summed and then softly limited (tanh).
+inline constexpr float moon_relief_limit = 0.02f;
+// UV gutter of the low meshes of the sphere and the moon (UV units per side).
+inline constexpr float sphere_uv_gutter = 0.01f;
+
 struct MoonParams {
   float radius = 1.0f;
   int low_cells = 16;
@@ -77,5 +97,23 @@ struct MoonParams {
   std::uint32_t seed = 1;
 };
 ScenePair make_moon(const MoonParams& p);
+
+// The moon's radius function (what make_moon samples at the high vertices),
+// for tests and tools that need the surface between vertices. Building it
+// places the craters; radius() is pure and thread-safe.
+class MoonSurface {
+ public:
+  explicit MoonSurface(const MoonParams& p);
+  ~MoonSurface();
+  MoonSurface(const MoonSurface&) = delete;
+  MoonSurface& operator=(const MoonSurface&) = delete;
+  float radius(const glm::vec3& direction) const;  // any non-zero direction
+  // Relative height (radius / p.radius - 1) before rounding to float.
+  double relative_height(const glm::dvec3& unit_direction) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 }  // namespace nmbake::scenes
