@@ -1,1 +1,404 @@
-// (in progress)
+// Stage "raster": the low mesh's UV triangles into texel samples.
+//
+// Algorithms:
+//   * coverage: the separating axis theorem (Gottschalk, Lin & Manocha,
+//     "OBBTree", SIGGRAPH 1996) between a texel square and a triangle, in 2D:
+//     the two box axes (the clamped bounding box) and the three edge normals,
+//     as in Akenine-Moller, "Fast 3D Triangle-Box Overlap Testing" (JGT 2001)
+//     reduced to the plane. Touching is separation: only a nonzero overlap
+//     area covers a texel.
+//   * inside tests and barycentrics: edge functions (Pineda, "A Parallel
+//     Algorithm for Polygon Rasterization", SIGGRAPH 1988). Each edge is
+//     evaluated from a canonical endpoint order (lexicographically smaller
+//     endpoint first), so two triangles sharing an edge compute exactly
+//     opposite values and a sample on the shared edge is never lost.
+//   * border samples: the closest point on the triangle (Ericson, "Real-Time
+//     Collision Detection", 5.1.5), which for an outside point lies on one of
+//     the three edge segments.
+//   * sample patterns: rotated-grid supersampling for 4 samples and, for 16
+//     and 64, the canonical arrangement of multi-jittered sampling (Chiu,
+//     Shirley & Wang, "Multi-Jittered Sampling", Graphics Gems IV, 1994)
+//     without its random shuffle; see sample_offsets().
+//
+// Everything runs in pixel space (px = u * W, py = (1 - v) * H) and in double
+// precision: at 16384^2 a float keeps only ~1/1000 texel.
+#include "nmbake/raster.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <limits>
+
+#include <glm/vec2.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include "nmbake/common.hpp"
+
+namespace nmbake {
+
+namespace {
+
+// 32x32 texels: at 64 samples the per-thread scratch (9 bytes per sample) is
+// ~0.6 MB and stays in L2.
+constexpr int tile_size = 32;
+
+// A sample counts as strictly inside when every normalised edge function
+// (its barycentric weight) exceeds this; far above double rounding noise
+// (~1e-13 for any map size), far below any real overlap.
+constexpr double strict_epsilon = 1e-7;
+
+// A triangle whose height is below this fraction of its longest edge is a
+// degenerate (collinear) UV triangle. A sliver 0.01 texel thick and 16384
+// texels long has a ratio of 6e-7 and is still rasterized.
+constexpr double degenerate_epsilon = 1e-10;
+
+// UVs beyond this many pixels from the image are treated as unusable (counted
+// with the degenerate triangles): edge functions could overflow.
+constexpr double max_pixel_coordinate = 1e12;
+
+struct EdgeFunction {
+  glm::dvec2 lo{0.0};
+  glm::dvec2 hi{0.0};
+  double sign = 1.0;  // so that the interior of the triangle is positive
+
+  double operator()(glm::dvec2 p) const {
+    return sign * ((hi.x - lo.x) * (p.y - lo.y) - (hi.y - lo.y) * (p.x - lo.x));
+  }
+  // Components of the gradient, with the sign applied.
+  double dx() const { return -sign * (hi.y - lo.y); }
+  double dy() const { return sign * (hi.x - lo.x); }
+};
+
+struct SetupTriangle {
+  glm::dvec2 corner[3];
+  EdgeFunction edge[3];    // edge[i] is opposite corner i: the unnormalised weight of corner i
+  double extent[3] = {};   // edge[i] at corner i (twice the area, up to rounding)
+  double strict_threshold = 0.0;
+  int x0 = 0, y0 = 0, x1 = -1, y1 = -1;  // inclusive texel bounding box, clamped to the image
+};
+
+EdgeFunction make_edge(glm::dvec2 a, glm::dvec2 b, glm::dvec2 opposite) {
+  EdgeFunction e;
+  const bool a_first = a.x < b.x || (a.x == b.x && a.y < b.y);
+  e.lo = a_first ? a : b;
+  e.hi = a_first ? b : a;
+  e.sign = 1.0;
+  e.sign = e(opposite) < 0.0 ? -1.0 : 1.0;
+  return e;
+}
+
+// Builds the pixel-space triangle; false when it is degenerate (zero or
+// near-zero UV area, non-finite or absurd coordinates).
+bool setup_triangle(const glm::vec2* uv, int width, int height, SetupTriangle& t) {
+  for (int i = 0; i < 3; ++i) {
+    const double px = static_cast<double>(uv[i].x) * width;
+    const double py = (1.0 - static_cast<double>(uv[i].y)) * height;
+    if (!std::isfinite(px) || !std::isfinite(py) || std::abs(px) > max_pixel_coordinate ||
+        std::abs(py) > max_pixel_coordinate) {
+      return false;
+    }
+    t.corner[i] = {px, py};
+  }
+  double longest2 = 0.0;
+  for (int i = 0; i < 3; ++i) {
+    const glm::dvec2 a = t.corner[(i + 1) % 3];
+    const glm::dvec2 b = t.corner[(i + 2) % 3];
+    const glm::dvec2 d = b - a;
+    longest2 = std::max(longest2, d.x * d.x + d.y * d.y);
+    t.edge[i] = make_edge(a, b, t.corner[i]);
+    t.extent[i] = t.edge[i](t.corner[i]);
+  }
+  const double smallest = std::min({t.extent[0], t.extent[1], t.extent[2]});
+  if (!(smallest > degenerate_epsilon * longest2)) return false;
+  const double area2 = (t.extent[0] + t.extent[1] + t.extent[2]) / 3.0;
+  t.strict_threshold = strict_epsilon * area2;
+
+  double min_x = t.corner[0].x, max_x = min_x, min_y = t.corner[0].y, max_y = min_y;
+  for (int i = 1; i < 3; ++i) {
+    min_x = std::min(min_x, t.corner[i].x);
+    max_x = std::max(max_x, t.corner[i].x);
+    min_y = std::min(min_y, t.corner[i].y);
+    max_y = std::max(max_y, t.corner[i].y);
+  }
+  // Texel x spans [x, x + 1]: a positive overlap needs x < max_x and x + 1 > min_x.
+  t.x0 = static_cast<int>(std::clamp(std::floor(min_x), 0.0, static_cast<double>(width)));
+  t.x1 = static_cast<int>(std::clamp(std::ceil(max_x) - 1.0, -1.0, static_cast<double>(width - 1)));
+  t.y0 = static_cast<int>(std::clamp(std::floor(min_y), 0.0, static_cast<double>(height)));
+  t.y1 = static_cast<int>(std::clamp(std::ceil(max_y) - 1.0, -1.0, static_cast<double>(height - 1)));
+  return true;
+}
+
+// Edge-normal axes of the separating axis test for the box [x, x + size] x
+// [y, y + size]; the box axes are handled by the bounding box. On each edge
+// axis the triangle projects to [0, extent].
+bool box_overlaps(const SetupTriangle& t, double x, double y, double size) {
+  for (int i = 0; i < 3; ++i) {
+    const EdgeFunction& e = t.edge[i];
+    const bool gx = e.dx() > 0.0;
+    const bool gy = e.dy() > 0.0;
+    const double highest = e({gx ? x + size : x, gy ? y + size : y});
+    if (highest <= 0.0) return false;
+    const double lowest = e({gx ? x : x + size, gy ? y : y + size});
+    if (lowest >= t.extent[i]) return false;
+  }
+  return true;
+}
+
+// Nearest point of the triangle to p (p outside it): squared distance and the
+// weights of corners 1 and 2. Edges in order 0, 1, 2; a later edge wins only
+// when strictly nearer.
+double nearest_point(const SetupTriangle& t, glm::dvec2 p, glm::vec2& bary) {
+  double best = std::numeric_limits<double>::infinity();
+  double weight[3] = {1.0, 0.0, 0.0};
+  for (int i = 0; i < 3; ++i) {
+    const int ia = (i + 1) % 3;
+    const int ib = (i + 2) % 3;
+    const glm::dvec2 a = t.corner[ia];
+    const glm::dvec2 d = t.corner[ib] - a;
+    const glm::dvec2 ap = p - a;
+    const double s = std::clamp((ap.x * d.x + ap.y * d.y) / (d.x * d.x + d.y * d.y), 0.0, 1.0);
+    const glm::dvec2 q = a + s * d - p;
+    const double dist2 = q.x * q.x + q.y * q.y;
+    if (dist2 < best) {
+      best = dist2;
+      weight[i] = 0.0;
+      weight[ia] = 1.0 - s;
+      weight[ib] = s;
+    }
+  }
+  bary = {static_cast<float>(weight[1]), static_cast<float>(weight[2])};
+  return best;
+}
+
+// Weights of corners 1 and 2 from the edge functions of an inside sample,
+// clamped to the triangle (rounding can leave them a hair outside).
+glm::vec2 inside_bary(double e0, double e1, double e2) {
+  const double sum = e0 + e1 + e2;
+  double b1 = std::clamp(e1 / sum, 0.0, 1.0);
+  double b2 = std::clamp(e2 / sum, 0.0, 1.0);
+  if (b1 + b2 > 1.0) {
+    const double total = b1 + b2;
+    b1 /= total;
+    b2 /= total;
+  }
+  glm::vec2 b{static_cast<float>(b1), static_cast<float>(b2)};
+  // Float rounding of the two weights can still push the sum over 1.
+  if (b.x + b.y > 1.0f) b.y = 1.0f - b.x;
+  return b;
+}
+
+struct TileScratch {
+  std::vector<double> best_distance2;  // per sample of the tile, border candidates only
+  std::vector<std::uint8_t> inside;    // per sample: a containing triangle was found
+  std::vector<std::uint8_t> strict_count;  // per sample: strictly containing triangles, saturates at 2
+  std::vector<std::uint8_t> covered;   // per texel of the tile
+};
+
+struct TileCounts {
+  std::uint64_t covered_texels = 0;
+  std::uint64_t border_samples = 0;
+  std::uint64_t overlapping_samples = 0;
+};
+
+}  // namespace
+
+bool is_supported_sample_count(int samples) {
+  return samples == 1 || samples == 4 || samples == 16 || samples == 64;
+}
+
+// One family for 4, 16 and 64 samples: a k x k grid of cells, the sample of
+// cell (column i, row j) at
+//   x = (i + (k - 1 - j + 0.5) / k) / k,   y = (j + (i + 0.5) / k) / k,
+// listed row by row. Every one of the k^2 fine columns and k^2 fine rows
+// holds exactly one sample (n-rooks) and every cell one (stratified); for
+// k = 2 this is exactly the RGSS pattern (0.375, 0.125), (0.875, 0.375),
+// (0.125, 0.625), (0.625, 0.875). All offsets are dyadic fractions, exact in
+// float. 1 sample: the texel centre.
+std::vector<glm::vec2> sample_offsets(int samples) {
+  NMBAKE_CHECK(is_supported_sample_count(samples), "unsupported sample count");
+  if (samples == 1) return {glm::vec2(0.5f, 0.5f)};
+  const int k = samples == 4 ? 2 : samples == 16 ? 4 : 8;
+  std::vector<glm::vec2> offsets;
+  offsets.reserve(static_cast<std::size_t>(samples));
+  const double kd = k;
+  for (int j = 0; j < k; ++j) {
+    for (int i = 0; i < k; ++i) {
+      const double x = (i + (k - 1 - j + 0.5) / kd) / kd;
+      const double y = (j + (i + 0.5) / kd) / kd;
+      offsets.emplace_back(static_cast<float>(x), static_cast<float>(y));
+    }
+  }
+  return offsets;
+}
+
+void rasterize(const LowSurface& surface, int width, int height, int samples, TexelSamples& out,
+               RasterStats& stats) {
+  NMBAKE_CHECK(width > 0 && height > 0, "raster size must be positive");
+  NMBAKE_CHECK(is_supported_sample_count(samples), "unsupported sample count");
+  NMBAKE_CHECK(surface.uv.size() % 3 == 0, "LowSurface::uv must hold three corners per triangle");
+  const std::size_t triangle_count = surface.uv.size() / 3;
+  NMBAKE_CHECK(triangle_count <= static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()),
+               "too many triangles for 32-bit triangle ids");
+
+  stats = RasterStats{};
+  const std::size_t texel_count = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
+  const std::size_t sample_total = texel_count * static_cast<std::size_t>(samples);
+  out.width = width;
+  out.height = height;
+  out.samples = samples;
+  // resize() keeps the allocation when a caller reuses `out`; every element is
+  // rewritten by its tile below.
+  out.triangle.resize(sample_total);
+  out.bary.resize(sample_total);
+  out.coverage.resize(texel_count);
+
+  const std::vector<glm::vec2> offsets = sample_offsets(samples);
+
+  // Set-up and binning, serial and in triangle order so every tile list is
+  // in triangle order. Tiles whose box the triangle does not overlap are left
+  // out (a long diagonal sliver would otherwise visit the whole map).
+  const int tiles_x = (width + tile_size - 1) / tile_size;
+  const int tiles_y = (height + tile_size - 1) / tile_size;
+  const std::size_t tile_count = static_cast<std::size_t>(tiles_x) * static_cast<std::size_t>(tiles_y);
+  std::vector<SetupTriangle> setup(triangle_count);
+  std::vector<std::uint8_t> usable(triangle_count, 0);
+  std::vector<std::size_t> tile_begin(tile_count + 1, 0);
+  for (std::size_t t = 0; t < triangle_count; ++t) {
+    SetupTriangle& tri = setup[t];
+    if (!setup_triangle(&surface.uv[3 * t], width, height, tri)) {
+      ++stats.degenerate_uv_triangles;
+      continue;
+    }
+    if (tri.x0 > tri.x1 || tri.y0 > tri.y1) continue;  // entirely off the map
+    usable[t] = 1;
+    for (int ty = tri.y0 / tile_size; ty <= tri.y1 / tile_size; ++ty) {
+      for (int tx = tri.x0 / tile_size; tx <= tri.x1 / tile_size; ++tx) {
+        if (box_overlaps(tri, tx * tile_size, ty * tile_size, tile_size)) {
+          ++tile_begin[static_cast<std::size_t>(ty) * tiles_x + tx + 1];
+        }
+      }
+    }
+  }
+  for (std::size_t i = 0; i < tile_count; ++i) tile_begin[i + 1] += tile_begin[i];
+  std::vector<std::int32_t> tile_triangles(tile_begin[tile_count]);
+  {
+    std::vector<std::size_t> fill(tile_begin.begin(), tile_begin.end() - 1);
+    for (std::size_t t = 0; t < triangle_count; ++t) {
+      if (!usable[t]) continue;
+      const SetupTriangle& tri = setup[t];
+      for (int ty = tri.y0 / tile_size; ty <= tri.y1 / tile_size; ++ty) {
+        for (int tx = tri.x0 / tile_size; tx <= tri.x1 / tile_size; ++tx) {
+          if (box_overlaps(tri, tx * tile_size, ty * tile_size, tile_size)) {
+            tile_triangles[fill[static_cast<std::size_t>(ty) * tiles_x + tx]++] = static_cast<std::int32_t>(t);
+          }
+        }
+      }
+    }
+  }
+
+  const std::size_t tile_samples = static_cast<std::size_t>(tile_size) * tile_size * samples;
+  tbb::enumerable_thread_specific<TileScratch> scratch_pool([tile_samples] {
+    TileScratch s;
+    s.best_distance2.resize(tile_samples);
+    s.inside.resize(tile_samples);
+    s.strict_count.resize(tile_samples);
+    s.covered.resize(static_cast<std::size_t>(tile_size) * tile_size);
+    return s;
+  });
+  std::vector<TileCounts> tile_counts(tile_count);
+  const std::size_t sample_stride = static_cast<std::size_t>(samples);
+
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tile_count), [&](const tbb::blocked_range<std::size_t>& r) {
+    TileScratch& scratch = scratch_pool.local();
+    for (std::size_t tile = r.begin(); tile != r.end(); ++tile) {
+      const int tx0 = static_cast<int>(tile % tiles_x) * tile_size;
+      const int ty0 = static_cast<int>(tile / tiles_x) * tile_size;
+      const int tx1 = std::min(tx0 + tile_size, width) - 1;
+      const int ty1 = std::min(ty0 + tile_size, height) - 1;
+      const auto local_texel = [&](int x, int y) {
+        return static_cast<std::size_t>(y - ty0) * tile_size + static_cast<std::size_t>(x - tx0);
+      };
+      const auto first_sample = [&](int x, int y) {
+        return (static_cast<std::size_t>(y) * width + static_cast<std::size_t>(x)) * sample_stride;
+      };
+
+      std::fill(scratch.best_distance2.begin(), scratch.best_distance2.end(),
+                std::numeric_limits<double>::infinity());
+      std::fill(scratch.inside.begin(), scratch.inside.end(), 0);
+      std::fill(scratch.strict_count.begin(), scratch.strict_count.end(), 0);
+      std::fill(scratch.covered.begin(), scratch.covered.end(), 0);
+      for (int y = ty0; y <= ty1; ++y) {
+        const std::size_t row = first_sample(tx0, y);
+        const std::size_t row_end = first_sample(tx1, y) + sample_stride;
+        std::fill(out.triangle.begin() + row, out.triangle.begin() + row_end, -1);
+        std::fill(out.bary.begin() + row, out.bary.begin() + row_end, glm::vec2(0.0f));
+      }
+
+      for (std::size_t k = tile_begin[tile]; k < tile_begin[tile + 1]; ++k) {
+        const std::int32_t t = tile_triangles[k];
+        const SetupTriangle& tri = setup[static_cast<std::size_t>(t)];
+        const int x_begin = std::max(tri.x0, tx0), x_end = std::min(tri.x1, tx1);
+        const int y_begin = std::max(tri.y0, ty0), y_end = std::min(tri.y1, ty1);
+        for (int y = y_begin; y <= y_end; ++y) {
+          for (int x = x_begin; x <= x_end; ++x) {
+            if (!box_overlaps(tri, x, y, 1.0)) continue;
+            const std::size_t texel = local_texel(x, y);
+            scratch.covered[texel] = 1;
+            const std::size_t local0 = texel * sample_stride;
+            const std::size_t global0 = first_sample(x, y);
+            for (int s = 0; s < samples; ++s) {
+              const glm::dvec2 p{x + static_cast<double>(offsets[s].x), y + static_cast<double>(offsets[s].y)};
+              const double e0 = tri.edge[0](p), e1 = tri.edge[1](p), e2 = tri.edge[2](p);
+              const std::size_t local = local0 + s;
+              const std::size_t global = global0 + s;
+              if (e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0) {
+                if (e0 > tri.strict_threshold && e1 > tri.strict_threshold && e2 > tri.strict_threshold &&
+                    scratch.strict_count[local] < 2) {
+                  ++scratch.strict_count[local];
+                }
+                if (!scratch.inside[local]) {
+                  scratch.inside[local] = 1;
+                  out.triangle[global] = t;
+                  out.bary[global] = inside_bary(e0, e1, e2);
+                }
+              } else if (!scratch.inside[local]) {
+                glm::vec2 b;
+                const double d2 = nearest_point(tri, p, b);
+                if (d2 < scratch.best_distance2[local]) {
+                  scratch.best_distance2[local] = d2;
+                  out.triangle[global] = t;
+                  out.bary[global] = b;
+                }
+              }
+            }
+          }
+        }
+      }
+
+      TileCounts& counts = tile_counts[tile];
+      for (int y = ty0; y <= ty1; ++y) {
+        for (int x = tx0; x <= tx1; ++x) {
+          const std::size_t texel = local_texel(x, y);
+          out.coverage[static_cast<std::size_t>(y) * width + x] = scratch.covered[texel];
+          if (!scratch.covered[texel]) continue;
+          ++counts.covered_texels;
+          for (int s = 0; s < samples; ++s) {
+            const std::size_t local = texel * sample_stride + s;
+            if (!scratch.inside[local]) ++counts.border_samples;
+            if (scratch.strict_count[local] >= 2) ++counts.overlapping_samples;
+          }
+        }
+      }
+    }
+  });
+
+  for (const TileCounts& c : tile_counts) {
+    stats.covered_texels += c.covered_texels;
+    stats.border_samples += c.border_samples;
+    stats.overlapping_samples += c.overlapping_samples;
+  }
+}
+
+}  // namespace nmbake
