@@ -11,43 +11,15 @@
 
 #include "nmbake/bake.hpp"
 #include "scenes.hpp"
+#include "score.hpp"
 #include "test_util.hpp"
 
 namespace nmbake {
 namespace {
 
-float angle_degrees(const glm::vec3& a, const glm::vec3& b) {
-  const float c = glm::dot(glm::normalize(a), glm::normalize(b));
-  return glm::degrees(std::acos(std::clamp(c, -1.0f, 1.0f)));
-}
-
-struct ErrorStats {
-  double mean = 0.0, p99 = 0.0, max = 0.0;
-  std::size_t count = 0, non_finite = 0;
-};
-
-ErrorStats summarize(std::vector<float> errors, std::size_t non_finite) {
-  ErrorStats s;
-  s.count = errors.size();
-  s.non_finite = non_finite;
-  if (errors.empty()) return s;
-  double sum = 0.0;
-  for (float e : errors) sum += e;
-  s.mean = sum / static_cast<double>(errors.size());
-  std::sort(errors.begin(), errors.end());
-  s.p99 = errors[std::min(errors.size() - 1, static_cast<std::size_t>(0.99 * static_cast<double>(errors.size())))];
-  s.max = errors.back();
-  return s;
-}
-
 std::size_t count_non_finite(const Image& image) {
   return static_cast<std::size_t>(
       std::count_if(image.pixels.begin(), image.pixels.end(), [](float v) { return !std::isfinite(v); }));
-}
-
-glm::vec3 decode_texel(const Image& image, int x, int y) {
-  const float* p = image.at(x, y);
-  return glm::vec3(2.0f * p[0] - 1.0f, 2.0f * p[1] - 1.0f, 2.0f * p[2] - 1.0f);
 }
 
 std::string read_bytes(const std::string& path) {
@@ -79,21 +51,9 @@ TEST(EndToEnd, HeightfieldMatchesAnalyticNormals) {
 
   Image map;
   ASSERT_TRUE(read_image(dir.file("map.exr"), map).is_ok());
-  const std::vector<glm::vec2> offsets = sample_offsets(o.samples);
-  std::vector<float> errors;
-  for (int y = 0; y < map.height; ++y) {
-    for (int x = 0; x < map.width; ++x) {
-      glm::vec3 expected(0.0f);
-      for (const glm::vec2& off : offsets) {
-        const float u = (static_cast<float>(x) + off.x) / static_cast<float>(map.width);
-        const float v = 1.0f - (static_cast<float>(y) + off.y) / static_cast<float>(map.height);
-        expected += scenes::heightfield_normal(params, u * params.size, v * params.size);
-      }
-      errors.push_back(angle_degrees(decode_texel(map, x, y), expected));
-    }
-  }
-  const ErrorStats e = summarize(errors, count_non_finite(map));
-  std::printf("heightfield 256^2 x4: mean %.4f p99 %.4f max %.4f deg\n", e.mean, e.p99, e.max);
+  const scenes::AngularError e = scenes::score_heightfield(params, map, o.samples);
+  std::printf("heightfield 256^2 x4: %s\n", e.to_text().c_str());
+  EXPECT_EQ(e.texels, 256u * 256u);
   EXPECT_EQ(e.non_finite, 0u);
   EXPECT_LT(e.mean, 0.1);
   EXPECT_LT(e.p99, 1.0);
@@ -116,64 +76,23 @@ TEST(EndToEnd, DisplacedSphereMatchesAnalyticNormals) {
   o.high_path = dir.file("high.ply");
   o.outputs = {{dir.file("map.exr"), PixelFormat::exr_float}};
   o.width = o.height = 256;
-  o.samples = 1;
+  o.samples = 4;
   o.padding = 0;
   BakeReport report;
   const Status s = bake(o, report);
   ASSERT_TRUE(s.is_ok()) << s.message();
   EXPECT_EQ(report.trace.misses, 0u);
 
-  // Re-create the bake's samples and rays.
   Mesh low;
   LoadStats load_stats;
   ASSERT_TRUE(load_mesh(dir.file("low.obj"), LoadOptions{}, low, load_stats).is_ok());
   MeshStats mesh_stats;
   normalize_normals(low, mesh_stats);
-  SurfaceStats surface_stats;
-  const LowSurface surface = build_low_surface(low, nullptr, surface_stats);
-  TexelSamples samples;
-  RasterStats raster_stats;
-  rasterize(surface, o.width, o.height, o.samples, samples, raster_stats);
-  RayOptions rays;
-  rays.front = report.front;
-  rays.back = report.back;
-
   Image map;
   ASSERT_TRUE(read_image(dir.file("map.exr"), map).is_ok());
-  std::vector<float> errors;
-  for (int y = 0; y < map.height; ++y) {
-    for (int x = 0; x < map.width; ++x) {
-      const std::size_t texel = static_cast<std::size_t>(y) * map.width + x;
-      if (!samples.coverage[texel]) continue;
-      const std::int32_t tri = samples.triangle[texel];
-      ASSERT_GE(tri, 0);
-      const glm::vec2 b = samples.bary[texel];
-      bool fallback = false;
-      const Ray ray = make_ray(surface, tri, b, rays, fallback);
-      // Bisection on g(t) = |p| - r(p / |p|): positive outside the surface.
-      auto g = [&](float t) {
-        const glm::vec3 p = ray.origin + t * ray.direction;
-        return glm::length(p) - scenes::sphere_radius(params, glm::normalize(p));
-      };
-      float lo = 0.0f, hi = ray.tfar;
-      ASSERT_GT(g(lo), 0.0f);
-      ASSERT_LT(g(hi), 0.0f);
-      for (int i = 0; i < 60; ++i) {
-        const float mid = 0.5f * (lo + hi);
-        (g(mid) > 0.0f ? lo : hi) = mid;
-      }
-      const glm::vec3 hit = ray.origin + 0.5f * (lo + hi) * ray.direction;
-      const glm::vec3 truth = scenes::sphere_normal(params, glm::normalize(hit));
-      const std::size_t base = 3 * static_cast<std::size_t>(tri);
-      const auto lerp = [&](const auto& c) { return c[base] * (1.0f - b.x - b.y) + c[base + 1] * b.x + c[base + 2] * b.y; };
-      const glm::vec4 tw = lerp(surface.tangent);
-      const glm::vec3 decoded = tangent_to_world(decode_texel(map, x, y), glm::vec3(tw), lerp(surface.normal), tw.w < 0.0f ? -1.0f : 1.0f);
-      errors.push_back(angle_degrees(decoded, truth));
-    }
-  }
-  const ErrorStats e = summarize(errors, count_non_finite(map));
-  std::printf("displaced sphere 256^2 x1: %zu texels, mean %.4f p99 %.4f max %.4f deg\n", e.count, e.mean, e.p99, e.max);
-  EXPECT_GT(e.count, 256u * 256u / 2u);
+  const scenes::AngularError e = scenes::score_sphere(params, low, map, o.samples, report.front, report.back);
+  std::printf("displaced sphere 256^2 x4: %s\n", e.to_text().c_str());
+  EXPECT_GT(e.texels, 256u * 256u / 2u);
   EXPECT_EQ(e.non_finite, 0u);
   EXPECT_LT(e.mean, 0.1);
   EXPECT_LT(e.p99, 1.0);
