@@ -10,9 +10,10 @@
 // it corner by corner (tests/tangents_test.cpp checks against a WASM build).
 //
 // Where we deliberately differ: a corner the reference leaves without a
-// tangent space (it writes (1, 0, 0) with sign -1 whatever the normal) gets
-// fallback_tangent() below with sign +1 and is counted, so that no later
-// stage sees a tangent that is not orthogonal to its normal.
+// tangent space (it writes (1, 0, 0) with sign -1 whatever the normal, or a
+// zero vector when every contribution had zero weight) gets fallback_tangent()
+// below with sign +1 and is counted, so that no later stage sees a tangent
+// that is not a unit vector orthogonal to its normal.
 #include "nmbake/tangents.hpp"
 
 #include <algorithm>
@@ -21,10 +22,9 @@
 #include <cfloat>
 #include <cmath>
 #include <cstdint>
+#include <glm/geometric.hpp>
 #include <numeric>
 #include <vector>
-
-#include <glm/geometric.hpp>
 
 namespace nmbake {
 namespace {
@@ -34,7 +34,7 @@ namespace {
 // projected UV gradients are exactly opposite.
 constexpr float threshold_cos = -1.0f;
 
-constexpr std::uint32_t flag_group_with_any = 1u;  // no usable UV gradient: joins any group
+constexpr std::uint32_t flag_group_with_any = 1u;     // no usable UV gradient: joins any group
 constexpr std::uint32_t flag_orient_preserving = 2u;  // UV area > 0: bitangent sign +1
 
 constexpr std::int32_t none = -1;
@@ -103,9 +103,8 @@ std::vector<std::uint32_t> weld_vertices(const Mesh& mesh) {
   }
   std::vector<std::uint32_t> order(vertex_count);
   std::iota(order.begin(), order.end(), 0u);
-  std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
-    return keys[a] != keys[b] ? keys[a] < keys[b] : a < b;
-  });
+  std::sort(order.begin(), order.end(),
+            [&](std::uint32_t a, std::uint32_t b) { return keys[a] != keys[b] ? keys[a] < keys[b] : a < b; });
   std::vector<std::uint32_t> representative(vertex_count);
   std::size_t run_start = 0;
   for (std::size_t i = 0; i < vertex_count; ++i) {
@@ -118,11 +117,11 @@ std::vector<std::uint32_t> weld_vertices(const Mesh& mesh) {
 // Per-triangle data of the reference (its STriInfo), for the triangles that
 // have three distinct positions.
 struct TriangleInfo {
-  std::array<std::uint32_t, 3> vertex{};  // welded vertex per corner
+  std::array<std::uint32_t, 3> vertex{};                   // welded vertex per corner
   std::array<std::int32_t, 3> neighbor{none, none, none};  // across edge i: vertex[i] -> vertex[i + 1]
-  std::array<std::int32_t, 3> group{none, none, none};  // vertex group of each corner
-  glm::vec3 os{0.0f};  // unit dP/ds (sign-corrected), or zero
-  glm::vec3 ot{0.0f};  // unit dP/dt (sign-corrected), or zero
+  std::array<std::int32_t, 3> group{none, none, none};     // vertex group of each corner
+  glm::vec3 os{0.0f};                                      // unit dP/ds (sign-corrected), or zero
+  glm::vec3 ot{0.0f};                                      // unit dP/dt (sign-corrected), or zero
   std::uint32_t flags = 0;
   std::uint32_t triangle = 0;  // index in the mesh
 };
@@ -272,7 +271,8 @@ void build_groups(std::vector<TriangleInfo>& triangles, std::vector<VertexGroup>
 // weighted by the corner angle (measured in the tangent plane), summed in
 // increasing triangle order, normalised.
 glm::vec3 evaluate_tangent(const Mesh& mesh, const std::vector<TriangleInfo>& triangles,
-                           const std::vector<std::uint32_t>& subgroup, std::uint32_t vertex, const glm::vec3& n) {
+                           const std::vector<std::uint32_t>& subgroup, std::uint32_t vertex,
+                           const glm::vec3& n) {
   glm::vec3 sum{0.0f};
   for (const std::uint32_t t : subgroup) {
     const TriangleInfo& info = triangles[t];

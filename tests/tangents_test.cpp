@@ -1,6 +1,8 @@
 // Tests of the tangents stage: exact tiny cases, and every corner of several
 // meshes against the reference MikkTSpace (the npm package `mikktspace`, a
 // WASM build of the reference, run by tests/mikktspace_ref/reference.js).
+#include "nmbake/tangents.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -10,16 +12,14 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
-#include <string>
-#include <vector>
-
 #include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 #include <glm/vec4.hpp>
+#include <string>
+#include <vector>
 
 #include "nmbake/mesh.hpp"
-#include "nmbake/tangents.hpp"
 #include "test_util.hpp"
 
 namespace {
@@ -46,7 +46,8 @@ void smooth_normals(Mesh& mesh) {
   std::vector<glm::vec3> sum(mesh.vertex_count(), glm::vec3(0.0f));
   for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
     const std::uint32_t* v = &mesh.indices[3 * t];
-    const glm::vec3 n = glm::cross(mesh.positions[v[1]] - mesh.positions[v[0]], mesh.positions[v[2]] - mesh.positions[v[0]]);
+    const glm::vec3 n =
+        glm::cross(mesh.positions[v[1]] - mesh.positions[v[0]], mesh.positions[v[2]] - mesh.positions[v[0]]);
     for (int i = 0; i < 3; ++i) sum[v[i]] += n;
   }
   for (std::size_t v = 0; v < sum.size(); ++v) {
@@ -125,7 +126,8 @@ Mesh make_cube() {
     }
     std::uint32_t id[4];
     for (int k = 0; k < 4; ++k) {
-      id[k] = add_vertex(mesh, 0.5f * corners[k], n, glm::vec2(0.25f, 0.3f) * uvs[k] + glm::vec2(0.3f * f, 0.0f));
+      id[k] =
+          add_vertex(mesh, 0.5f * corners[k], n, glm::vec2(0.25f, 0.3f) * uvs[k] + glm::vec2(0.3f * f, 0.0f));
     }
     add_triangle(mesh, id[0], id[1], id[2]);
     add_triangle(mesh, id[0], id[2], id[3]);
@@ -203,15 +205,31 @@ Mesh make_degenerate() {
 // its vertex normals, so neither we nor the reference find a tangent there.
 Mesh make_noisy() {
   Lcg rng;
-  Mesh mesh = make_grid(10, [&](float, float) { return 0.15f * rng.next(); },
-                        [&](float x, float y) { return planar_uv(x, y) + 0.06f * glm::vec2(rng.next(), rng.next()); });
+  Mesh mesh = make_grid(
+      10, [&](float, float) { return 0.15f * rng.next(); },
+      [&](float x, float y) { return planar_uv(x, y) + 0.06f * glm::vec2(rng.next(), rng.next()); });
   for (glm::vec3& p : mesh.positions) p += 0.05f * glm::vec3(rng.next(), rng.next(), 0.0f);
-  for (glm::vec3& n : mesh.normals) n = glm::normalize(n + 0.3f * glm::vec3(rng.next(), rng.next(), rng.next()));
+  for (glm::vec3& n : mesh.normals)
+    n = glm::normalize(n + 0.3f * glm::vec3(rng.next(), rng.next(), rng.next()));
   const std::uint32_t a = add_vertex(mesh, {2, 0, 0}, {0, 0, 1}, {0.1f, 0.1f});
   const std::uint32_t b = add_vertex(mesh, {2, 1, 0}, {0, 0, 1}, {0.1f, 0.3f});
   add_triangle(mesh, a, b, add_vertex(mesh, {3, 0.5f, 0.1f}, {0, 0, 1}, {0.3f, 0.2f}));
   add_triangle(mesh, b, a, add_vertex(mesh, {1, 0.5f, 0.2f}, {0, 0, 1}, {0.0f, 0.25f}));
   add_triangle(mesh, b, a, add_vertex(mesh, {2, 0.5f, 1.0f}, {0, 0, 1}, {0.2f, 0.15f}));
+  return mesh;
+}
+
+// The noisy mesh with the UV triangles of every seventh triangle collapsed
+// (third UV = first UV): such triangles have no orientation of their own and
+// take the one of the first group that reaches them, among neighbours of
+// both orientations.
+Mesh make_noisy_collapsed() {
+  Mesh mesh = make_noisy();
+  for (std::size_t t = 3; t < mesh.triangle_count(); t += 7) {
+    const std::uint32_t v = mesh.indices[3 * t + 2];
+    mesh.indices[3 * t + 2] =
+        add_vertex(mesh, mesh.positions[v], mesh.normals[v], mesh.uvs[mesh.indices[3 * t]]);
+  }
   return mesh;
 }
 
@@ -242,9 +260,11 @@ Reference reference_tangents(const Mesh& mesh) {
     result.error = "node was not found on PATH" + setup_hint;
     return result;
   }
-  const std::filesystem::path dir = std::filesystem::path(nmbake::test::source_dir()) / "tests" / "mikktspace_ref";
+  const std::filesystem::path dir =
+      std::filesystem::path(nmbake::test::source_dir()) / "tests" / "mikktspace_ref";
   if (!std::filesystem::exists(dir / "node_modules" / "mikktspace" / "package.json")) {
-    result.error = "the npm package mikktspace is missing from " + (dir / "node_modules").string() + setup_hint;
+    result.error =
+        "the npm package mikktspace is missing from " + (dir / "node_modules").string() + setup_hint;
     return result;
   }
 
@@ -262,7 +282,8 @@ Reference reference_tangents(const Mesh& mesh) {
   const nmbake::test::CommandResult run = nmbake::test::run_command(
       "'" + node + "' '" + (dir / "reference.js").string() + "' '" + in_path + "' '" + out_path + "'");
   if (run.exit_code != 0) {
-    result.error = "reference.js failed (exit " + std::to_string(run.exit_code) + "): " + run.output + setup_hint;
+    result.error =
+        "reference.js failed (exit " + std::to_string(run.exit_code) + "): " + run.output + setup_hint;
     return result;
   }
   std::ifstream in(out_path, std::ios::binary);
@@ -273,7 +294,8 @@ Reference reference_tangents(const Mesh& mesh) {
     return result;
   }
   result.tangents.resize(corner_count);
-  in.read(reinterpret_cast<char*>(result.tangents.data()), static_cast<std::streamsize>(corner_count * sizeof(glm::vec4)));
+  in.read(reinterpret_cast<char*>(result.tangents.data()),
+          static_cast<std::streamsize>(corner_count * sizeof(glm::vec4)));
   if (!in) result.error = "reference output is truncated";
   return result;
 }
@@ -292,7 +314,8 @@ bool is_finite(const glm::vec4& v) {
 // own for the triangle.
 bool is_degenerate(const Mesh& mesh, std::size_t t) {
   const std::uint32_t* v = &mesh.indices[3 * t];
-  const glm::vec3 cross = glm::cross(mesh.positions[v[1]] - mesh.positions[v[0]], mesh.positions[v[2]] - mesh.positions[v[0]]);
+  const glm::vec3 cross =
+      glm::cross(mesh.positions[v[1]] - mesh.positions[v[0]], mesh.positions[v[2]] - mesh.positions[v[0]]);
   const glm::vec2 e1 = mesh.uvs[v[1]] - mesh.uvs[v[0]];
   const glm::vec2 e2 = mesh.uvs[v[2]] - mesh.uvs[v[0]];
   return glm::length(cross) < 1e-6f || std::fabs(e1.x * e2.y - e1.y * e2.x) < 1e-9f;
@@ -329,8 +352,9 @@ void check_against_reference(const std::string& name, const Mesh& mesh, TangentS
     EXPECT_TRUE(mine.w == 1.0f || mine.w == -1.0f) << mine.w;
     EXPECT_LT(std::fabs(glm::dot(glm::vec3(mine), n)), 1e-4f);
 
-    const bool reference_without_space = glm::vec3(ref) == glm::vec3(0.0f) ||
-                                         (is_degenerate(mesh, c / 3) && ref == glm::vec4(1.0f, 0.0f, 0.0f, -1.0f));
+    const bool reference_without_space =
+        glm::vec3(ref) == glm::vec3(0.0f) ||
+        (is_degenerate(mesh, c / 3) && ref == glm::vec4(1.0f, 0.0f, 0.0f, -1.0f));
     if (reference_without_space) {
       ++reference_without_space_count;
       EXPECT_EQ(mine.w, 1.0f);
@@ -340,17 +364,18 @@ void check_against_reference(const std::string& name, const Mesh& mesh, TangentS
     const float angle = angle_degrees(glm::vec3(mine), glm::vec3(ref));
     max_angle = std::max(max_angle, angle);
     ++compared_count;
-    EXPECT_LT(angle, 0.01f) << "mine (" << mine.x << ", " << mine.y << ", " << mine.z << ") reference (" << ref.x
-                            << ", " << ref.y << ", " << ref.z << ")";
+    EXPECT_LT(angle, 0.01f) << "mine (" << mine.x << ", " << mine.y << ", " << mine.z << ") reference ("
+                            << ref.x << ", " << ref.y << ", " << ref.z << ")";
     EXPECT_EQ(mine.w, ref.w);
   }
   EXPECT_EQ(stats.fallback_tangents, reference_without_space_count);
-  std::printf("[ tangents ] %-14s %6zu corners compared, max angle %.2e deg, %llu fallback, %llu degenerate, "
-              "%llu degenerate UV\n",
-              name.c_str(), compared_count, static_cast<double>(max_angle),
-              static_cast<unsigned long long>(stats.fallback_tangents),
-              static_cast<unsigned long long>(stats.degenerate_triangles),
-              static_cast<unsigned long long>(stats.degenerate_uv_triangles));
+  std::printf(
+      "[ tangents ] %-14s %6zu corners compared, max angle %.2e deg, %llu fallback, %llu degenerate, "
+      "%llu degenerate UV\n",
+      name.c_str(), compared_count, static_cast<double>(max_angle),
+      static_cast<unsigned long long>(stats.fallback_tangents),
+      static_cast<unsigned long long>(stats.degenerate_triangles),
+      static_cast<unsigned long long>(stats.degenerate_uv_triangles));
 }
 
 // ---------------------------------------------------------------------------
@@ -483,7 +508,8 @@ TEST(TangentsReference, HardEdgedCube) { check_against_reference("cube", make_cu
 TEST(TangentsReference, SphereWithSeam) { check_against_reference("sphere", make_sphere(12, 8)); }
 
 TEST(TangentsReference, MirroredUV) {
-  const Mesh mesh = make_grid(8, wave, [](float x, float y) { return glm::vec2(std::fabs(x), 0.5f * y + 0.5f); });
+  const Mesh mesh =
+      make_grid(8, wave, [](float x, float y) { return glm::vec2(std::fabs(x), 0.5f * y + 0.5f); });
   check_against_reference("mirrored", mesh);
   std::vector<glm::vec4> tangents;
   TangentStats stats;
@@ -502,5 +528,11 @@ TEST(TangentsReference, DegenerateTriangles) {
 }
 
 TEST(TangentsReference, NoisyMesh) { check_against_reference("noisy", make_noisy()); }
+
+TEST(TangentsReference, NoisyMeshWithCollapsedUVs) {
+  TangentStats stats;
+  check_against_reference("noisy+collapsed", make_noisy_collapsed(), &stats);
+  EXPECT_EQ(stats.degenerate_uv_triangles, 29u);  // triangles 3, 10, ..., 199
+}
 
 }  // namespace

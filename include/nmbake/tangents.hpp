@@ -34,7 +34,14 @@ struct TangentStats {
 };
 
 // `mesh` must have unit normals and UVs (one per vertex). Writes
-// 3 * triangle_count tangents.
+// 3 * triangle_count tangents and overwrites `stats`.
+// A corner for which the reference finds no tangent (it would write
+// (1, 0, 0) with sign -1, or a zero vector) gets instead the world axis least
+// aligned with its normal (x, then y, then z on ties), made orthogonal to the
+// normal, with sign +1; it is counted in fallback_tangents. Every other corner
+// matches the reference (tests/tangents_test.cpp: < 0.01 degrees, same sign).
+// degenerate_triangles also counts triangles with three distinct but
+// collinear positions (the reference still groups those).
 void compute_tangents(const Mesh& mesh, std::vector<glm::vec4>& corner_tangents, TangentStats& stats);
 
 }  // namespace nmbake
