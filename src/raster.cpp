@@ -34,10 +34,11 @@
 #include <sys/mman.h>
 #endif
 
-#include <glm/vec2.hpp>
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+
+#include <glm/vec2.hpp>
 
 #include "nmbake/common.hpp"
 
@@ -78,8 +79,8 @@ struct EdgeFunction {
 
 struct SetupTriangle {
   glm::dvec2 corner[3];
-  EdgeFunction edge[3];    // edge[i] is opposite corner i: the unnormalised weight of corner i
-  double extent[3] = {};   // edge[i] at corner i (twice the area, up to rounding)
+  EdgeFunction edge[3];   // edge[i] is opposite corner i: the unnormalised weight of corner i
+  double extent[3] = {};  // edge[i] at corner i (twice the area, up to rounding)
   double strict_threshold = 0.0;
   int x0 = 0, y0 = 0, x1 = -1, y1 = -1;  // inclusive texel bounding box, clamped to the image
 };
@@ -217,10 +218,10 @@ void size_output(std::vector<T>& v, std::size_t n) {
 }
 
 struct TileScratch {
-  std::vector<double> best_distance2;  // per sample of the tile, border candidates only
-  std::vector<std::uint8_t> inside;    // per sample: a containing triangle was found
+  std::vector<double> best_distance2;      // per sample of the tile, border candidates only
+  std::vector<std::uint8_t> inside;        // per sample: a containing triangle was found
   std::vector<std::uint8_t> strict_count;  // per sample: strictly containing triangles, saturates at 2
-  std::vector<std::uint8_t> covered;   // per texel of the tile
+  std::vector<std::uint8_t> covered;       // per texel of the tile
   std::vector<std::uint8_t> inside_count;  // per texel of the tile: samples with a containing triangle
 };
 
@@ -319,7 +320,8 @@ void rasterize(const LowSurface& surface, int width, int height, int samples, Te
       for (int ty = tri.y0 / tile_size; ty <= tri.y1 / tile_size; ++ty) {
         for (int tx = tri.x0 / tile_size; tx <= tri.x1 / tile_size; ++tx) {
           if (box_overlaps(tri, tx * tile_size, ty * tile_size, tile_size)) {
-            tile_triangles[fill[static_cast<std::size_t>(ty) * tiles_x + tx]++] = static_cast<std::int32_t>(t);
+            tile_triangles[fill[static_cast<std::size_t>(ty) * tiles_x + tx]++] =
+                static_cast<std::int32_t>(t);
           }
         }
       }
@@ -339,113 +341,116 @@ void rasterize(const LowSurface& surface, int width, int height, int samples, Te
   std::vector<TileCounts> tile_counts(tile_count);
   const std::size_t sample_stride = static_cast<std::size_t>(samples);
 
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tile_count), [&](const tbb::blocked_range<std::size_t>& r) {
-    TileScratch& scratch = scratch_pool.local();
-    for (std::size_t tile = r.begin(); tile != r.end(); ++tile) {
-      const int tx0 = static_cast<int>(tile % tiles_x) * tile_size;
-      const int ty0 = static_cast<int>(tile / tiles_x) * tile_size;
-      const int tx1 = std::min(tx0 + tile_size, width) - 1;
-      const int ty1 = std::min(ty0 + tile_size, height) - 1;
-      const auto local_texel = [&](int x, int y) {
-        return static_cast<std::size_t>(y - ty0) * tile_size + static_cast<std::size_t>(x - tx0);
-      };
-      const auto first_sample = [&](int x, int y) {
-        return (static_cast<std::size_t>(y) * width + static_cast<std::size_t>(x)) * sample_stride;
-      };
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, tile_count), [&](const tbb::blocked_range<std::size_t>& r) {
+        TileScratch& scratch = scratch_pool.local();
+        for (std::size_t tile = r.begin(); tile != r.end(); ++tile) {
+          const int tx0 = static_cast<int>(tile % tiles_x) * tile_size;
+          const int ty0 = static_cast<int>(tile / tiles_x) * tile_size;
+          const int tx1 = std::min(tx0 + tile_size, width) - 1;
+          const int ty1 = std::min(ty0 + tile_size, height) - 1;
+          const auto local_texel = [&](int x, int y) {
+            return static_cast<std::size_t>(y - ty0) * tile_size + static_cast<std::size_t>(x - tx0);
+          };
+          const auto first_sample = [&](int x, int y) {
+            return (static_cast<std::size_t>(y) * width + static_cast<std::size_t>(x)) * sample_stride;
+          };
 
-      std::fill(scratch.best_distance2.begin(), scratch.best_distance2.end(),
-                std::numeric_limits<double>::infinity());
-      std::fill(scratch.inside.begin(), scratch.inside.end(), 0);
-      std::fill(scratch.strict_count.begin(), scratch.strict_count.end(), 0);
-      std::fill(scratch.covered.begin(), scratch.covered.end(), 0);
-      std::fill(scratch.inside_count.begin(), scratch.inside_count.end(), 0);
+          std::fill(scratch.best_distance2.begin(), scratch.best_distance2.end(),
+                    std::numeric_limits<double>::infinity());
+          std::fill(scratch.inside.begin(), scratch.inside.end(), 0);
+          std::fill(scratch.strict_count.begin(), scratch.strict_count.end(), 0);
+          std::fill(scratch.covered.begin(), scratch.covered.end(), 0);
+          std::fill(scratch.inside_count.begin(), scratch.inside_count.end(), 0);
 
-      // Pass 1: containing triangles, first in order wins; overlap counts.
-      for (std::size_t k = tile_begin[tile]; k < tile_begin[tile + 1]; ++k) {
-        const std::int32_t t = tile_triangles[k];
-        const SetupTriangle& tri = setup[static_cast<std::size_t>(t)];
-        const int x_begin = std::max(tri.x0, tx0), x_end = std::min(tri.x1, tx1);
-        const int y_begin = std::max(tri.y0, ty0), y_end = std::min(tri.y1, ty1);
-        for (int y = y_begin; y <= y_end; ++y) {
-          for (int x = x_begin; x <= x_end; ++x) {
-            if (!box_overlaps(tri, x, y, 1.0)) continue;
-            const std::size_t texel = local_texel(x, y);
-            scratch.covered[texel] = 1;
-            const std::size_t local0 = texel * sample_stride;
-            const std::size_t global0 = first_sample(x, y);
-            for (int s = 0; s < samples; ++s) {
-              const glm::dvec2 p{x + static_cast<double>(offsets[s].x), y + static_cast<double>(offsets[s].y)};
-              const double e0 = tri.edge[0](p), e1 = tri.edge[1](p), e2 = tri.edge[2](p);
-              if (!(e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0)) continue;
-              const std::size_t local = local0 + s;
-              if (e0 > tri.strict_threshold && e1 > tri.strict_threshold && e2 > tri.strict_threshold &&
-                  scratch.strict_count[local] < 2) {
-                ++scratch.strict_count[local];
+          // Pass 1: containing triangles, first in order wins; overlap counts.
+          for (std::size_t k = tile_begin[tile]; k < tile_begin[tile + 1]; ++k) {
+            const std::int32_t t = tile_triangles[k];
+            const SetupTriangle& tri = setup[static_cast<std::size_t>(t)];
+            const int x_begin = std::max(tri.x0, tx0), x_end = std::min(tri.x1, tx1);
+            const int y_begin = std::max(tri.y0, ty0), y_end = std::min(tri.y1, ty1);
+            for (int y = y_begin; y <= y_end; ++y) {
+              for (int x = x_begin; x <= x_end; ++x) {
+                if (!box_overlaps(tri, x, y, 1.0)) continue;
+                const std::size_t texel = local_texel(x, y);
+                scratch.covered[texel] = 1;
+                const std::size_t local0 = texel * sample_stride;
+                const std::size_t global0 = first_sample(x, y);
+                for (int s = 0; s < samples; ++s) {
+                  const glm::dvec2 p{x + static_cast<double>(offsets[s].x),
+                                     y + static_cast<double>(offsets[s].y)};
+                  const double e0 = tri.edge[0](p), e1 = tri.edge[1](p), e2 = tri.edge[2](p);
+                  if (!(e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0)) continue;
+                  const std::size_t local = local0 + s;
+                  if (e0 > tri.strict_threshold && e1 > tri.strict_threshold && e2 > tri.strict_threshold &&
+                      scratch.strict_count[local] < 2) {
+                    ++scratch.strict_count[local];
+                  }
+                  if (!scratch.inside[local]) {
+                    scratch.inside[local] = 1;
+                    ++scratch.inside_count[texel];
+                    out.triangle[global0 + s] = t;
+                    out.bary[global0 + s] = inside_bary(e0, e1, e2);
+                  }
+                }
               }
-              if (!scratch.inside[local]) {
-                scratch.inside[local] = 1;
-                ++scratch.inside_count[texel];
-                out.triangle[global0 + s] = t;
-                out.bary[global0 + s] = inside_bary(e0, e1, e2);
+            }
+          }
+
+          // Pass 2, only for texels with samples outside every triangle: the
+          // nearest point of the nearest overlapping triangle. Kept apart from
+          // pass 1 because it costs three divisions and most outside candidates
+          // turn out to lie inside a neighbour.
+          for (std::size_t k = tile_begin[tile]; k < tile_begin[tile + 1]; ++k) {
+            const std::int32_t t = tile_triangles[k];
+            const SetupTriangle& tri = setup[static_cast<std::size_t>(t)];
+            const int x_begin = std::max(tri.x0, tx0), x_end = std::min(tri.x1, tx1);
+            const int y_begin = std::max(tri.y0, ty0), y_end = std::min(tri.y1, ty1);
+            for (int y = y_begin; y <= y_end; ++y) {
+              for (int x = x_begin; x <= x_end; ++x) {
+                const std::size_t texel = local_texel(x, y);
+                if (scratch.inside_count[texel] == samples || !box_overlaps(tri, x, y, 1.0)) continue;
+                const std::size_t local0 = texel * sample_stride;
+                const std::size_t global0 = first_sample(x, y);
+                for (int s = 0; s < samples; ++s) {
+                  const std::size_t local = local0 + s;
+                  if (scratch.inside[local]) continue;
+                  const glm::dvec2 p{x + static_cast<double>(offsets[s].x),
+                                     y + static_cast<double>(offsets[s].y)};
+                  glm::vec2 b;
+                  const double d2 = nearest_point(tri, p, b);
+                  if (d2 < scratch.best_distance2[local]) {
+                    scratch.best_distance2[local] = d2;
+                    out.triangle[global0 + s] = t;
+                    out.bary[global0 + s] = b;
+                  }
+                }
+              }
+            }
+          }
+
+          TileCounts& counts = tile_counts[tile];
+          for (int y = ty0; y <= ty1; ++y) {
+            for (int x = tx0; x <= tx1; ++x) {
+              const std::size_t texel = local_texel(x, y);
+              out.coverage[static_cast<std::size_t>(y) * width + x] = scratch.covered[texel];
+              if (!scratch.covered[texel]) {
+                // Every sample of a covered texel was written by pass 1 or 2.
+                const std::size_t first = first_sample(x, y);
+                std::fill_n(out.triangle.begin() + first, samples, -1);
+                std::fill_n(out.bary.begin() + first, samples, glm::vec2(0.0f));
+                continue;
+              }
+              ++counts.covered_texels;
+              for (int s = 0; s < samples; ++s) {
+                const std::size_t local = texel * sample_stride + s;
+                if (!scratch.inside[local]) ++counts.border_samples;
+                if (scratch.strict_count[local] >= 2) ++counts.overlapping_samples;
               }
             }
           }
         }
-      }
-
-      // Pass 2, only for texels with samples outside every triangle: the
-      // nearest point of the nearest overlapping triangle. Kept apart from
-      // pass 1 because it costs three divisions and most outside candidates
-      // turn out to lie inside a neighbour.
-      for (std::size_t k = tile_begin[tile]; k < tile_begin[tile + 1]; ++k) {
-        const std::int32_t t = tile_triangles[k];
-        const SetupTriangle& tri = setup[static_cast<std::size_t>(t)];
-        const int x_begin = std::max(tri.x0, tx0), x_end = std::min(tri.x1, tx1);
-        const int y_begin = std::max(tri.y0, ty0), y_end = std::min(tri.y1, ty1);
-        for (int y = y_begin; y <= y_end; ++y) {
-          for (int x = x_begin; x <= x_end; ++x) {
-            const std::size_t texel = local_texel(x, y);
-            if (scratch.inside_count[texel] == samples || !box_overlaps(tri, x, y, 1.0)) continue;
-            const std::size_t local0 = texel * sample_stride;
-            const std::size_t global0 = first_sample(x, y);
-            for (int s = 0; s < samples; ++s) {
-              const std::size_t local = local0 + s;
-              if (scratch.inside[local]) continue;
-              const glm::dvec2 p{x + static_cast<double>(offsets[s].x), y + static_cast<double>(offsets[s].y)};
-              glm::vec2 b;
-              const double d2 = nearest_point(tri, p, b);
-              if (d2 < scratch.best_distance2[local]) {
-                scratch.best_distance2[local] = d2;
-                out.triangle[global0 + s] = t;
-                out.bary[global0 + s] = b;
-              }
-            }
-          }
-        }
-      }
-
-      TileCounts& counts = tile_counts[tile];
-      for (int y = ty0; y <= ty1; ++y) {
-        for (int x = tx0; x <= tx1; ++x) {
-          const std::size_t texel = local_texel(x, y);
-          out.coverage[static_cast<std::size_t>(y) * width + x] = scratch.covered[texel];
-          if (!scratch.covered[texel]) {
-            // Every sample of a covered texel was written by pass 1 or 2.
-            const std::size_t first = first_sample(x, y);
-            std::fill_n(out.triangle.begin() + first, samples, -1);
-            std::fill_n(out.bary.begin() + first, samples, glm::vec2(0.0f));
-            continue;
-          }
-          ++counts.covered_texels;
-          for (int s = 0; s < samples; ++s) {
-            const std::size_t local = texel * sample_stride + s;
-            if (!scratch.inside[local]) ++counts.border_samples;
-            if (scratch.strict_count[local] >= 2) ++counts.overlapping_samples;
-          }
-        }
-      }
-    }
-  });
+      });
 
   for (const TileCounts& c : tile_counts) {
     stats.covered_texels += c.covered_texels;
