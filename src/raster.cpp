@@ -27,12 +27,18 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <limits>
 
-#include <glm/vec2.hpp>
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
+
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+
+#include <glm/vec2.hpp>
 
 #include "nmbake/common.hpp"
 
@@ -58,23 +64,23 @@ constexpr double degenerate_epsilon = 1e-10;
 // with the degenerate triangles): edge functions could overflow.
 constexpr double max_pixel_coordinate = 1e12;
 
+// cross(d, p - lo) with lo the canonical first endpoint and d = +-(hi - lo),
+// the sign chosen so that the interior of the triangle is positive. Negating
+// d is exact, so a shared edge still gives exactly opposite values.
 struct EdgeFunction {
   glm::dvec2 lo{0.0};
-  glm::dvec2 hi{0.0};
-  double sign = 1.0;  // so that the interior of the triangle is positive
+  glm::dvec2 d{0.0};
 
-  double operator()(glm::dvec2 p) const {
-    return sign * ((hi.x - lo.x) * (p.y - lo.y) - (hi.y - lo.y) * (p.x - lo.x));
-  }
-  // Components of the gradient, with the sign applied.
-  double dx() const { return -sign * (hi.y - lo.y); }
-  double dy() const { return sign * (hi.x - lo.x); }
+  double operator()(glm::dvec2 p) const { return d.x * (p.y - lo.y) - d.y * (p.x - lo.x); }
+  // Components of the gradient.
+  double dx() const { return -d.y; }
+  double dy() const { return d.x; }
 };
 
 struct SetupTriangle {
   glm::dvec2 corner[3];
-  EdgeFunction edge[3];    // edge[i] is opposite corner i: the unnormalised weight of corner i
-  double extent[3] = {};   // edge[i] at corner i (twice the area, up to rounding)
+  EdgeFunction edge[3];   // edge[i] is opposite corner i: the unnormalised weight of corner i
+  double extent[3] = {};  // edge[i] at corner i (twice the area, up to rounding)
   double strict_threshold = 0.0;
   int x0 = 0, y0 = 0, x1 = -1, y1 = -1;  // inclusive texel bounding box, clamped to the image
 };
@@ -83,9 +89,8 @@ EdgeFunction make_edge(glm::dvec2 a, glm::dvec2 b, glm::dvec2 opposite) {
   EdgeFunction e;
   const bool a_first = a.x < b.x || (a.x == b.x && a.y < b.y);
   e.lo = a_first ? a : b;
-  e.hi = a_first ? b : a;
-  e.sign = 1.0;
-  e.sign = e(opposite) < 0.0 ? -1.0 : 1.0;
+  e.d = (a_first ? b : a) - e.lo;
+  if (e(opposite) < 0.0) e.d = -e.d;
   return e;
 }
 
@@ -175,9 +180,9 @@ double nearest_point(const SetupTriangle& t, glm::dvec2 p, glm::vec2& bary) {
 // Weights of corners 1 and 2 from the edge functions of an inside sample,
 // clamped to the triangle (rounding can leave them a hair outside).
 glm::vec2 inside_bary(double e0, double e1, double e2) {
-  const double sum = e0 + e1 + e2;
-  double b1 = std::clamp(e1 / sum, 0.0, 1.0);
-  double b2 = std::clamp(e2 / sum, 0.0, 1.0);
+  const double inverse_sum = 1.0 / (e0 + e1 + e2);
+  double b1 = std::clamp(e1 * inverse_sum, 0.0, 1.0);
+  double b2 = std::clamp(e2 * inverse_sum, 0.0, 1.0);
   if (b1 + b2 > 1.0) {
     const double total = b1 + b2;
     b1 /= total;
@@ -189,11 +194,35 @@ glm::vec2 inside_bary(double e0, double e1, double e2) {
   return b;
 }
 
+// Sizes `v` to n elements. A new allocation is first reserved (untouched) and
+// advised for transparent huge pages: at 16384^2 the output is 3 GB, and at
+// ~9 us per 4 KB page fault (DESIGN.md) first-touching it would cost seconds.
+// The advice is a hint; the result is the same without it.
+template <typename T>
+void size_output(std::vector<T>& v, std::size_t n) {
+  if (v.capacity() < n) {
+    std::vector<T>().swap(v);
+    v.reserve(n);
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+    constexpr std::uintptr_t huge_page = std::uintptr_t{2} << 20;
+    const std::uintptr_t begin = reinterpret_cast<std::uintptr_t>(v.data());
+    const std::uintptr_t end = begin + n * sizeof(T);
+    const std::uintptr_t aligned_begin = (begin + huge_page - 1) & ~(huge_page - 1);
+    if (end > aligned_begin + huge_page) {
+      (void)madvise(reinterpret_cast<void*>(aligned_begin), (end - aligned_begin) & ~(huge_page - 1),
+                    MADV_HUGEPAGE);
+    }
+#endif
+  }
+  v.resize(n);
+}
+
 struct TileScratch {
-  std::vector<double> best_distance2;  // per sample of the tile, border candidates only
-  std::vector<std::uint8_t> inside;    // per sample: a containing triangle was found
+  std::vector<double> best_distance2;      // per sample of the tile, border candidates only
+  std::vector<std::uint8_t> inside;        // per sample: a containing triangle was found
   std::vector<std::uint8_t> strict_count;  // per sample: strictly containing triangles, saturates at 2
-  std::vector<std::uint8_t> covered;   // per texel of the tile
+  std::vector<std::uint8_t> covered;       // per texel of the tile
+  std::vector<std::uint8_t> inside_count;  // per texel of the tile: samples with a containing triangle
 };
 
 struct TileCounts {
@@ -248,11 +277,11 @@ void rasterize(const LowSurface& surface, int width, int height, int samples, Te
   out.width = width;
   out.height = height;
   out.samples = samples;
-  // resize() keeps the allocation when a caller reuses `out`; every element is
-  // rewritten by its tile below.
-  out.triangle.resize(sample_total);
-  out.bary.resize(sample_total);
-  out.coverage.resize(texel_count);
+  // A reused `out` keeps its allocation; every element is rewritten by its
+  // tile below.
+  size_output(out.triangle, sample_total);
+  size_output(out.bary, sample_total);
+  size_output(out.coverage, texel_count);
 
   const std::vector<glm::vec2> offsets = sample_offsets(samples);
 
@@ -291,7 +320,8 @@ void rasterize(const LowSurface& surface, int width, int height, int samples, Te
       for (int ty = tri.y0 / tile_size; ty <= tri.y1 / tile_size; ++ty) {
         for (int tx = tri.x0 / tile_size; tx <= tri.x1 / tile_size; ++tx) {
           if (box_overlaps(tri, tx * tile_size, ty * tile_size, tile_size)) {
-            tile_triangles[fill[static_cast<std::size_t>(ty) * tiles_x + tx]++] = static_cast<std::int32_t>(t);
+            tile_triangles[fill[static_cast<std::size_t>(ty) * tiles_x + tx]++] =
+                static_cast<std::int32_t>(t);
           }
         }
       }
@@ -305,94 +335,122 @@ void rasterize(const LowSurface& surface, int width, int height, int samples, Te
     s.inside.resize(tile_samples);
     s.strict_count.resize(tile_samples);
     s.covered.resize(static_cast<std::size_t>(tile_size) * tile_size);
+    s.inside_count.resize(static_cast<std::size_t>(tile_size) * tile_size);
     return s;
   });
   std::vector<TileCounts> tile_counts(tile_count);
   const std::size_t sample_stride = static_cast<std::size_t>(samples);
 
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tile_count), [&](const tbb::blocked_range<std::size_t>& r) {
-    TileScratch& scratch = scratch_pool.local();
-    for (std::size_t tile = r.begin(); tile != r.end(); ++tile) {
-      const int tx0 = static_cast<int>(tile % tiles_x) * tile_size;
-      const int ty0 = static_cast<int>(tile / tiles_x) * tile_size;
-      const int tx1 = std::min(tx0 + tile_size, width) - 1;
-      const int ty1 = std::min(ty0 + tile_size, height) - 1;
-      const auto local_texel = [&](int x, int y) {
-        return static_cast<std::size_t>(y - ty0) * tile_size + static_cast<std::size_t>(x - tx0);
-      };
-      const auto first_sample = [&](int x, int y) {
-        return (static_cast<std::size_t>(y) * width + static_cast<std::size_t>(x)) * sample_stride;
-      };
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, tile_count), [&](const tbb::blocked_range<std::size_t>& r) {
+        TileScratch& scratch = scratch_pool.local();
+        for (std::size_t tile = r.begin(); tile != r.end(); ++tile) {
+          const int tx0 = static_cast<int>(tile % tiles_x) * tile_size;
+          const int ty0 = static_cast<int>(tile / tiles_x) * tile_size;
+          const int tx1 = std::min(tx0 + tile_size, width) - 1;
+          const int ty1 = std::min(ty0 + tile_size, height) - 1;
+          const auto local_texel = [&](int x, int y) {
+            return static_cast<std::size_t>(y - ty0) * tile_size + static_cast<std::size_t>(x - tx0);
+          };
+          const auto first_sample = [&](int x, int y) {
+            return (static_cast<std::size_t>(y) * width + static_cast<std::size_t>(x)) * sample_stride;
+          };
 
-      std::fill(scratch.best_distance2.begin(), scratch.best_distance2.end(),
-                std::numeric_limits<double>::infinity());
-      std::fill(scratch.inside.begin(), scratch.inside.end(), 0);
-      std::fill(scratch.strict_count.begin(), scratch.strict_count.end(), 0);
-      std::fill(scratch.covered.begin(), scratch.covered.end(), 0);
-      for (int y = ty0; y <= ty1; ++y) {
-        const std::size_t row = first_sample(tx0, y);
-        const std::size_t row_end = first_sample(tx1, y) + sample_stride;
-        std::fill(out.triangle.begin() + row, out.triangle.begin() + row_end, -1);
-        std::fill(out.bary.begin() + row, out.bary.begin() + row_end, glm::vec2(0.0f));
-      }
+          std::fill(scratch.best_distance2.begin(), scratch.best_distance2.end(),
+                    std::numeric_limits<double>::infinity());
+          std::fill(scratch.inside.begin(), scratch.inside.end(), 0);
+          std::fill(scratch.strict_count.begin(), scratch.strict_count.end(), 0);
+          std::fill(scratch.covered.begin(), scratch.covered.end(), 0);
+          std::fill(scratch.inside_count.begin(), scratch.inside_count.end(), 0);
 
-      for (std::size_t k = tile_begin[tile]; k < tile_begin[tile + 1]; ++k) {
-        const std::int32_t t = tile_triangles[k];
-        const SetupTriangle& tri = setup[static_cast<std::size_t>(t)];
-        const int x_begin = std::max(tri.x0, tx0), x_end = std::min(tri.x1, tx1);
-        const int y_begin = std::max(tri.y0, ty0), y_end = std::min(tri.y1, ty1);
-        for (int y = y_begin; y <= y_end; ++y) {
-          for (int x = x_begin; x <= x_end; ++x) {
-            if (!box_overlaps(tri, x, y, 1.0)) continue;
-            const std::size_t texel = local_texel(x, y);
-            scratch.covered[texel] = 1;
-            const std::size_t local0 = texel * sample_stride;
-            const std::size_t global0 = first_sample(x, y);
-            for (int s = 0; s < samples; ++s) {
-              const glm::dvec2 p{x + static_cast<double>(offsets[s].x), y + static_cast<double>(offsets[s].y)};
-              const double e0 = tri.edge[0](p), e1 = tri.edge[1](p), e2 = tri.edge[2](p);
-              const std::size_t local = local0 + s;
-              const std::size_t global = global0 + s;
-              if (e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0) {
-                if (e0 > tri.strict_threshold && e1 > tri.strict_threshold && e2 > tri.strict_threshold &&
-                    scratch.strict_count[local] < 2) {
-                  ++scratch.strict_count[local];
-                }
-                if (!scratch.inside[local]) {
-                  scratch.inside[local] = 1;
-                  out.triangle[global] = t;
-                  out.bary[global] = inside_bary(e0, e1, e2);
-                }
-              } else if (!scratch.inside[local]) {
-                glm::vec2 b;
-                const double d2 = nearest_point(tri, p, b);
-                if (d2 < scratch.best_distance2[local]) {
-                  scratch.best_distance2[local] = d2;
-                  out.triangle[global] = t;
-                  out.bary[global] = b;
+          // Pass 1: containing triangles, first in order wins; overlap counts.
+          for (std::size_t k = tile_begin[tile]; k < tile_begin[tile + 1]; ++k) {
+            const std::int32_t t = tile_triangles[k];
+            const SetupTriangle& tri = setup[static_cast<std::size_t>(t)];
+            const int x_begin = std::max(tri.x0, tx0), x_end = std::min(tri.x1, tx1);
+            const int y_begin = std::max(tri.y0, ty0), y_end = std::min(tri.y1, ty1);
+            for (int y = y_begin; y <= y_end; ++y) {
+              for (int x = x_begin; x <= x_end; ++x) {
+                if (!box_overlaps(tri, x, y, 1.0)) continue;
+                const std::size_t texel = local_texel(x, y);
+                scratch.covered[texel] = 1;
+                const std::size_t local0 = texel * sample_stride;
+                const std::size_t global0 = first_sample(x, y);
+                for (int s = 0; s < samples; ++s) {
+                  const glm::dvec2 p{x + static_cast<double>(offsets[s].x),
+                                     y + static_cast<double>(offsets[s].y)};
+                  const double e0 = tri.edge[0](p), e1 = tri.edge[1](p), e2 = tri.edge[2](p);
+                  if (!(e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0)) continue;
+                  const std::size_t local = local0 + s;
+                  if (e0 > tri.strict_threshold && e1 > tri.strict_threshold && e2 > tri.strict_threshold &&
+                      scratch.strict_count[local] < 2) {
+                    ++scratch.strict_count[local];
+                  }
+                  if (!scratch.inside[local]) {
+                    scratch.inside[local] = 1;
+                    ++scratch.inside_count[texel];
+                    out.triangle[global0 + s] = t;
+                    out.bary[global0 + s] = inside_bary(e0, e1, e2);
+                  }
                 }
               }
             }
           }
-        }
-      }
 
-      TileCounts& counts = tile_counts[tile];
-      for (int y = ty0; y <= ty1; ++y) {
-        for (int x = tx0; x <= tx1; ++x) {
-          const std::size_t texel = local_texel(x, y);
-          out.coverage[static_cast<std::size_t>(y) * width + x] = scratch.covered[texel];
-          if (!scratch.covered[texel]) continue;
-          ++counts.covered_texels;
-          for (int s = 0; s < samples; ++s) {
-            const std::size_t local = texel * sample_stride + s;
-            if (!scratch.inside[local]) ++counts.border_samples;
-            if (scratch.strict_count[local] >= 2) ++counts.overlapping_samples;
+          // Pass 2, only for texels with samples outside every triangle: the
+          // nearest point of the nearest overlapping triangle. Kept apart from
+          // pass 1 because it costs three divisions and most outside candidates
+          // turn out to lie inside a neighbour.
+          for (std::size_t k = tile_begin[tile]; k < tile_begin[tile + 1]; ++k) {
+            const std::int32_t t = tile_triangles[k];
+            const SetupTriangle& tri = setup[static_cast<std::size_t>(t)];
+            const int x_begin = std::max(tri.x0, tx0), x_end = std::min(tri.x1, tx1);
+            const int y_begin = std::max(tri.y0, ty0), y_end = std::min(tri.y1, ty1);
+            for (int y = y_begin; y <= y_end; ++y) {
+              for (int x = x_begin; x <= x_end; ++x) {
+                const std::size_t texel = local_texel(x, y);
+                if (scratch.inside_count[texel] == samples || !box_overlaps(tri, x, y, 1.0)) continue;
+                const std::size_t local0 = texel * sample_stride;
+                const std::size_t global0 = first_sample(x, y);
+                for (int s = 0; s < samples; ++s) {
+                  const std::size_t local = local0 + s;
+                  if (scratch.inside[local]) continue;
+                  const glm::dvec2 p{x + static_cast<double>(offsets[s].x),
+                                     y + static_cast<double>(offsets[s].y)};
+                  glm::vec2 b;
+                  const double d2 = nearest_point(tri, p, b);
+                  if (d2 < scratch.best_distance2[local]) {
+                    scratch.best_distance2[local] = d2;
+                    out.triangle[global0 + s] = t;
+                    out.bary[global0 + s] = b;
+                  }
+                }
+              }
+            }
+          }
+
+          TileCounts& counts = tile_counts[tile];
+          for (int y = ty0; y <= ty1; ++y) {
+            for (int x = tx0; x <= tx1; ++x) {
+              const std::size_t texel = local_texel(x, y);
+              out.coverage[static_cast<std::size_t>(y) * width + x] = scratch.covered[texel];
+              if (!scratch.covered[texel]) {
+                // Every sample of a covered texel was written by pass 1 or 2.
+                const std::size_t first = first_sample(x, y);
+                std::fill_n(out.triangle.begin() + first, samples, -1);
+                std::fill_n(out.bary.begin() + first, samples, glm::vec2(0.0f));
+                continue;
+              }
+              ++counts.covered_texels;
+              for (int s = 0; s < samples; ++s) {
+                const std::size_t local = texel * sample_stride + s;
+                if (!scratch.inside[local]) ++counts.border_samples;
+                if (scratch.strict_count[local] >= 2) ++counts.overlapping_samples;
+              }
+            }
           }
         }
-      }
-    }
-  });
+      });
 
   for (const TileCounts& c : tile_counts) {
     stats.covered_texels += c.covered_texels;

@@ -1,19 +1,19 @@
+#include "nmbake/raster.hpp"
+
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <glm/vec2.hpp>
 #include <limits>
 #include <set>
 #include <tuple>
 #include <utility>
 #include <vector>
 
-#include <glm/vec2.hpp>
-#include <tbb/global_control.h>
-
-#include "nmbake/raster.hpp"
 #include "nmbake/surface.hpp"
 
 namespace {
@@ -72,9 +72,12 @@ double overlap_area(const LowSurface& s, int t, int x, int y, int w, int h) {
     int axis;
     double bound;
     bool lower;
-  } planes[4] = {{0, double(x), true}, {0, double(x + 1), false}, {1, double(y), true}, {1, double(y + 1), false}};
+  } planes[4] = {
+      {0, double(x), true}, {0, double(x + 1), false}, {1, double(y), true}, {1, double(y + 1), false}};
   for (const auto& plane : planes) {
-    const auto keep = [&](glm::dvec2 p) { return plane.lower ? p[plane.axis] >= plane.bound : p[plane.axis] <= plane.bound; };
+    const auto keep = [&](glm::dvec2 p) {
+      return plane.lower ? p[plane.axis] >= plane.bound : p[plane.axis] <= plane.bound;
+    };
     std::vector<glm::dvec2> next;
     for (std::size_t i = 0; i < poly.size(); ++i) {
       const glm::dvec2 p = poly[i], q = poly[(i + 1) % poly.size()];
@@ -127,7 +130,8 @@ std::vector<glm::vec2> random_mesh_uvs() {
     for (int i = 0; i <= n; ++i) {
       const double jitter_x = (i > 0 && i < n) ? (next() - 0.5) * 0.5 : 0.0;
       const double jitter_y = (j > 0 && j < n) ? (next() - 0.5) * 0.5 : 0.0;
-      grid[j * (n + 1) + i] = glm::vec2(float(0.05 + 0.6 * (i + jitter_x) / n), float(0.05 + 0.6 * (j + jitter_y) / n));
+      grid[j * (n + 1) + i] =
+          glm::vec2(float(0.05 + 0.6 * (i + jitter_x) / n), float(0.05 + 0.6 * (j + jitter_y) / n));
     }
   }
   std::vector<glm::vec2> uvs;
@@ -176,7 +180,8 @@ TEST(RasterSamplePattern, CountsRangeDistinctStratified) {
     EXPECT_EQ(o, nmbake::sample_offsets(n));
   }
   EXPECT_EQ(nmbake::sample_offsets(1), std::vector<glm::vec2>{glm::vec2(0.5f, 0.5f)});
-  const std::vector<glm::vec2> rgss = {{0.375f, 0.125f}, {0.875f, 0.375f}, {0.125f, 0.625f}, {0.625f, 0.875f}};
+  const std::vector<glm::vec2> rgss = {
+      {0.375f, 0.125f}, {0.875f, 0.375f}, {0.125f, 0.625f}, {0.625f, 0.875f}};
   EXPECT_EQ(nmbake::sample_offsets(4), rgss);
 }
 
@@ -222,8 +227,8 @@ TEST(RasterTiny, LowerLeftHalfOf4x4) {
 
 TEST(RasterTiny, FullQuadCoversEverythingWithoutBorderOrOverlap) {
   const LowSurface s = surface_from_uvs({{0, 0}, {1, 0}, {1, 1}, {0, 0}, {1, 1}, {0, 1}});
-  for (const auto& [w, h, samples] : std::vector<std::tuple<int, int, int>>{
-           {8, 8, 1}, {5, 7, 1}, {8, 8, 4}, {16, 16, 16}, {9, 4, 64}}) {
+  for (const auto& [w, h, samples] :
+       std::vector<std::tuple<int, int, int>>{{8, 8, 1}, {5, 7, 1}, {8, 8, 4}, {16, 16, 16}, {9, 4, 64}}) {
     TexelSamples ts;
     RasterStats stats;
     nmbake::rasterize(s, w, h, samples, ts, stats);
@@ -315,8 +320,8 @@ TEST(RasterBary, InsideSamplesReconstructTheirUv) {
 
 TEST(RasterBary, BorderSampleTakesNearestPointOfNearestTriangle) {
   // Two triangles with a sub-texel gap and odd slopes, on a small map.
-  const LowSurface s = surface_from_uvs({{0.11f, 0.13f}, {0.47f, 0.21f}, {0.29f, 0.83f},
-                                         {0.52f, 0.25f}, {0.91f, 0.37f}, {0.33f, 0.87f}});
+  const LowSurface s = surface_from_uvs(
+      {{0.11f, 0.13f}, {0.47f, 0.21f}, {0.29f, 0.83f}, {0.52f, 0.25f}, {0.91f, 0.37f}, {0.33f, 0.87f}});
   const int w = 23, h = 19;
   for (const int samples : {1, 16}) {
     TexelSamples ts;
@@ -340,7 +345,8 @@ TEST(RasterBary, BorderSampleTakesNearestPointOfNearestTriangle) {
           double best = std::numeric_limits<double>::infinity();
           for (int c = 0; c < 2; ++c) {
             // Only triangles overlapping the texel are candidates.
-            if (overlap_area(s, c, x, y, w, h) > 1e-12) best = std::min(best, brute_force_distance(s, c, p, w, h));
+            if (overlap_area(s, c, x, y, w, h) > 1e-12)
+              best = std::min(best, brute_force_distance(s, c, p, w, h));
           }
           // The brute force samples the edges every ~2e-3 texel; ours only
           // carries float barycentrics.
@@ -354,12 +360,39 @@ TEST(RasterBary, BorderSampleTakesNearestPointOfNearestTriangle) {
   }
 }
 
+TEST(RasterBary, EquidistantBorderSampleTakesLowerTriangleIndex) {
+  // On a 4x4 map, texel (1, 1) (centre (1.5, 1.5) in pixels) lies between a
+  // triangle whose right edge is px = 1.25 and its mirror image with the
+  // left edge at px = 1.75: both overlap the texel, both 0.25 away.
+  const std::vector<glm::vec2> left = {{0.0f, 1.0f}, {0.3125f, 1.0f}, {0.3125f, 0.0f}};
+  const std::vector<glm::vec2> right = {{0.75f, 1.0f}, {0.4375f, 1.0f}, {0.4375f, 0.0f}};
+  for (const bool left_first : {true, false}) {
+    std::vector<glm::vec2> uvs = left_first ? left : right;
+    const std::vector<glm::vec2>& second = left_first ? right : left;
+    uvs.insert(uvs.end(), second.begin(), second.end());
+    const LowSurface s = surface_from_uvs(uvs);
+    TexelSamples ts;
+    RasterStats stats;
+    nmbake::rasterize(s, 4, 4, 1, ts, stats);
+    ASSERT_EQ(ts.coverage[1 * 4 + 1], 1);
+    const std::size_t i = sample_index(ts, 1, 1, 0);
+    EXPECT_EQ(ts.triangle[i], 0);
+    const glm::dvec2 q = bary_point(s, 0, ts.bary[i], 4, 4);
+    EXPECT_NEAR(q.x, left_first ? 1.25 : 1.75, 1e-6);
+    EXPECT_NEAR(q.y, 1.5, 1e-6);
+  }
+}
+
 TEST(RasterOverlap, StackedAndShiftedTrianglesAreCounted) {
   // Triangle 1 is triangle 0 shifted right by half a texel at 8x8: the
   // overlapping samples are the ones strictly inside both.
   const float shift = 0.5f / 8.0f;
-  const LowSurface s = surface_from_uvs({{0.1f, 0.1f}, {0.9f, 0.1f}, {0.1f, 0.9f},
-                                         {0.1f + shift, 0.1f}, {0.9f + shift, 0.1f}, {0.1f + shift, 0.9f}});
+  const LowSurface s = surface_from_uvs({{0.1f, 0.1f},
+                                         {0.9f, 0.1f},
+                                         {0.1f, 0.9f},
+                                         {0.1f + shift, 0.1f},
+                                         {0.9f + shift, 0.1f},
+                                         {0.1f + shift, 0.9f}});
   const int w = 8, h = 8, samples = 16;
   TexelSamples ts;
   RasterStats stats;
@@ -396,11 +429,21 @@ TEST(RasterOverlap, StackedAndShiftedTrianglesAreCounted) {
 TEST(RasterDegenerate, ZeroAreaAndNonFiniteTrianglesAreSkippedAndCounted) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const LowSurface s = surface_from_uvs({
-      {0.1f, 0.1f}, {0.5f, 0.5f}, {0.9f, 0.9f},  // collinear
-      {0.3f, 0.3f}, {0.3f, 0.3f}, {0.3f, 0.3f},  // a point
-      {0.2f, 0.2f}, {nan, 0.4f}, {0.6f, 0.1f},   // NaN
-      {0.0f, 0.0f}, {1.0f, 0.0f}, {0.0f, 1.0f},  // an ordinary triangle
-      {0.2f, 0.7f}, {0.2f, 0.7f}, {0.8f, 0.1f},  // repeated corner
+      {0.1f, 0.1f},
+      {0.5f, 0.5f},
+      {0.9f, 0.9f},  // collinear
+      {0.3f, 0.3f},
+      {0.3f, 0.3f},
+      {0.3f, 0.3f},  // a point
+      {0.2f, 0.2f},
+      {nan, 0.4f},
+      {0.6f, 0.1f},  // NaN
+      {0.0f, 0.0f},
+      {1.0f, 0.0f},
+      {0.0f, 1.0f},  // an ordinary triangle
+      {0.2f, 0.7f},
+      {0.2f, 0.7f},
+      {0.8f, 0.1f},  // repeated corner
   });
   TexelSamples ts;
   RasterStats stats;
@@ -429,7 +472,8 @@ TEST(RasterDeterminism, ByteIdenticalForOneAndTwoThreads) {
     nmbake::rasterize(s, 256, 256, 16, two, stats_two);
   }
   ASSERT_EQ(one.sample_count(), two.sample_count());
-  EXPECT_EQ(0, std::memcmp(one.triangle.data(), two.triangle.data(), one.triangle.size() * sizeof(std::int32_t)));
+  EXPECT_EQ(
+      0, std::memcmp(one.triangle.data(), two.triangle.data(), one.triangle.size() * sizeof(std::int32_t)));
   EXPECT_EQ(0, std::memcmp(one.bary.data(), two.bary.data(), one.bary.size() * sizeof(glm::vec2)));
   EXPECT_EQ(one.coverage, two.coverage);
   EXPECT_EQ(stats_one.covered_texels, stats_two.covered_texels);

@@ -5,12 +5,28 @@
 // `samples` samples at fixed offsets (sample_offsets()): the same pattern in
 // every texel and every run.
 //
-// A texel is covered when its square overlaps a UV triangle. Each sample of a
+// In pixel coordinates px = u * W, py = (1 - v) * H, texel (x, y) covers
+// [x, x + 1] x [y, y + 1] and its sample s sits at (x, y) + sample_offsets()[s].
+//
+// A texel is covered when its square overlaps a UV triangle with nonzero area
+// (touching along an edge or at a corner does not count). Each sample of a
 // covered texel takes the triangle containing it (the first in triangle order
-// when several do); a sample inside none (chart borders) takes the nearest
-// point of the nearest triangle that overlaps the texel, so border texels are
-// baked from the surface and not left to dilation. A sample strictly inside
-// two or more triangles counts as an overlap (mirrored or stacked UVs).
+// when several do; edges count as inside, so samples on shared edges are not
+// lost); a sample inside none (chart borders) takes the nearest point
+// (pixel-space distance) of the nearest triangle that overlaps the texel, the
+// lower triangle index on ties, so border texels are baked from the surface
+// and not left to dilation. A sample strictly inside two or more triangles
+// (every barycentric weight above 1e-7) counts as an overlap (mirrored or
+// stacked UVs); a shared edge is not an overlap. Barycentrics are in [0, 1]
+// with b.x + b.y <= 1. Uncovered texels hold triangle -1 and bary (0, 0).
+//
+// Degenerate UV triangles are skipped and counted: zero or near-zero area
+// (height below 1e-10 of the longest edge), non-finite UVs, or UVs absurdly
+// far (> 1e12 pixels) from the map. Triangles entirely off the map are simply
+// not rasterized.
+//
+// Deterministic: binned into 32x32-texel tiles in triangle order, tiles run in
+// parallel (TBB); the output is byte-identical for any thread count.
 #pragma once
 
 #include <cstdint>
@@ -24,7 +40,10 @@ namespace nmbake {
 
 // Offsets in [0, 1)^2 inside a texel, for 1, 4, 16 or 64 samples: centre,
 // rotated grid, and stratified grids. Any other count is a usage error caught
-// by the caller (is_supported_sample_count).
+// by the caller (is_supported_sample_count). For k x k = 4, 16, 64 samples the
+// sample of cell (column i, row j) is at ((i + (k - 1 - j + 0.5) / k) / k,
+// (j + (i + 0.5) / k) / k), row by row: one sample per cell and per fine row
+// and column (n-rooks); k = 2 is exactly RGSS. Fixed constants, never random.
 std::vector<glm::vec2> sample_offsets(int samples);
 bool is_supported_sample_count(int samples);
 
@@ -48,6 +67,9 @@ struct RasterStats {
   std::uint64_t degenerate_uv_triangles = 0;  // zero UV area: skipped by the rasterizer
 };
 
+// Reads surface.uv only (three per triangle). Fills `out` (reusing its
+// allocation when large enough) and overwrites `stats`. width, height > 0 and
+// a supported sample count are checked invariants.
 void rasterize(const LowSurface& surface, int width, int height, int samples, TexelSamples& out,
                RasterStats& stats);
 
