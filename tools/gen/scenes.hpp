@@ -8,10 +8,9 @@
 
 #include <cstdint>
 #include <functional>
-#include <memory>
-
-#include <glm/vec3.hpp>
 #include <glm/ext/vector_double3.hpp>
+#include <glm/vec3.hpp>
+#include <memory>
 
 #include "nmbake/mesh.hpp"
 
