@@ -1,21 +1,23 @@
 // Tests of the scene generators (tools/gen): analytic normals against finite
 // differences, cube-sphere topology and UV atlas, winding, determinism.
+#include "scenes.hpp"
+
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <glm/geometric.hpp>
 #include <map>
 #include <numbers>
 #include <numeric>
 #include <tuple>
 #include <vector>
 
-#include <glm/geometric.hpp>
-#include <tbb/global_control.h>
-
+#include "nmbake/load.hpp"
 #include "noise.hpp"
-#include "scenes.hpp"
+#include "test_util.hpp"
 
 namespace {
 
@@ -54,7 +56,8 @@ std::vector<glm::dvec3> test_directions() {
 }
 
 void expect_finite(const Mesh& mesh) {
-  for (const glm::vec3& p : mesh.positions) ASSERT_TRUE(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z));
+  for (const glm::vec3& p : mesh.positions)
+    ASSERT_TRUE(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z));
   for (const glm::vec3& n : mesh.normals) {
     ASSERT_TRUE(std::isfinite(n.x) && std::isfinite(n.y) && std::isfinite(n.z));
     ASSERT_NEAR(glm::length(n), 1.0f, 1e-5f);
@@ -88,7 +91,8 @@ void expect_watertight(const Mesh& mesh) {
   std::map<PositionKey, std::uint32_t> ids;
   std::vector<std::uint32_t> welded(mesh.vertex_count());
   for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
-    welded[v] = ids.try_emplace(bits_of(mesh.positions[v]), static_cast<std::uint32_t>(ids.size())).first->second;
+    welded[v] =
+        ids.try_emplace(bits_of(mesh.positions[v]), static_cast<std::uint32_t>(ids.size())).first->second;
   }
   std::map<std::pair<std::uint32_t, std::uint32_t>, int> directed;
   for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
@@ -161,10 +165,12 @@ TEST(ScenesHeightfield, NormalMatchesFiniteDifferences) {
       // Differences over the float arguments actually passed, so the rounding
       // of x +- step does not count as slope.
       const float xp = x + step, xm = x - step, yp = y + step, ym = y - step;
-      const double hx = (double(scenes::heightfield_height(p, xp, y)) - scenes::heightfield_height(p, xm, y)) /
-                        (double(xp) - double(xm));
-      const double hy = (double(scenes::heightfield_height(p, x, yp)) - scenes::heightfield_height(p, x, ym)) /
-                        (double(yp) - double(ym));
+      const double hx =
+          (double(scenes::heightfield_height(p, xp, y)) - scenes::heightfield_height(p, xm, y)) /
+          (double(xp) - double(xm));
+      const double hy =
+          (double(scenes::heightfield_height(p, x, yp)) - scenes::heightfield_height(p, x, ym)) /
+          (double(yp) - double(ym));
       const glm::dvec3 fd(-hx, -hy, 1.0);
       worst = std::max(worst, angle_deg(fd, glm::dvec3(scenes::heightfield_normal(p, x, y))));
     }
@@ -217,7 +223,8 @@ TEST(ScenesHeightfield, MeshesFollowTheContract) {
   // Counter-clockwise seen from +z: positive signed area in xy (and in uv).
   for (const Mesh* mesh : {&pair.low, &pair.high}) {
     for (std::size_t t = 0; t < mesh->triangle_count(); ++t) {
-      const glm::vec3 a = mesh->positions[mesh->indices[3 * t]], b = mesh->positions[mesh->indices[3 * t + 1]],
+      const glm::vec3 a = mesh->positions[mesh->indices[3 * t]],
+                      b = mesh->positions[mesh->indices[3 * t + 1]],
                       c = mesh->positions[mesh->indices[3 * t + 2]];
       ASSERT_GT((b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x), 0.0f);
       ASSERT_GT(glm::cross(b - a, c - a).z, 0.0f);
@@ -302,7 +309,6 @@ TEST(ScenesCubeSphere, SeamsAreWatertightWithAndWithoutUvs) {
     // Without UVs seam vertices are shared: V = 6 n^2 + 2 for a closed cube.
     EXPECT_EQ(welded.vertex_count(), 6u * cells * cells + 2u);
     EXPECT_FALSE(welded.has_uvs());
-    EXPECT_TRUE(bitwise_equal(split.indices, split.indices));
     expect_watertight(split);
     expect_watertight(welded);
     expect_outward(split);
@@ -315,7 +321,8 @@ TEST(ScenesCubeSphere, SeamsAreWatertightWithAndWithoutUvs) {
 TEST(ScenesCubeSphere, UvChartsAreInsideDisjointAndNotMirrored) {
   const float gutter = 0.01f;
   const int cells = 6;
-  const Mesh mesh = scenes::make_cube_sphere(cells, [](const glm::vec3&) { return 1.0f; }, true, gutter);
+  const Mesh mesh = scenes::make_cube_sphere(
+      cells, [](const glm::vec3&) { return 1.0f; }, true, gutter);
   ASSERT_EQ(mesh.uvs.size(), mesh.vertex_count());
   // Charts = connected components of triangles sharing vertices.
   std::vector<std::uint32_t> parent(mesh.vertex_count());
@@ -468,7 +475,9 @@ TEST(ScenesMoon, CratersDependOnSeedAndDiffer) {
   scenes::MoonParams none = lone;
   none.crater_count = 0;
   const scenes::MoonSurface surface(lone), plain(none);
-  const auto crater = [&](const glm::dvec3& d) { return surface.relative_height(d) - plain.relative_height(d); };
+  const auto crater = [&](const glm::dvec3& d) {
+    return surface.relative_height(d) - plain.relative_height(d);
+  };
   // A Fibonacci grid finer than the smallest crater radius (0.015 rad).
   glm::dvec3 centre(0, 0, 1);
   double deepest = 1.0;
@@ -497,6 +506,30 @@ TEST(ScenesMoon, CratersDependOnSeedAndDiffer) {
     widest = std::max(widest, hi - lo);
   }
   EXPECT_GT(widest, 0.3 * -deepest);
+}
+
+TEST(ScenesCli, WritesBothFilesAndRejectsBadUsage) {
+  const nmbake::test::TempDir dir;
+  const std::string out = dir.file("out");
+  const nmbake::test::CommandResult ok = nmbake::test::run_command(
+      nmbake::test::gen_path() + " heightfield --out-dir " + out + " --high-cells 10 --low-cells 2");
+  ASSERT_EQ(ok.exit_code, 0) << ok.output;
+  EXPECT_NE(ok.output.find("heightfield_low.obj: 8 triangles"), std::string::npos) << ok.output;
+  EXPECT_NE(ok.output.find("heightfield_high.ply: 200 triangles"), std::string::npos) << ok.output;
+  nmbake::Mesh low, high;
+  nmbake::LoadStats stats;
+  ASSERT_TRUE(nmbake::load_mesh(out + "/heightfield_low.obj", {}, low, stats).is_ok());
+  ASSERT_TRUE(nmbake::load_mesh(out + "/heightfield_high.ply", {}, high, stats).is_ok());
+  EXPECT_EQ(low.triangle_count(), 8u);
+  EXPECT_TRUE(low.has_uvs());
+  EXPECT_EQ(high.triangle_count(), 200u);
+  EXPECT_TRUE(high.has_normals());
+
+  for (const std::string& args : {std::string("moon"), "moon --out-dir " + out + " --high-cells 0",
+                                  "sphere --out-dir " + out + " --amplitude 2", std::string("nonsense")}) {
+    const nmbake::test::CommandResult bad = nmbake::test::run_command(nmbake::test::gen_path() + " " + args);
+    EXPECT_EQ(bad.exit_code, 2) << args << ": " << bad.output;
+  }
 }
 
 }  // namespace

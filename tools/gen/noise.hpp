@@ -12,7 +12,6 @@
 #pragma once
 
 #include <cstdint>
-
 #include <glm/vec3.hpp>
 
 namespace nmbake::noise {

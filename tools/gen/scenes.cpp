@@ -10,16 +10,16 @@
 // the meshes are bitwise reproducible and the analytic normals are accurate.
 #include "scenes.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <glm/geometric.hpp>
 #include <numbers>
 #include <unordered_map>
 #include <vector>
-
-#include <glm/geometric.hpp>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
 #include "noise.hpp"
 
@@ -231,12 +231,12 @@ struct FaceFrame {
   glm::ivec3 u, v, n;
 };
 constexpr std::array<FaceFrame, 6> kFaces = {{
-    {{0, 0, -1}, {0, 1, 0}, {1, 0, 0}},    // +X
-    {{0, 0, 1}, {0, 1, 0}, {-1, 0, 0}},    // -X
-    {{1, 0, 0}, {0, 0, -1}, {0, 1, 0}},    // +Y
-    {{1, 0, 0}, {0, 0, 1}, {0, -1, 0}},    // -Y
-    {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}},     // +Z
-    {{-1, 0, 0}, {0, 1, 0}, {0, 0, -1}},   // -Z
+    {{0, 0, -1}, {0, 1, 0}, {1, 0, 0}},   // +X
+    {{0, 0, 1}, {0, 1, 0}, {-1, 0, 0}},   // -X
+    {{1, 0, 0}, {0, 0, -1}, {0, 1, 0}},   // +Y
+    {{1, 0, 0}, {0, 0, 1}, {0, -1, 0}},   // -Y
+    {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}},    // +Z
+    {{-1, 0, 0}, {0, 1, 0}, {0, 0, -1}},  // -Z
 }};
 
 // Integer cube point of grid vertex (i, j) of face f: coordinates in
@@ -268,7 +268,7 @@ CubeSphereLayout cube_sphere_layout(int cells, bool with_uvs, float uv_gutter) {
   NMBAKE_CHECK(uv_gutter >= 0.0f && uv_gutter < 1.0f / 6.0f, "cube sphere uv_gutter out of range");
   const std::size_t row = static_cast<std::size_t>(cells) + 1;
   CubeSphereLayout layout;
-  std::vector<std::uint32_t> face_vertex(row * row);  // grid (i, j) -> vertex, per face
+  std::vector<std::uint32_t> face_vertex(row * row);             // grid (i, j) -> vertex, per face
   std::unordered_map<std::uint64_t, std::uint32_t> seam_vertex;  // only without UVs
   layout.lattice.reserve(6 * row * row);
   if (with_uvs) layout.mesh.uvs.reserve(6 * row * row);
@@ -347,7 +347,8 @@ ScenePair make_displaced_sphere(const SphereParams& p) {
   NMBAKE_CHECK(p.radius > 0.0f, "sphere radius must be positive");
   ScenePair pair;
   const float radius = p.radius;
-  pair.low = make_cube_sphere(p.low_cells, [radius](const glm::vec3&) { return radius; }, true, sphere_uv_gutter);
+  pair.low = make_cube_sphere(
+      p.low_cells, [radius](const glm::vec3&) { return radius; }, true, sphere_uv_gutter);
   pair.high = finish_cube_sphere(
       cube_sphere_layout(p.high_cells, false, 0.0f), [&p](const glm::vec3& d) { return sphere_radius(p, d); },
       [&p](const glm::vec3& d) { return sphere_normal(p, d); });
@@ -362,20 +363,21 @@ namespace {
 // a parabolic bowl from -depth at the centre up to the rim height at x = 1,
 // then ejecta falling off as (1 - t)^2 to zero at x = kEjectaReach.
 constexpr double kEjectaReach = 2.2;
-constexpr double kRimFraction = 0.3;       // rim height / bowl depth
-constexpr double kDistortion = 0.3;        // |x' / x - 1| <= this
+constexpr double kRimFraction = 0.3;        // rim height / bowl depth
+constexpr double kDistortion = 0.3;         // |x' / x - 1| <= this
 constexpr double kMinCraterRadius = 0.015;  // angular, radians
 constexpr double kMaxCraterRadius = 0.30;
-constexpr double kDepthScale = 0.045;      // depth = scale * radius^0.7 (relative to the moon radius)
-constexpr double kTerrainHeight = 0.004;   // fBm terrain, relative
-constexpr double kBandWidth = 0.05;        // latitude band of the crater lookup, radians
+constexpr double kDepthScale = 0.045;     // depth = scale * radius^0.7 (relative to the moon radius)
+constexpr double kTerrainHeight = 0.004;  // fBm terrain, relative
+constexpr double kBandWidth = 0.05;       // latitude band of the crater lookup, radians
 
 struct Crater {
   glm::dvec3 centre;
-  double radius;       // angular
-  double depth, rim;   // relative to the moon radius
+  double radius;      // angular
+  double depth, rim;  // relative to the moon radius
   glm::dvec3 noise_offset;
-  double reach;        // angular distance beyond which the crater adds exactly 0
+  double reach;      // angular distance beyond which the crater adds exactly 0
+  double cos_reach;  // cos(reach), lowered a little: a conservative early-out
   std::uint32_t noise_seed;
 };
 
@@ -433,12 +435,14 @@ MoonSurface::MoonSurface(const MoonParams& p) : impl_(std::make_unique<Impl>()) 
     // x' >= x (1 - kDistortion), so x' >= kEjectaReach beyond this distance;
     // the margin covers rounding in the band test.
     c.reach = kEjectaReach * c.radius / (1.0 - kDistortion) + 1e-6;
+    c.cos_reach = std::cos(std::min(c.reach + 1e-4, std::numbers::pi));
 
     const double lat = latitude(c.centre);
     const int first = band_of(lat - c.reach, band_count), last = band_of(lat + c.reach, band_count);
     // Near a pole the cap covers every longitude; the band test is on
     // latitude only, so that needs no special case.
-    for (int b = first; b <= last; ++b) m.bands[static_cast<std::size_t>(b)].push_back(static_cast<std::uint32_t>(index));
+    for (int b = first; b <= last; ++b)
+      m.bands[static_cast<std::size_t>(b)].push_back(static_cast<std::uint32_t>(index));
     m.craters.push_back(c);
   }
 }
@@ -456,6 +460,8 @@ double MoonSurface::relative_height(const glm::dvec3& d) const {
   const int band_count = static_cast<int>(m.bands.size());
   for (const std::uint32_t index : m.bands[static_cast<std::size_t>(band_of(latitude(d), band_count))]) {
     const Crater& c = m.craters[index];
+    // Cheap rejection first; the exact test below decides (so this only saves time).
+    if (glm::dot(d, c.centre) < c.cos_reach) continue;
     // Angular distance via the chord: well conditioned near 0, unlike acos.
     const double chord = glm::length(d - c.centre);
     const double angle = 2.0 * std::asin(std::min(1.0, 0.5 * chord));
@@ -479,9 +485,10 @@ ScenePair make_moon(const MoonParams& p) {
   const MoonSurface surface(p);
   ScenePair pair;
   const float radius = p.radius;
-  pair.low = make_cube_sphere(p.low_cells, [radius](const glm::vec3&) { return radius; }, true, sphere_uv_gutter);
-  pair.high = make_cube_sphere(p.high_cells, [&surface](const glm::vec3& d) { return surface.radius(d); }, false,
-                               0.0f);
+  pair.low = make_cube_sphere(
+      p.low_cells, [radius](const glm::vec3&) { return radius; }, true, sphere_uv_gutter);
+  pair.high = make_cube_sphere(
+      p.high_cells, [&surface](const glm::vec3& d) { return surface.radius(d); }, false, 0.0f);
   // The normals of the crater field have no closed form: area-weighted
   // normals of the (welded, closed) high mesh.
   pair.high.normals.clear();

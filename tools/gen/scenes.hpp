@@ -8,10 +8,9 @@
 
 #include <cstdint>
 #include <functional>
-#include <memory>
-
-#include <glm/vec3.hpp>
 #include <glm/ext/vector_double3.hpp>
+#include <glm/vec3.hpp>
+#include <memory>
 
 #include "nmbake/mesh.hpp"
 
@@ -76,19 +75,21 @@ ScenePair make_displaced_sphere(const SphereParams& p);
 Mesh make_cube_sphere(int cells_per_face, const std::function<float(const glm::vec3&)>& radius_of_direction,
                       bool with_uvs, float uv_gutter);
 
-// --- The demo moon -------------------------------------------------------
-// "Making Worlds"-style moon: crater brushes (bowl, raised rim, ejecta)
-// stamped at fixed pseudo-random places, the brush's radial coordinate
-// distorted with fractal noise so no two craters are alike, on top of a low
-// fractal terrain. High: cube sphere with high_cells per face (408 gives
-// ~2.0M triangles), area-weighted normals computed from the mesh. Low: the
-// plain sphere with low_cells per face, one UV chart per face.
 // The moon's radius always stays within radius * (1 +- moon_relief_limit):
 // crater and terrain heights are summed and then softly limited (tanh).
 inline constexpr float moon_relief_limit = 0.02f;
 // UV gutter of the low meshes of the sphere and the moon (UV units per side).
 inline constexpr float sphere_uv_gutter = 0.01f;
 
+// --- The demo moon -------------------------------------------------------
+// "Making Worlds"-style moon: crater brushes (bowl, raised rim, ejecta)
+// stamped at fixed pseudo-random places, the brush's radial coordinate
+// distorted with fractal noise so no two craters are alike, on top of a low
+// fractal terrain. High: cube sphere with high_cells per face (408 gives
+// ~2.0M triangles), area-weighted normals computed from the mesh. Low: the
+// plain sphere with low_cells per face, one UV chart per face. Both high
+// meshes (sphere and moon) share their seam vertices (closed, welded); the low
+// meshes are split per face (UV charts) with bitwise-equal seam positions.
 struct MoonParams {
   float radius = 1.0f;
   int low_cells = 16;
@@ -108,7 +109,8 @@ class MoonSurface {
   MoonSurface(const MoonSurface&) = delete;
   MoonSurface& operator=(const MoonSurface&) = delete;
   float radius(const glm::vec3& direction) const;  // any non-zero direction
-  // Relative height (radius / p.radius - 1) before rounding to float.
+  // Relative height (radius / p.radius - 1) before rounding to float, in
+  // [-moon_relief_limit, moon_relief_limit].
   double relative_height(const glm::dvec3& unit_direction) const;
 
  private:
