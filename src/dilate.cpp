@@ -16,15 +16,15 @@
 // fixed-size chunks whose outputs are concatenated in chunk order.
 #include "nmbake/dilate.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
 #include <vector>
-
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
 namespace nmbake {
 
@@ -63,7 +63,8 @@ void scan_rows(const Grid& grid, int row_begin, int row_end, std::vector<std::ui
   for (int y = row_begin; y < row_end; ++y) {
     const std::uint8_t* up = y > 0 ? grid.state + static_cast<std::size_t>(y - 1) * w : nullptr;
     const std::uint8_t* row = grid.state + static_cast<std::size_t>(y) * w;
-    const std::uint8_t* down = y + 1 < grid.height ? grid.state + static_cast<std::size_t>(y + 1) * w : nullptr;
+    const std::uint8_t* down =
+        y + 1 < grid.height ? grid.state + static_cast<std::size_t>(y + 1) * w : nullptr;
     // Rolling OR of the 3-texel columns x-1, x, x+1 keeps this one load per texel.
     auto column = [&](int x) -> std::uint8_t {
       if (x < 0 || x >= w) return 0;
@@ -122,12 +123,16 @@ void dilate(Image& image, std::vector<std::uint8_t>& coverage, int padding, Dila
   stats = DilateStats{};
   NMBAKE_CHECK(image.width >= 0 && image.height >= 0, "dilate: negative image size");
   NMBAKE_CHECK(image.channels >= 3, "dilate: the image needs at least 3 channels (a vector per texel)");
-  const std::size_t texel_count = static_cast<std::size_t>(image.width) * static_cast<std::size_t>(image.height);
-  NMBAKE_CHECK(texel_count <= std::numeric_limits<std::uint32_t>::max(), "dilate: image too large for 32-bit indices");
-  NMBAKE_CHECK(image.pixels.size() == texel_count * image.channels, "dilate: pixel buffer does not match the size");
+  const std::size_t texel_count =
+      static_cast<std::size_t>(image.width) * static_cast<std::size_t>(image.height);
+  NMBAKE_CHECK(texel_count <= std::numeric_limits<std::uint32_t>::max(),
+               "dilate: image too large for 32-bit indices");
+  NMBAKE_CHECK(image.pixels.size() == texel_count * image.channels,
+               "dilate: pixel buffer does not match the size");
   NMBAKE_CHECK(coverage.size() == texel_count, "dilate: coverage does not have one entry per texel");
-  NMBAKE_CHECK(std::none_of(coverage.begin(), coverage.end(), [](std::uint8_t c) { return c > state_covered; }),
-               "dilate: coverage entries must be 0 or 1");
+  NMBAKE_CHECK(
+      std::none_of(coverage.begin(), coverage.end(), [](std::uint8_t c) { return c > state_covered; }),
+      "dilate: coverage entries must be 0 or 1");
   if (padding <= 0 || texel_count == 0) return;
 
   const Grid grid{image.width, image.height, coverage.data()};
@@ -146,19 +151,22 @@ void dilate(Image& image, std::vector<std::uint8_t>& coverage, int padding, Dila
     for (std::size_t i = 0; i < chunk_count; ++i) total += chunk_lists[i].size();
     out.clear();
     out.reserve(total);
-    for (std::size_t i = 0; i < chunk_count; ++i) out.insert(out.end(), chunk_lists[i].begin(), chunk_lists[i].end());
+    for (std::size_t i = 0; i < chunk_count; ++i)
+      out.insert(out.end(), chunk_lists[i].begin(), chunk_lists[i].end());
   };
 
   {
-    const std::size_t chunk_count = (static_cast<std::size_t>(image.height) + scan_chunk_rows - 1) / scan_chunk_rows;
+    const std::size_t chunk_count =
+        (static_cast<std::size_t>(image.height) + scan_chunk_rows - 1) / scan_chunk_rows;
     chunk_lists.resize(chunk_count);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunk_count), [&](const tbb::blocked_range<std::size_t>& r) {
-      for (std::size_t i = r.begin(); i != r.end(); ++i) {
-        chunk_lists[i].clear();
-        const int row_begin = static_cast<int>(i) * scan_chunk_rows;
-        scan_rows(grid, row_begin, std::min(row_begin + scan_chunk_rows, image.height), chunk_lists[i]);
-      }
-    });
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, chunk_count), [&](const tbb::blocked_range<std::size_t>& r) {
+          for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            chunk_lists[i].clear();
+            const int row_begin = static_cast<int>(i) * scan_chunk_rows;
+            scan_rows(grid, row_begin, std::min(row_begin + scan_chunk_rows, image.height), chunk_lists[i]);
+          }
+        });
     gather_chunks(chunk_count, frontier);
   }
 
@@ -170,11 +178,12 @@ void dilate(Image& image, std::vector<std::uint8_t>& coverage, int padding, Dila
     values.resize(ring_count * channels);
 
     auto for_each_chunk = [&](auto&& body) {
-      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunk_count), [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t i = r.begin(); i != r.end(); ++i) {
-          body(i, i * frontier_chunk_size, std::min((i + 1) * frontier_chunk_size, ring_count));
-        }
-      });
+      tbb::parallel_for(
+          tbb::blocked_range<std::size_t>(0, chunk_count), [&](const tbb::blocked_range<std::size_t>& r) {
+            for (std::size_t i = r.begin(); i != r.end(); ++i) {
+              body(i, i * frontier_chunk_size, std::min((i + 1) * frontier_chunk_size, ring_count));
+            }
+          });
     };
 
     // 1. Values from texels covered before the pass; the image is not written.
@@ -190,7 +199,8 @@ void dilate(Image& image, std::vector<std::uint8_t>& coverage, int padding, Dila
     for_each_chunk([&](std::size_t, std::size_t begin, std::size_t end) {
       for (std::size_t j = begin; j < end; ++j) {
         const std::uint32_t index = frontier[j];
-        std::copy_n(values.data() + j * channels, channels, image.pixels.data() + std::size_t{index} * channels);
+        std::copy_n(values.data() + j * channels, channels,
+                    image.pixels.data() + std::size_t{index} * channels);
         coverage[index] = state_filled_this_pass;
       }
     });

@@ -19,6 +19,9 @@
 //    data already in the file's type and converts nothing.
 #include "nmbake/image.hpp"
 
+#include <OpenImageIO/imageio.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cctype>
@@ -29,9 +32,6 @@
 #include <string>
 #include <system_error>
 #include <vector>
-
-#include <OpenImageIO/imageio.h>
-#include <unistd.h>
 
 namespace nmbake {
 
@@ -60,11 +60,16 @@ struct FormatTraits {
 
 FormatTraits traits_of(PixelFormat format) {
   switch (format) {
-    case PixelFormat::png8: return {"png", OIIO::TypeDesc::UINT8, nullptr};
-    case PixelFormat::png16: return {"png", OIIO::TypeDesc::UINT16, nullptr};
-    case PixelFormat::tiff16: return {"tiff", OIIO::TypeDesc::UINT16, "zip"};
-    case PixelFormat::exr_half: return {"openexr", OIIO::TypeDesc::HALF, "zip"};
-    case PixelFormat::exr_float: return {"openexr", OIIO::TypeDesc::FLOAT, "zip"};
+    case PixelFormat::png8:
+      return {"png", OIIO::TypeDesc::UINT8, nullptr};
+    case PixelFormat::png16:
+      return {"png", OIIO::TypeDesc::UINT16, nullptr};
+    case PixelFormat::tiff16:
+      return {"tiff", OIIO::TypeDesc::UINT16, "zip"};
+    case PixelFormat::exr_half:
+      return {"openexr", OIIO::TypeDesc::HALF, "zip"};
+    case PixelFormat::exr_float:
+      return {"openexr", OIIO::TypeDesc::FLOAT, "zip"};
   }
   NMBAKE_CHECK(false, "unknown PixelFormat");
   return {};
@@ -103,7 +108,8 @@ std::vector<T> quantise(const std::vector<float>& pixels, float max_value) {
 }
 
 // Writes the finished pixels to `temp` with OpenImageIO; the caller renames.
-Status write_with_oiio(const Image& image, const std::string& path, const fs::path& temp, PixelFormat format) {
+Status write_with_oiio(const Image& image, const std::string& path, const fs::path& temp,
+                       PixelFormat format) {
   const FormatTraits traits = traits_of(format);
   const std::string temp_name = temp.string();
 
@@ -151,18 +157,23 @@ Status write_with_oiio(const Image& image, const std::string& path, const fs::pa
 
 const char* to_string(PixelFormat format) {
   switch (format) {
-    case PixelFormat::png8: return "png8";
-    case PixelFormat::png16: return "png16";
-    case PixelFormat::tiff16: return "tiff16";
-    case PixelFormat::exr_half: return "exr-half";
-    case PixelFormat::exr_float: return "exr-float";
+    case PixelFormat::png8:
+      return "png8";
+    case PixelFormat::png16:
+      return "png16";
+    case PixelFormat::tiff16:
+      return "tiff16";
+    case PixelFormat::exr_half:
+      return "exr-half";
+    case PixelFormat::exr_float:
+      return "exr-float";
   }
   return "unknown";
 }
 
 bool parse_pixel_format(const std::string& text, PixelFormat& out) {
-  for (PixelFormat format : {PixelFormat::png8, PixelFormat::png16, PixelFormat::tiff16, PixelFormat::exr_half,
-                             PixelFormat::exr_float}) {
+  for (PixelFormat format : {PixelFormat::png8, PixelFormat::png16, PixelFormat::tiff16,
+                             PixelFormat::exr_half, PixelFormat::exr_float}) {
     if (text == to_string(format)) {
       out = format;
       return true;
@@ -189,10 +200,13 @@ bool format_matches_extension(PixelFormat format, const std::string& path) {
   const std::string ext = lower_extension(path);
   switch (format) {
     case PixelFormat::png8:
-    case PixelFormat::png16: return ext == ".png";
-    case PixelFormat::tiff16: return ext == ".tif" || ext == ".tiff";
+    case PixelFormat::png16:
+      return ext == ".png";
+    case PixelFormat::tiff16:
+      return ext == ".tif" || ext == ".tiff";
     case PixelFormat::exr_half:
-    case PixelFormat::exr_float: return ext == ".exr";
+    case PixelFormat::exr_float:
+      return ext == ".exr";
   }
   return false;
 }
@@ -201,27 +215,30 @@ Status write_image(const Image& image, const std::string& path, PixelFormat form
   // Caller bugs first: they are internal errors, not the user's.
   if (image.width <= 0 || image.height <= 0 || image.channels <= 0) {
     return Status::internal("cannot write '" + path + "': empty image (" + std::to_string(image.width) + "x" +
-                            std::to_string(image.height) + ", " + std::to_string(image.channels) + " channels)");
+                            std::to_string(image.height) + ", " + std::to_string(image.channels) +
+                            " channels)");
   }
   const std::size_t expected =
       static_cast<std::size_t>(image.width) * static_cast<std::size_t>(image.height) * image.channels;
   if (image.pixels.size() != expected) {
-    return Status::internal("cannot write '" + path + "': image holds " + std::to_string(image.pixels.size()) +
-                            " values, " + std::to_string(expected) + " expected");
+    return Status::internal("cannot write '" + path + "': image holds " +
+                            std::to_string(image.pixels.size()) + " values, " + std::to_string(expected) +
+                            " expected");
   }
   for (std::size_t i = 0; i < image.pixels.size(); ++i) {
     if (!std::isfinite(image.pixels[i])) {
       const std::size_t texel = i / image.channels;
-      return Status::internal("cannot write '" + path + "': " + (std::isnan(image.pixels[i]) ? "NaN" : "infinity") +
-                              " at pixel (" + std::to_string(texel % image.width) + ", " +
-                              std::to_string(texel / image.width) + ") channel " +
-                              std::to_string(i % image.channels));
+      return Status::internal(
+          "cannot write '" + path + "': " + (std::isnan(image.pixels[i]) ? "NaN" : "infinity") +
+          " at pixel (" + std::to_string(texel % image.width) + ", " + std::to_string(texel / image.width) +
+          ") channel " + std::to_string(i % image.channels));
     }
   }
 
   if (!format_matches_extension(format, path)) {
     return Status::bad_input("cannot write '" + path + "': format " + to_string(format) +
-                             " does not match the file extension '" + fs::path(path).extension().string() + "'");
+                             " does not match the file extension '" + fs::path(path).extension().string() +
+                             "'");
   }
 
   const fs::path target(path);
@@ -238,7 +255,9 @@ Status write_image(const Image& image, const std::string& path, PixelFormat form
   Status status = write_with_oiio(image, path, temp, format);
   if (status.is_ok()) {
     fs::rename(temp, target, ec);
-    if (ec) status = Status::io("cannot write '" + path + "': renaming the finished temp file failed: " + ec.message());
+    if (ec)
+      status =
+          Status::io("cannot write '" + path + "': renaming the finished temp file failed: " + ec.message());
   }
   if (!status.is_ok()) {
     std::error_code ignored;
@@ -268,8 +287,8 @@ Status read_image(const std::string& path, Image& out) {
   if (!in) return Status::io("cannot read '" + path + "': " + oiio_error_text(OIIO::geterror()));
   const OIIO::ImageSpec spec = in->spec();
   if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 || spec.depth > 1) {
-    return Status::bad_input("cannot read '" + path + "': not a 2D image (" + std::to_string(spec.width) + "x" +
-                             std::to_string(spec.height) + "x" + std::to_string(spec.depth) + ", " +
+    return Status::bad_input("cannot read '" + path + "': not a 2D image (" + std::to_string(spec.width) +
+                             "x" + std::to_string(spec.height) + "x" + std::to_string(spec.depth) + ", " +
                              std::to_string(spec.nchannels) + " channels)");
   }
   Image image;
@@ -284,9 +303,9 @@ Status read_image(const std::string& path, Image& out) {
   for (std::size_t i = 0; i < image.pixels.size(); ++i) {
     if (std::isnan(image.pixels[i])) {
       const std::size_t texel = i / image.channels;
-      return Status::bad_input("cannot read '" + path + "': NaN at pixel (" + std::to_string(texel % image.width) +
-                               ", " + std::to_string(texel / image.width) + ") channel " +
-                               std::to_string(i % image.channels));
+      return Status::bad_input(
+          "cannot read '" + path + "': NaN at pixel (" + std::to_string(texel % image.width) + ", " +
+          std::to_string(texel / image.width) + ") channel " + std::to_string(i % image.channels));
     }
   }
   out = std::move(image);

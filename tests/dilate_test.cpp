@@ -1,16 +1,15 @@
 // Tests of the "dilate" stage: exact shapes and values on tiny images, the
 // fallback for cancelling vectors, agreement with a straightforward
 // full-image reference, and byte-identical results for any thread count.
+#include "nmbake/dilate.hpp"
+
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <vector>
-
-#include <tbb/global_control.h>
-
-#include "nmbake/dilate.hpp"
 
 namespace nmbake {
 namespace {
@@ -24,7 +23,8 @@ Image blank(int width, int height, int channels, float value = 0.0f) {
   return image;
 }
 
-void set_vector(Image& image, std::vector<std::uint8_t>& coverage, int x, int y, float nx, float ny, float nz) {
+void set_vector(Image& image, std::vector<std::uint8_t>& coverage, int x, int y, float nx, float ny,
+                float nz) {
   float* p = image.at(x, y);
   p[0] = 0.5f * nx + 0.5f;
   p[1] = 0.5f * ny + 0.5f;
@@ -53,7 +53,9 @@ void reference_dilate(Image& image, std::vector<std::uint8_t>& coverage, int pad
         for (int k = 0; k < 8; ++k) {
           const int nx = x + dx[k];
           const int ny = y + dy[k];
-          if (nx < 0 || ny < 0 || nx >= w || ny >= h || !covered_before[static_cast<std::size_t>(ny) * w + nx]) continue;
+          if (nx < 0 || ny < 0 || nx >= w || ny >= h ||
+              !covered_before[static_cast<std::size_t>(ny) * w + nx])
+            continue;
           const float* p = before.at(nx, ny);
           if (!first) first = p;
           for (int c = 0; c < 3; ++c) sum[c] += 2.0f * p[c] - 1.0f;
@@ -240,7 +242,9 @@ TEST(Dilate, MatchesReferenceAndKeepsCoveredTexels) {
     for (std::size_t t = 0; t < coverage.size(); ++t) {
       if (original_coverage[t]) {
         // Covered texels never change, bit for bit.
-        ASSERT_EQ(std::memcmp(&image.pixels[t * channels], &original.pixels[t * channels], sizeof(float) * channels), 0);
+        ASSERT_EQ(std::memcmp(&image.pixels[t * channels], &original.pixels[t * channels],
+                              sizeof(float) * channels),
+                  0);
       } else if (coverage[t]) {
         ++filled_count;
       }
@@ -276,7 +280,9 @@ TEST(Dilate, SameBytesForAnyThreadCount) {
   EXPECT_GT(all_stats[0].filled_texels, 20000u);
   for (std::size_t i = 1; i < results.size(); ++i) {
     ASSERT_EQ(results[i].pixels.size(), results[0].pixels.size());
-    EXPECT_EQ(std::memcmp(results[i].pixels.data(), results[0].pixels.data(), results[0].pixels.size() * sizeof(float)), 0);
+    EXPECT_EQ(std::memcmp(results[i].pixels.data(), results[0].pixels.data(),
+                          results[0].pixels.size() * sizeof(float)),
+              0);
     EXPECT_EQ(coverages[i], coverages[0]);
     EXPECT_EQ(all_stats[i].filled_texels, all_stats[0].filled_texels);
     EXPECT_EQ(all_stats[i].fallback_texels, all_stats[0].fallback_texels);

@@ -1,6 +1,8 @@
 // Tests of the "write" stage: format names, round trips through every
 // format, what OpenImageIO actually put in the files, atomic replacement and
 // the rejection of bad calls.
+#include "nmbake/image.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -15,7 +17,6 @@
 #include <string>
 #include <vector>
 
-#include "nmbake/image.hpp"
 #include "test_util.hpp"
 
 namespace nmbake {
@@ -65,7 +66,9 @@ std::vector<PngChunk> png_chunks(const std::string& path) {
   if (bytes.size() < 8 || bytes.compare(0, 8, "\x89PNG\r\n\x1a\n") != 0) return chunks;
   std::size_t at = 8;
   while (at + 12 <= bytes.size()) {
-    const auto byte = [&](std::size_t i) { return static_cast<std::uint32_t>(static_cast<unsigned char>(bytes[i])); };
+    const auto byte = [&](std::size_t i) {
+      return static_cast<std::uint32_t>(static_cast<unsigned char>(bytes[i]));
+    };
     const std::uint32_t length = byte(at) << 24 | byte(at + 1) << 16 | byte(at + 2) << 8 | byte(at + 3);
     if (at + 12 + length > bytes.size()) break;
     chunks.push_back({bytes.substr(at + 4, 4), bytes.substr(at + 8, length)});
@@ -74,34 +77,43 @@ std::vector<PngChunk> png_chunks(const std::string& path) {
   return chunks;
 }
 
-const PixelFormat all_formats[] = {PixelFormat::png8, PixelFormat::png16, PixelFormat::tiff16, PixelFormat::exr_half,
-                                   PixelFormat::exr_float};
+const PixelFormat all_formats[] = {PixelFormat::png8, PixelFormat::png16, PixelFormat::tiff16,
+                                   PixelFormat::exr_half, PixelFormat::exr_float};
 
 const char* extension_of(PixelFormat format) {
   switch (format) {
     case PixelFormat::png8:
-    case PixelFormat::png16: return ".png";
-    case PixelFormat::tiff16: return ".tif";
-    default: return ".exr";
+    case PixelFormat::png16:
+      return ".png";
+    case PixelFormat::tiff16:
+      return ".tif";
+    default:
+      return ".exr";
   }
 }
 
 // Whether `read` is what `written` becomes after a trip through `format`.
 ::testing::AssertionResult survives(PixelFormat format, float written, float read) {
   const auto quantised = [&](float max_value) -> ::testing::AssertionResult {
-    const float expected = static_cast<float>(std::lround(std::clamp(written, 0.0f, 1.0f) * max_value)) / max_value;
-    if (std::fabs(read - expected) <= 1e-7f && std::fabs(read - std::clamp(written, 0.0f, 1.0f)) <= 0.5f / max_value + 1e-7f) {
+    const float expected =
+        static_cast<float>(std::lround(std::clamp(written, 0.0f, 1.0f) * max_value)) / max_value;
+    if (std::fabs(read - expected) <= 1e-7f &&
+        std::fabs(read - std::clamp(written, 0.0f, 1.0f)) <= 0.5f / max_value + 1e-7f) {
       return ::testing::AssertionSuccess();
     }
-    return ::testing::AssertionFailure() << "wrote " << written << ", read " << read << ", expected " << expected;
+    return ::testing::AssertionFailure()
+           << "wrote " << written << ", read " << read << ", expected " << expected;
   };
   switch (format) {
-    case PixelFormat::png8: return quantised(255.0f);
+    case PixelFormat::png8:
+      return quantised(255.0f);
     case PixelFormat::png16:
-    case PixelFormat::tiff16: return quantised(65535.0f);
+    case PixelFormat::tiff16:
+      return quantised(65535.0f);
     case PixelFormat::exr_half:
       // Half keeps 11 significant bits: relative error at most 2^-11.
-      if (std::fabs(read - written) <= std::fabs(written) * 0x1p-11f + 0x1p-25f) return ::testing::AssertionSuccess();
+      if (std::fabs(read - written) <= std::fabs(written) * 0x1p-11f + 0x1p-25f)
+        return ::testing::AssertionSuccess();
       return ::testing::AssertionFailure() << "wrote " << written << ", read " << read << " (half)";
     case PixelFormat::exr_float:
       if (read == written) return ::testing::AssertionSuccess();
@@ -155,8 +167,8 @@ TEST(ImageWrite, RoundTripEveryFormat) {
     const Image image = make_image(13, 7, channels);
     for (PixelFormat format : all_formats) {
       SCOPED_TRACE(std::string(to_string(format)) + ", " + std::to_string(channels) + " channels");
-      const std::string path = dir.file(std::string("rt") + std::to_string(channels) + "_" + to_string(format) +
-                                        extension_of(format));
+      const std::string path = dir.file(std::string("rt") + std::to_string(channels) + "_" +
+                                        to_string(format) + extension_of(format));
       const Status written = write_image(image, path, format);
       ASSERT_TRUE(written.is_ok()) << written.message();
       Image back;
@@ -184,8 +196,8 @@ TEST(ImageWrite, FilesHoldTheRequestedType) {
     const char* data_type;
     const char* compression;  // nullptr: not checked
   } cases[] = {
-      {PixelFormat::png8, "png", "uint8", nullptr},      {PixelFormat::png16, "png", "uint16", nullptr},
-      {PixelFormat::tiff16, "tiff", "uint16", "zip"},    {PixelFormat::exr_half, "openexr", "half", "zip"},
+      {PixelFormat::png8, "png", "uint8", nullptr},        {PixelFormat::png16, "png", "uint16", nullptr},
+      {PixelFormat::tiff16, "tiff", "uint16", "zip"},      {PixelFormat::exr_half, "openexr", "half", "zip"},
       {PixelFormat::exr_float, "openexr", "float", "zip"},
   };
   for (const auto& c : cases) {
@@ -217,7 +229,8 @@ TEST(ImageWrite, PngHasTheBitDepthAndNoColourChunks) {
     ASSERT_FALSE(chunks.empty());
     ASSERT_EQ(chunks[0].type, "IHDR");
     ASSERT_EQ(chunks[0].data.size(), 13u);
-    EXPECT_EQ(static_cast<int>(static_cast<unsigned char>(chunks[0].data[8])), format == PixelFormat::png16 ? 16 : 8);
+    EXPECT_EQ(static_cast<int>(static_cast<unsigned char>(chunks[0].data[8])),
+              format == PixelFormat::png16 ? 16 : 8);
     EXPECT_EQ(static_cast<int>(static_cast<unsigned char>(chunks[0].data[9])), 2);  // colour type: RGB
     EXPECT_EQ(chunks.back().type, "IEND");
     for (const PngChunk& chunk : chunks) {
@@ -238,10 +251,18 @@ TEST(ImageWrite, QuantisationRoundsToNearest) {
   image.height = 1;
   image.channels = 3;
   // Just below and above half a step, and out of range both ways.
-  image.pixels = {(10 + 0.49f) / 255.0f, (10 + 0.51f) / 255.0f, -0.5f,  //
-                  2.0f, 254.6f / 255.0f, 0.4f / 255.0f,                 //
-                  0.0f, 1.0f, 0.5f,                                     //
-                  (100 + 0.49f) / 65535.0f, (100 + 0.51f) / 65535.0f, 1.0f};
+  image.pixels = {(10 + 0.49f) / 255.0f,
+                  (10 + 0.51f) / 255.0f,
+                  -0.5f,  //
+                  2.0f,
+                  254.6f / 255.0f,
+                  0.4f / 255.0f,  //
+                  0.0f,
+                  1.0f,
+                  0.5f,  //
+                  (100 + 0.49f) / 65535.0f,
+                  (100 + 0.51f) / 65535.0f,
+                  1.0f};
   const std::string path8 = dir.file("q8.png");
   ASSERT_TRUE(write_image(image, path8, PixelFormat::png8).is_ok());
   Image back;
@@ -274,7 +295,8 @@ TEST(ImageWrite, AlphaIsStoredAsIs) {
     ASSERT_TRUE(read_image(path, back).is_ok());
     ASSERT_EQ(back.channels, 4);
     // Premultiplying (or un-premultiplying) on either side would move rgb by 4x or zero it.
-    for (std::size_t i = 0; i < image.pixels.size(); ++i) EXPECT_TRUE(survives(format, image.pixels[i], back.pixels[i]));
+    for (std::size_t i = 0; i < image.pixels.size(); ++i)
+      EXPECT_TRUE(survives(format, image.pixels[i], back.pixels[i]));
   }
 }
 
@@ -315,7 +337,8 @@ TEST(ImageWrite, FailedWriteLeavesExistingFileUntouched) {
   ASSERT_FALSE(status.is_ok());
   EXPECT_EQ(status.code(), StatusCode::io);
   EXPECT_NE(status.message().find(path), std::string::npos) << status.message();
-  EXPECT_NE(status.message().find("channels"), std::string::npos) << "OpenImageIO's reason: " << status.message();
+  EXPECT_NE(status.message().find("channels"), std::string::npos)
+      << "OpenImageIO's reason: " << status.message();
   EXPECT_EQ(read_bytes(path), "previous bake");
   EXPECT_EQ(list_dir(dir.path()), std::vector<std::string>{"map.png"});
 }
@@ -362,8 +385,11 @@ TEST(ImageWrite, RejectsFormatNotMatchingExtension) {
   const struct {
     PixelFormat format;
     const char* name;
-  } cases[] = {{PixelFormat::png16, "a.exr"}, {PixelFormat::exr_half, "a.png"}, {PixelFormat::tiff16, "a.png"},
-               {PixelFormat::png8, "a.tif"},  {PixelFormat::exr_float, "a"}};
+  } cases[] = {{PixelFormat::png16, "a.exr"},
+               {PixelFormat::exr_half, "a.png"},
+               {PixelFormat::tiff16, "a.png"},
+               {PixelFormat::png8, "a.tif"},
+               {PixelFormat::exr_float, "a"}};
   for (const auto& c : cases) {
     const Status status = write_image(image, dir.file(c.name), c.format);
     ASSERT_FALSE(status.is_ok()) << c.name;
