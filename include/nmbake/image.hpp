@@ -36,9 +36,36 @@ bool format_matches_extension(PixelFormat format, const std::string& path);
 
 // Values are written as they are (no colour transform, no sRGB): integer
 // formats quantise round(clamp(v, 0, 1) * max).
+//
+// Details (image.cpp): PNG files carry no gAMA/sRGB/iCCP/cHRM chunk, so
+// viewers show the stored values unconverted; a 4th channel is written as
+// unassociated alpha, unchanged; TIFF and EXR use lossless zip compression;
+// no file carries a timestamp, so the same image always gives the same bytes.
+// The file is written to ".<stem>.nmbake-tmp-<pid>-<n><ext>" in the target's
+// folder and renamed over the target; on failure the temp file is removed
+// and an existing target is left untouched.
+// Errors: internal for an empty or malformed image or a non-finite value
+// (NaN or infinity: callers must never pass one); bad_input for a format
+// that does not match the extension; io for a missing folder or a failed
+// OpenImageIO call or rename. Messages name the path.
 Status write_image(const Image& image, const std::string& path, PixelFormat format);
 
-// Reads any format OpenImageIO reads into float, 0..1 for integer formats.
+// Reads any format OpenImageIO reads into float, 0..1 for integer formats,
+// with the file's channels (alpha is returned as stored, not premultiplied).
+// A NaN in the file is rejected (bad_input) so no NaN enters the program.
 Status read_image(const std::string& path, Image& out);
+
+// What a file holds, without reading its pixels: lets `nmbake diff` pick a
+// tolerance from the quantisation step, and tests check what was written.
+// (Added to the lead's contract by the image stage.)
+struct ImageFileInfo {
+  int width = 0;
+  int height = 0;
+  int channels = 0;
+  std::string file_format;  // OpenImageIO's name: "png", "tiff", "openexr", ...
+  std::string data_type;    // "uint8", "uint16", "half", "float", ...
+  std::string compression;  // as OpenImageIO reports it ("zip", ...), may be empty
+};
+Status read_image_info(const std::string& path, ImageFileInfo& out);
 
 }  // namespace nmbake

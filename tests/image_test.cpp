@@ -1,0 +1,456 @@
+// Tests of the "write" stage: format names, round trips through every
+// format, what OpenImageIO actually put in the files, atomic replacement and
+// the rejection of bad calls.
+#include "nmbake/image.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <regex>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "test_util.hpp"
+
+namespace nmbake {
+namespace {
+
+namespace fs = std::filesystem;
+using test::TempDir;
+
+// Values in and slightly out of [0, 1], including both ends and midpoints.
+Image make_image(int width, int height, int channels) {
+  Image image;
+  image.width = width;
+  image.height = height;
+  image.channels = channels;
+  image.pixels.resize(static_cast<std::size_t>(width) * height * channels);
+  for (std::size_t i = 0; i < image.pixels.size(); ++i) {
+    image.pixels[i] = -0.1f + 1.2f * static_cast<float>((i * 7919) % 1001) / 1000.0f;
+  }
+  image.pixels[0] = 0.0f;
+  image.pixels[1] = 1.0f;
+  image.pixels[2] = 0.5f;
+  return image;
+}
+
+std::vector<std::string> list_dir(const fs::path& dir) {
+  std::vector<std::string> names;
+  for (const auto& entry : fs::directory_iterator(dir)) names.push_back(entry.path().filename().string());
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+std::string read_bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+struct PngChunk {
+  std::string type;
+  std::string data;
+};
+
+// The chunk list of a PNG file, read by hand so the test does not trust the
+// library that wrote it.
+std::vector<PngChunk> png_chunks(const std::string& path) {
+  const std::string bytes = read_bytes(path);
+  std::vector<PngChunk> chunks;
+  if (bytes.size() < 8 || bytes.compare(0, 8, "\x89PNG\r\n\x1a\n") != 0) return chunks;
+  std::size_t at = 8;
+  while (at + 12 <= bytes.size()) {
+    const auto byte = [&](std::size_t i) {
+      return static_cast<std::uint32_t>(static_cast<unsigned char>(bytes[i]));
+    };
+    const std::uint32_t length = byte(at) << 24 | byte(at + 1) << 16 | byte(at + 2) << 8 | byte(at + 3);
+    if (at + 12 + length > bytes.size()) break;
+    chunks.push_back({bytes.substr(at + 4, 4), bytes.substr(at + 8, length)});
+    at += 12 + length;
+  }
+  return chunks;
+}
+
+const PixelFormat all_formats[] = {PixelFormat::png8, PixelFormat::png16, PixelFormat::tiff16,
+                                   PixelFormat::exr_half, PixelFormat::exr_float};
+
+const char* extension_of(PixelFormat format) {
+  switch (format) {
+    case PixelFormat::png8:
+    case PixelFormat::png16:
+      return ".png";
+    case PixelFormat::tiff16:
+      return ".tif";
+    default:
+      return ".exr";
+  }
+}
+
+// Whether `read` is what `written` becomes after a trip through `format`.
+::testing::AssertionResult survives(PixelFormat format, float written, float read) {
+  const auto quantised = [&](float max_value) -> ::testing::AssertionResult {
+    const float expected =
+        static_cast<float>(std::lround(std::clamp(written, 0.0f, 1.0f) * max_value)) / max_value;
+    if (std::fabs(read - expected) <= 1e-7f &&
+        std::fabs(read - std::clamp(written, 0.0f, 1.0f)) <= 0.5f / max_value + 1e-7f) {
+      return ::testing::AssertionSuccess();
+    }
+    return ::testing::AssertionFailure()
+           << "wrote " << written << ", read " << read << ", expected " << expected;
+  };
+  switch (format) {
+    case PixelFormat::png8:
+      return quantised(255.0f);
+    case PixelFormat::png16:
+    case PixelFormat::tiff16:
+      return quantised(65535.0f);
+    case PixelFormat::exr_half:
+      // Half keeps 11 significant bits: relative error at most 2^-11.
+      if (std::fabs(read - written) <= std::fabs(written) * 0x1p-11f + 0x1p-25f)
+        return ::testing::AssertionSuccess();
+      return ::testing::AssertionFailure() << "wrote " << written << ", read " << read << " (half)";
+    case PixelFormat::exr_float:
+      if (read == written) return ::testing::AssertionSuccess();
+      return ::testing::AssertionFailure() << "wrote " << written << ", read " << read << " (float)";
+  }
+  return ::testing::AssertionFailure() << "unknown format";
+}
+
+TEST(ImageFormat, NamesRoundTrip) {
+  for (PixelFormat format : all_formats) {
+    PixelFormat parsed = PixelFormat::png8;
+    ASSERT_TRUE(parse_pixel_format(to_string(format), parsed)) << to_string(format);
+    EXPECT_EQ(parsed, format);
+  }
+  EXPECT_STREQ(to_string(PixelFormat::exr_half), "exr-half");
+  PixelFormat unused = PixelFormat::png8;
+  EXPECT_FALSE(parse_pixel_format("png", unused));
+  EXPECT_FALSE(parse_pixel_format("exr_half", unused));
+  EXPECT_FALSE(parse_pixel_format("", unused));
+}
+
+TEST(ImageFormat, FromPathAndExtensionMatch) {
+  PixelFormat format = PixelFormat::png8;
+  ASSERT_TRUE(pixel_format_from_path("maps/out.png", format));
+  EXPECT_EQ(format, PixelFormat::png16);
+  ASSERT_TRUE(pixel_format_from_path("OUT.PNG", format));
+  EXPECT_EQ(format, PixelFormat::png16);
+  ASSERT_TRUE(pixel_format_from_path("a.tif", format));
+  EXPECT_EQ(format, PixelFormat::tiff16);
+  ASSERT_TRUE(pixel_format_from_path("a.b.tiff", format));
+  EXPECT_EQ(format, PixelFormat::tiff16);
+  ASSERT_TRUE(pixel_format_from_path("a.exr", format));
+  EXPECT_EQ(format, PixelFormat::exr_float);
+  EXPECT_FALSE(pixel_format_from_path("a.jpg", format));
+  EXPECT_FALSE(pixel_format_from_path("png", format));
+  EXPECT_FALSE(pixel_format_from_path("dir.png/file", format));
+
+  EXPECT_TRUE(format_matches_extension(PixelFormat::png8, "a.png"));
+  EXPECT_TRUE(format_matches_extension(PixelFormat::png16, "a.PNG"));
+  EXPECT_TRUE(format_matches_extension(PixelFormat::tiff16, "a.tiff"));
+  EXPECT_TRUE(format_matches_extension(PixelFormat::exr_half, "a.exr"));
+  EXPECT_FALSE(format_matches_extension(PixelFormat::png16, "a.exr"));
+  EXPECT_FALSE(format_matches_extension(PixelFormat::exr_float, "a.png"));
+  EXPECT_FALSE(format_matches_extension(PixelFormat::tiff16, "a.png"));
+  EXPECT_FALSE(format_matches_extension(PixelFormat::png16, "a"));
+}
+
+TEST(ImageWrite, RoundTripEveryFormat) {
+  TempDir dir;
+  for (int channels : {3, 4}) {
+    const Image image = make_image(13, 7, channels);
+    for (PixelFormat format : all_formats) {
+      SCOPED_TRACE(std::string(to_string(format)) + ", " + std::to_string(channels) + " channels");
+      const std::string path = dir.file(std::string("rt") + std::to_string(channels) + "_" +
+                                        to_string(format) + extension_of(format));
+      const Status written = write_image(image, path, format);
+      ASSERT_TRUE(written.is_ok()) << written.message();
+      Image back;
+      const Status read = read_image(path, back);
+      ASSERT_TRUE(read.is_ok()) << read.message();
+      ASSERT_EQ(back.width, image.width);
+      ASSERT_EQ(back.height, image.height);
+      ASSERT_EQ(back.channels, image.channels);
+      ASSERT_EQ(back.pixels.size(), image.pixels.size());
+      for (std::size_t i = 0; i < image.pixels.size(); ++i) {
+        ASSERT_TRUE(survives(format, image.pixels[i], back.pixels[i])) << "value " << i;
+      }
+    }
+  }
+  // Only the finished files: no temp file left behind.
+  for (const std::string& name : list_dir(dir.path())) EXPECT_NE(name[0], '.') << name;
+}
+
+TEST(ImageWrite, FilesHoldTheRequestedType) {
+  TempDir dir;
+  const Image image = make_image(5, 4, 3);
+  const struct {
+    PixelFormat format;
+    const char* file_format;
+    const char* data_type;
+    const char* compression;  // nullptr: not checked
+  } cases[] = {
+      {PixelFormat::png8, "png", "uint8", nullptr},        {PixelFormat::png16, "png", "uint16", nullptr},
+      {PixelFormat::tiff16, "tiff", "uint16", "zip"},      {PixelFormat::exr_half, "openexr", "half", "zip"},
+      {PixelFormat::exr_float, "openexr", "float", "zip"},
+  };
+  for (const auto& c : cases) {
+    SCOPED_TRACE(to_string(c.format));
+    const std::string path = dir.file(std::string("t_") + to_string(c.format) + extension_of(c.format));
+    ASSERT_TRUE(write_image(image, path, c.format).is_ok());
+    ImageFileInfo info;
+    const Status status = read_image_info(path, info);
+    ASSERT_TRUE(status.is_ok()) << status.message();
+    EXPECT_EQ(info.width, 5);
+    EXPECT_EQ(info.height, 4);
+    EXPECT_EQ(info.channels, 3);
+    EXPECT_EQ(info.file_format, c.file_format);
+    EXPECT_EQ(info.data_type, c.data_type);
+    if (c.compression) {
+      EXPECT_EQ(info.compression, c.compression);
+    }
+  }
+}
+
+TEST(ImageWrite, PngHasTheBitDepthAndNoColourChunks) {
+  TempDir dir;
+  const Image image = make_image(6, 3, 3);
+  for (PixelFormat format : {PixelFormat::png8, PixelFormat::png16}) {
+    SCOPED_TRACE(to_string(format));
+    const std::string path = dir.file(std::string(to_string(format)) + ".png");
+    ASSERT_TRUE(write_image(image, path, format).is_ok());
+    const std::vector<PngChunk> chunks = png_chunks(path);
+    ASSERT_FALSE(chunks.empty());
+    ASSERT_EQ(chunks[0].type, "IHDR");
+    ASSERT_EQ(chunks[0].data.size(), 13u);
+    EXPECT_EQ(static_cast<int>(static_cast<unsigned char>(chunks[0].data[8])),
+              format == PixelFormat::png16 ? 16 : 8);
+    EXPECT_EQ(static_cast<int>(static_cast<unsigned char>(chunks[0].data[9])), 2);  // colour type: RGB
+    EXPECT_EQ(chunks.back().type, "IEND");
+    for (const PngChunk& chunk : chunks) {
+      // Any of these makes viewers and engines convert the stored values.
+      EXPECT_NE(chunk.type, "gAMA");
+      EXPECT_NE(chunk.type, "sRGB");
+      EXPECT_NE(chunk.type, "iCCP");
+      EXPECT_NE(chunk.type, "cHRM");
+      EXPECT_NE(chunk.type, "tIME");
+    }
+  }
+}
+
+TEST(ImageWrite, QuantisationRoundsToNearest) {
+  TempDir dir;
+  Image image;
+  image.width = 4;
+  image.height = 1;
+  image.channels = 3;
+  // Just below and above half a step, and out of range both ways.
+  image.pixels = {(10 + 0.49f) / 255.0f,
+                  (10 + 0.51f) / 255.0f,
+                  -0.5f,  //
+                  2.0f,
+                  254.6f / 255.0f,
+                  0.4f / 255.0f,  //
+                  0.0f,
+                  1.0f,
+                  0.5f,  //
+                  (100 + 0.49f) / 65535.0f,
+                  (100 + 0.51f) / 65535.0f,
+                  1.0f};
+  const std::string path8 = dir.file("q8.png");
+  ASSERT_TRUE(write_image(image, path8, PixelFormat::png8).is_ok());
+  Image back;
+  ASSERT_TRUE(read_image(path8, back).is_ok());
+  const int expected8[] = {10, 11, 0, 255, 255, 0, 0, 255, 128, 0, 0, 255};
+  for (int i = 0; i < 12; ++i) EXPECT_EQ(std::lround(back.pixels[i] * 255.0f), expected8[i]) << i;
+
+  const std::string path16 = dir.file("q16.png");
+  ASSERT_TRUE(write_image(image, path16, PixelFormat::png16).is_ok());
+  ASSERT_TRUE(read_image(path16, back).is_ok());
+  EXPECT_EQ(std::lround(back.pixels[9] * 65535.0f), 100);
+  EXPECT_EQ(std::lround(back.pixels[10] * 65535.0f), 101);
+  EXPECT_EQ(std::lround(back.pixels[8] * 65535.0f), 32768);  // round(0.5 * 65535) = 32767.5 -> 32768
+  EXPECT_EQ(std::lround(back.pixels[2] * 65535.0f), 0);
+  EXPECT_EQ(std::lround(back.pixels[3] * 65535.0f), 65535);
+}
+
+TEST(ImageWrite, AlphaIsStoredAsIs) {
+  TempDir dir;
+  Image image;
+  image.width = 2;
+  image.height = 1;
+  image.channels = 4;
+  image.pixels = {0.8f, 0.6f, 0.4f, 0.25f, 0.2f, 0.9f, 0.7f, 0.0f};
+  for (PixelFormat format : all_formats) {
+    SCOPED_TRACE(to_string(format));
+    const std::string path = dir.file(std::string("alpha_") + to_string(format) + extension_of(format));
+    ASSERT_TRUE(write_image(image, path, format).is_ok());
+    Image back;
+    ASSERT_TRUE(read_image(path, back).is_ok());
+    ASSERT_EQ(back.channels, 4);
+    // Premultiplying (or un-premultiplying) on either side would move rgb by 4x or zero it.
+    for (std::size_t i = 0; i < image.pixels.size(); ++i)
+      EXPECT_TRUE(survives(format, image.pixels[i], back.pixels[i]));
+  }
+}
+
+TEST(ImageWrite, SameImageSameBytesAndNoTimestamp) {
+  TempDir dir;
+  const Image image = make_image(9, 5, 3);
+  const std::regex date_time("[0-9]{4}:[0-9]{2}:[0-9]{2} [0-9]{2}:[0-9]{2}:[0-9]{2}");
+  for (PixelFormat format : all_formats) {
+    SCOPED_TRACE(to_string(format));
+    const std::string a = dir.file(std::string("a_") + to_string(format) + extension_of(format));
+    const std::string b = dir.file(std::string("b_") + to_string(format) + extension_of(format));
+    ASSERT_TRUE(write_image(image, a, format).is_ok());
+    ASSERT_TRUE(write_image(image, b, format).is_ok());
+    const std::string bytes = read_bytes(a);
+    EXPECT_EQ(bytes, read_bytes(b));
+    // A clock time in the file would make regression bakes differ run to run.
+    EXPECT_FALSE(std::regex_search(bytes, date_time));
+  }
+}
+
+TEST(ImageWrite, MissingFolderFailsAndCreatesNothing) {
+  TempDir dir;
+  const std::string path = dir.file("missing/out.png");
+  const Status status = write_image(make_image(2, 2, 3), path, PixelFormat::png16);
+  ASSERT_FALSE(status.is_ok());
+  EXPECT_EQ(status.code(), StatusCode::io);
+  EXPECT_NE(status.message().find(path), std::string::npos) << status.message();
+  EXPECT_NE(status.message().find("does not exist"), std::string::npos) << status.message();
+  EXPECT_TRUE(list_dir(dir.path()).empty());
+}
+
+TEST(ImageWrite, FailedWriteLeavesExistingFileUntouched) {
+  TempDir dir;
+  const std::string path = dir.file("map.png");
+  test::write_text(path, "previous bake");
+  // PNG holds at most 4 channels: OpenImageIO's open() fails after creating the file.
+  const Status status = write_image(make_image(3, 3, 5), path, PixelFormat::png16);
+  ASSERT_FALSE(status.is_ok());
+  EXPECT_EQ(status.code(), StatusCode::io);
+  EXPECT_NE(status.message().find(path), std::string::npos) << status.message();
+  EXPECT_NE(status.message().find("channels"), std::string::npos)
+      << "OpenImageIO's reason: " << status.message();
+  EXPECT_EQ(read_bytes(path), "previous bake");
+  EXPECT_EQ(list_dir(dir.path()), std::vector<std::string>{"map.png"});
+}
+
+TEST(ImageWrite, FailedRenameRemovesTheTempFile) {
+  TempDir dir;
+  // A non-empty folder where the file should go: everything succeeds but the rename.
+  const fs::path blocker = dir.path() / "map.exr";
+  fs::create_directory(blocker);
+  test::write_text((blocker / "keep.txt").string(), "keep");
+  const Status status = write_image(make_image(3, 3, 3), blocker.string(), PixelFormat::exr_half);
+  ASSERT_FALSE(status.is_ok());
+  EXPECT_EQ(status.code(), StatusCode::io);
+  EXPECT_NE(status.message().find(blocker.string()), std::string::npos) << status.message();
+  EXPECT_EQ(list_dir(dir.path()), std::vector<std::string>{"map.exr"});
+  EXPECT_EQ(list_dir(blocker), std::vector<std::string>{"keep.txt"});
+}
+
+TEST(ImageWrite, ReplacesAnExistingFile) {
+  TempDir dir;
+  const std::string path = dir.file("map.tif");
+  test::write_text(path, "previous bake");
+  const Image image = make_image(4, 4, 3);
+  ASSERT_TRUE(write_image(image, path, PixelFormat::tiff16).is_ok());
+  Image back;
+  ASSERT_TRUE(read_image(path, back).is_ok());
+  EXPECT_EQ(back.width, 4);
+  EXPECT_EQ(list_dir(dir.path()), std::vector<std::string>{"map.tif"});
+}
+
+TEST(ImageWrite, RelativePathInCurrentFolder) {
+  TempDir dir;
+  const fs::path previous = fs::current_path();
+  fs::current_path(dir.path());
+  const Status status = write_image(make_image(2, 2, 3), "plain.png", PixelFormat::png8);
+  fs::current_path(previous);
+  ASSERT_TRUE(status.is_ok()) << status.message();
+  EXPECT_EQ(list_dir(dir.path()), std::vector<std::string>{"plain.png"});
+}
+
+TEST(ImageWrite, RejectsFormatNotMatchingExtension) {
+  TempDir dir;
+  const Image image = make_image(2, 2, 3);
+  const struct {
+    PixelFormat format;
+    const char* name;
+  } cases[] = {{PixelFormat::png16, "a.exr"},
+               {PixelFormat::exr_half, "a.png"},
+               {PixelFormat::tiff16, "a.png"},
+               {PixelFormat::png8, "a.tif"},
+               {PixelFormat::exr_float, "a"}};
+  for (const auto& c : cases) {
+    const Status status = write_image(image, dir.file(c.name), c.format);
+    ASSERT_FALSE(status.is_ok()) << c.name;
+    EXPECT_EQ(status.code(), StatusCode::bad_input);
+    EXPECT_NE(status.message().find(dir.file(c.name)), std::string::npos) << status.message();
+    EXPECT_NE(status.message().find(to_string(c.format)), std::string::npos) << status.message();
+  }
+  EXPECT_TRUE(list_dir(dir.path()).empty());
+}
+
+TEST(ImageWrite, RejectsNanAndInfinity) {
+  TempDir dir;
+  Image image = make_image(4, 3, 3);
+  image.at(2, 1)[1] = std::numeric_limits<float>::quiet_NaN();
+  const std::string path = dir.file("nan.exr");
+  Status status = write_image(image, path, PixelFormat::exr_float);
+  ASSERT_FALSE(status.is_ok());
+  EXPECT_EQ(status.code(), StatusCode::internal);
+  EXPECT_NE(status.message().find("NaN at pixel (2, 1) channel 1"), std::string::npos) << status.message();
+  EXPECT_NE(status.message().find(path), std::string::npos) << status.message();
+
+  image.at(2, 1)[1] = -std::numeric_limits<float>::infinity();
+  status = write_image(image, dir.file("inf.png"), PixelFormat::png16);
+  ASSERT_FALSE(status.is_ok());
+  EXPECT_EQ(status.code(), StatusCode::internal);
+  EXPECT_NE(status.message().find("infinity"), std::string::npos) << status.message();
+  EXPECT_TRUE(list_dir(dir.path()).empty());
+}
+
+TEST(ImageWrite, RejectsEmptyOrMalformedImage) {
+  TempDir dir;
+  Image empty;
+  Status status = write_image(empty, dir.file("e.png"), PixelFormat::png16);
+  ASSERT_FALSE(status.is_ok());
+  EXPECT_EQ(status.code(), StatusCode::internal);
+  EXPECT_NE(status.message().find("empty image"), std::string::npos) << status.message();
+
+  Image short_buffer = make_image(3, 3, 3);
+  short_buffer.pixels.pop_back();
+  status = write_image(short_buffer, dir.file("s.png"), PixelFormat::png16);
+  ASSERT_FALSE(status.is_ok());
+  EXPECT_EQ(status.code(), StatusCode::internal);
+  EXPECT_TRUE(list_dir(dir.path()).empty());
+}
+
+TEST(ImageRead, MissingOrBadFileNamesThePath) {
+  TempDir dir;
+  Image image;
+  const std::string missing = dir.file("nothing.png");
+  Status status = read_image(missing, image);
+  ASSERT_FALSE(status.is_ok());
+  EXPECT_NE(status.message().find(missing), std::string::npos) << status.message();
+
+  const std::string garbage = dir.file("garbage.exr");
+  test::write_text(garbage, "this is not an image");
+  status = read_image(garbage, image);
+  ASSERT_FALSE(status.is_ok());
+  EXPECT_NE(status.message().find(garbage), std::string::npos) << status.message();
+  ImageFileInfo info;
+  EXPECT_FALSE(read_image_info(garbage, info).is_ok());
+}
+
+}  // namespace
+}  // namespace nmbake
