@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 #include <glm/geometric.hpp>
+#include <glm/trigonometric.hpp>
 
 #include "nmbake/encode.hpp"
 

@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include <glm/geometric.hpp>
+#include <glm/trigonometric.hpp>
 
 #include "nmbake/encode.hpp"
 #include "nmbake/raster.hpp"
