@@ -14,6 +14,8 @@
 #include <string>
 #include <vector>
 
+#include <glm/geometric.hpp>
+
 #include "nmbake/load.hpp"
 #include "test_util.hpp"
 
@@ -778,6 +780,40 @@ TEST(SaveMesh, RoundTripIsBitExact) {
   for (const auto& entry : std::filesystem::directory_iterator(dir.path())) names.push_back(entry.path().filename());
   std::sort(names.begin(), names.end());
   EXPECT_EQ(names, (std::vector<std::string>{"round.obj", "round.ply"}));
+}
+
+TEST(SaveMesh, LargeRoundTripCrossesBufferRefills) {
+  // About 5 MB of PLY and 9 MB of OBJ: records straddle the 4 MB read buffer.
+  const int side = 300;
+  Mesh mesh;
+  for (int y = 0; y <= side; ++y) {
+    for (int x = 0; x <= side; ++x) {
+      const float fx = static_cast<float>(x) / 7.0f;
+      const float fy = static_cast<float>(y) / 3.0f;
+      mesh.positions.emplace_back(fx, fy, std::sin(fx) * std::cos(fy));
+      mesh.normals.push_back(glm::normalize(glm::vec3(-std::cos(fx) * std::cos(fy), std::sin(fx) * std::sin(fy), 1.0f)));
+      mesh.uvs.emplace_back(static_cast<float>(x) / side, static_cast<float>(y) / side);
+    }
+  }
+  for (int y = 0; y < side; ++y) {
+    for (int x = 0; x < side; ++x) {
+      const auto a = static_cast<std::uint32_t>(y * (side + 1) + x);
+      mesh.indices.insert(mesh.indices.end(), {a, a + 1, a + side + 2, a, a + side + 2, a + side + 1});
+    }
+  }
+  TempDir dir;
+  for (const char* name : {"grid.ply", "grid.obj"}) {
+    const std::string path = dir.file(name);
+    ASSERT_TRUE(save_mesh(path, mesh).is_ok());
+    const Loaded r = load(path);
+    ASSERT_TRUE(r.status.is_ok()) << r.status.message();
+    EXPECT_GT(r.stats.bytes, std::uint64_t{4} << 20) << name;
+    ASSERT_EQ(r.mesh.vertex_count(), mesh.vertex_count());
+    EXPECT_TRUE(bitwise_equal(r.mesh.positions.data(), mesh.positions.data(), 12 * mesh.vertex_count())) << name;
+    EXPECT_TRUE(bitwise_equal(r.mesh.normals.data(), mesh.normals.data(), 12 * mesh.vertex_count())) << name;
+    EXPECT_TRUE(bitwise_equal(r.mesh.uvs.data(), mesh.uvs.data(), 8 * mesh.vertex_count())) << name;
+    EXPECT_EQ(r.mesh.indices, mesh.indices) << name;
+  }
 }
 
 TEST(SaveMesh, ObjTextIsWhatAReaderExpects) {
