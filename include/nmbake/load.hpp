@@ -11,8 +11,27 @@
 //     elements and properties skipped.
 //
 // Every problem is a Status::bad_input naming the file, the line (text) or
-// byte offset (binary) and the reason. After loading, validate_mesh() has
-// passed: no NaN/Inf, every index in range.
+// byte offset (binary) and the reason: "PATH:LINE: reason",
+// "PATH: byte OFFSET: reason", or "PATH: reason" for the whole file (cannot
+// open, unknown extension, no triangles). A read(2) failure is Status::io.
+// After loading, validate_mesh() has passed: no NaN/Inf, every index in
+// range, at least one triangle. On failure `out` is left empty.
+//
+// What the loaded mesh holds:
+//   * Vertices no triangle references are dropped; the others keep file
+//     order (OBJ with split vertices: order of first use by the faces).
+//   * OBJ vertices are the distinct (v, vt, vn) combinations the faces use,
+//     counting only the attributes kept by LoadOptions (so the high mesh is
+//     not split at UV seams). All corners must agree on whether they carry a
+//     kept vt / vn (else bad_input naming the line); an attribute that is not
+//     kept is neither range-checked nor required to be consistent. Indices
+//     must refer to data defined earlier in the file, as the OBJ spec says.
+//   * Normals are returned as stored in the file: not normalised, zero-length
+//     ones kept. The caller runs normalize_normals() or, when the file had
+//     none, compute_vertex_normals() (mesh.hpp), which count their fallbacks.
+//   * Faces with fewer than 3 corners (points, lines) are skipped and counted
+//     in LoadStats::degenerate_faces; LoadStats::polygons counts the others.
+//   * Reals out of float range or NaN/Inf are errors; underflow reads as 0.
 #pragma once
 
 #include <string>
@@ -36,8 +55,12 @@ struct LoadStats {
 
 Status load_mesh(const std::string& path, const LoadOptions& options, Mesh& out, LoadStats& stats);
 
-// Writes a mesh as OBJ (v, vt, vn, f) or PLY (binary little endian), by
-// extension. Used by the generators and by `nmbake unwrap`.
+// Writes a mesh as OBJ (v, vt, vn, f; reals in the shortest form that reads
+// back bit for bit) or PLY (binary little endian: float x y z [nx ny nz]
+// [u v], face list uchar uint), by extension. The mesh must pass
+// validate_mesh(). The file is written to a temporary file in the same folder
+// and renamed, so a failure never leaves a half-written mesh (Status::io).
+// Used by the generators and by `nmbake unwrap`.
 Status save_mesh(const std::string& path, const Mesh& mesh);
 
 }  // namespace nmbake

@@ -47,15 +47,25 @@ Status validate_mesh(const Mesh& mesh, const std::string& name);
 // Area-weighted vertex normals (the cross product of two edges, unnormalised,
 // summed over the triangles around the vertex). A vertex whose sum has zero
 // length (only degenerate triangles around it) gets (0, 0, 1) and is counted.
+// A triangle is degenerate (no weight, counted in zero_area_triangles) when
+// |cross| <= 1e-7 * (longest edge)^2: its direction is float noise.
+// Replaces mesh.normals; normals_computed += vertex count.
 void compute_vertex_normals(Mesh& mesh, MeshStats& stats);
 
 // Normalises loaded normals; zero-length ones are replaced by the computed
-// area-weighted normal of the vertex (or (0, 0, 1)) and counted.
+// area-weighted normal of the vertex (or (0, 0, 1)) and counted (both in
+// zero_length_normals; normals_computed when a computed one was used).
+// A mesh without normals gets compute_vertex_normals().
 void normalize_normals(Mesh& mesh, MeshStats& stats);
 
 // Normals averaged over all vertices that share a position (bitwise equal
 // coordinates), area-weighted: the direction the default cage is pushed along,
 // so that hard edges (split normals) do not open gaps in the cage.
+// -0 and +0 count as equal. Where the sum at a position cancels (e.g. the
+// two sides of a sheet) each vertex keeps its own normalised normal (the
+// mesh's, else its own area-weighted one, else (0, 0, 1)), counted in
+// zero_length_normals. Area weighting follows the triangulation: a quad
+// corner on the quad's diagonal weighs twice one off it.
 std::vector<glm::vec3> averaged_normals(const Mesh& mesh, MeshStats& stats);
 
 // Makes sure Embree may read 4 bytes past the last position (see above).

@@ -22,6 +22,7 @@ namespace {
 // Large enough that read(2) calls are rare, small enough to stay in L2/L3-ish
 // territory and fault in once.
 constexpr std::size_t kBufferBytes = std::size_t{4} << 20;
+constexpr std::uint64_t kMinBufferBytes = 4096;
 }  // namespace
 
 FileReader::~FileReader() {
@@ -39,8 +40,10 @@ Status FileReader::open(const std::string& path) {
 #ifdef POSIX_FADV_SEQUENTIAL
   (void)::posix_fadvise(fd_, 0, 0, POSIX_FADV_SEQUENTIAL);
 #endif
-  buffer_.resize(kBufferBytes);
-  data_ = buffer_.data();
+  // A small file gets a small buffer: most tests and low meshes are tiny.
+  capacity_ = static_cast<std::size_t>(std::clamp<std::uint64_t>(file_size_ + 1, kMinBufferBytes, kBufferBytes));
+  buffer_ = std::make_unique_for_overwrite<char[]>(capacity_);
+  data_ = buffer_.get();
   return Status::ok();
 }
 
@@ -54,12 +57,16 @@ bool FileReader::fill(std::size_t count) {
     pos_ = 0;
     end_ = kept;
   }
-  if (count > buffer_.size()) {
-    buffer_.resize(std::max(count, buffer_.size() * 2));
-    data_ = buffer_.data();
+  if (count > capacity_) {
+    const std::size_t grown = std::max(count, capacity_ * 2);
+    auto bigger = std::make_unique_for_overwrite<char[]>(grown);
+    std::memcpy(bigger.get(), data_, end_);
+    buffer_ = std::move(bigger);
+    capacity_ = grown;
+    data_ = buffer_.get();
   }
-  while (end_ < count || end_ < buffer_.size()) {
-    const ssize_t got = ::read(fd_, data_ + end_, buffer_.size() - end_);
+  while (end_ < capacity_) {
+    const ssize_t got = ::read(fd_, data_ + end_, capacity_ - end_);
     if (got < 0) {
       if (errno == EINTR) continue;
       read_status_ = Status::io(path_ + ": read failed: " + std::strerror(errno));

@@ -15,6 +15,7 @@
 // Indices must refer to data defined earlier in the file (the manual's rule),
 // which lets every error name its line. Vertices no face uses are dropped by
 // load_mesh.
+#include <cstring>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -57,11 +58,8 @@ class ObjParser {
       const char* keyword_end = skip_token(p, end);
       const std::string_view keyword(p, static_cast<std::size_t>(keyword_end - p));
       // A comment may follow a statement.
-      for (const char* c = keyword_end; c < end; ++c) {
-        if (*c == '#') {
-          end = c;
-          break;
-        }
+      if (const void* hash = std::memchr(keyword_end, '#', static_cast<std::size_t>(end - keyword_end))) {
+        end = static_cast<const char*>(hash);
       }
       if (keyword == "v") {
         NMBAKE_TRY(parse_position(keyword_end, end));

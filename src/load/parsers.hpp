@@ -10,6 +10,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -71,7 +72,8 @@ class FileReader {
   std::string path_;
   int fd_ = -1;
   std::uint64_t file_size_ = 0;
-  std::vector<char> buffer_;
+  std::unique_ptr<char[]> buffer_;  // not zero-filled: pages fault in only when read into
+  std::size_t capacity_ = 0;
   char* data_ = nullptr;
   std::size_t pos_ = 0;
   std::size_t end_ = 0;
