@@ -96,7 +96,10 @@ Status HighScene::build(const Mesh& mesh, BuildQuality quality, bool backface_fi
   rtcSetSceneBuildQuality(impl->scene, quality == BuildQuality::low    ? RTC_BUILD_QUALITY_LOW
                                        : quality == BuildQuality::high ? RTC_BUILD_QUALITY_HIGH
                                                                        : RTC_BUILD_QUALITY_MEDIUM);
-  rtcSetSceneFlags(impl->scene, RTC_SCENE_FLAG_NONE);
+  // Robust mode: the watertight intersection test. Bake rays often pass
+  // exactly through shared edges of the high mesh (where its grid lines
+  // up with the low one), and the fast test lets such rays slip through.
+  rtcSetSceneFlags(impl->scene, RTC_SCENE_FLAG_ROBUST);
 
   RTCGeometry geometry = rtcNewGeometry(impl->device, RTC_GEOMETRY_TYPE_TRIANGLE);
   // Shared buffers: the high mesh is never copied.
