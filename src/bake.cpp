@@ -12,6 +12,7 @@
 #include <sys/resource.h>
 #include <tbb/global_control.h>
 #include <tbb/info.h>
+#include <tbb/parallel_for.h>
 
 namespace nmbake {
 
@@ -269,8 +270,12 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   dilate(image, coverage, o.padding, r.dilate);
   timer.stop();
 
+  // Every output is written at once (each writer is single-threaded).
   timer.start("write");
-  for (const OutputSpec& out : o.outputs) NMBAKE_TRY(write_image(image, out.path, out.format));
+  std::vector<Status> written(o.outputs.size());
+  tbb::parallel_for(std::size_t{0}, o.outputs.size(),
+                    [&](std::size_t i) { written[i] = write_image(image, o.outputs[i].path, o.outputs[i].format); });
+  for (const Status& s : written) NMBAKE_TRY(s);
   timer.stop();
 
   r.total_seconds = std::chrono::duration<double>(Clock::now() - bake_begin).count();

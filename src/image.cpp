@@ -126,6 +126,9 @@ Status write_with_oiio(const Image& image, const std::string& path, const fs::pa
   // The TIFF and EXR writers stamp the current time unless told a date; an
   // empty one writes none, so the same bake gives the same bytes.
   spec.attribute("DateTime", "");
+  // zlib level 1: a 2048^2 16-bit normal map writes about 4x faster than at
+  // the default level 6, for files about 8% larger.
+  if (std::string(traits.oiio_format) == "png") spec.attribute("png:compressionLevel", 1);
 
   if (!out->open(temp_name, spec)) {
     return Status::io("cannot write '" + path + "': " + oiio_error_text(out->geterror()));
