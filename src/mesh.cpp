@@ -74,6 +74,36 @@ std::vector<glm::vec3> area_weighted_sums(const Mesh& mesh, MeshStats& stats) {
   return sums;
 }
 
+// Per vertex: the sum of the unit normals of the triangles around it, each
+// weighted by the triangle's angle at the vertex (Thuermer and Wuethrich,
+// "Computing vertex normals from polygonal facets", 1998). Unlike area
+// weights this does not depend on how the faces were triangulated: a box
+// corner gets the exact diagonal however its quads were split.
+std::vector<glm::vec3> angle_weighted_sums(const Mesh& mesh, MeshStats& stats) {
+  std::vector<glm::vec3> sums(mesh.vertex_count(), glm::vec3(0.0f));
+  const float scale = exact_unit_scale(mesh);
+  for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
+    const std::uint32_t v[3] = {mesh.indices[3 * t], mesh.indices[3 * t + 1], mesh.indices[3 * t + 2]};
+    const glm::vec3 p[3] = {mesh.positions[v[0]] * scale, mesh.positions[v[1]] * scale, mesh.positions[v[2]] * scale};
+    const glm::vec3 ab = p[1] - p[0], ac = p[2] - p[0], bc = p[2] - p[1];
+    const glm::vec3 cross = glm::cross(ab, ac);
+    const float longest_squared = std::max({glm::dot(ab, ab), glm::dot(ac, ac), glm::dot(bc, bc)});
+    const float length = glm::length(cross);
+    if (length <= kDegenerateAreaRatio * longest_squared) {
+      ++stats.zero_area_triangles;
+      continue;
+    }
+    const glm::vec3 unit = cross / length;
+    for (int k = 0; k < 3; ++k) {
+      const glm::vec3 e1 = glm::normalize(p[(k + 1) % 3] - p[k]);
+      const glm::vec3 e2 = glm::normalize(p[(k + 2) % 3] - p[k]);
+      const float angle = std::acos(std::clamp(glm::dot(e1, e2), -1.0f, 1.0f));
+      sums[v[k]] += angle * unit;
+    }
+  }
+  return sums;
+}
+
 const glm::vec3 kFallbackNormal(0.0f, 0.0f, 1.0f);
 
 std::string vec_text(const float* v, int n) {
@@ -169,7 +199,7 @@ void normalize_normals(Mesh& mesh, MeshStats& stats) {
 }
 
 std::vector<glm::vec3> averaged_normals(const Mesh& mesh, MeshStats& stats) {
-  const std::vector<glm::vec3> sums = area_weighted_sums(mesh, stats);
+  const std::vector<glm::vec3> sums = angle_weighted_sums(mesh, stats);
   const std::size_t vertex_count = mesh.vertex_count();
 
   // Group by the bit pattern of the position; adding +0 first turns -0 into

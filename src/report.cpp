@@ -79,11 +79,15 @@ std::string BakeReport::to_json() const {
 
 std::string BakeReport::summary_line() const {
   char line[512];
+  double trace_seconds = 0.0;
+  for (const StageTime& s : stages)
+    if (s.name == "trace") trace_seconds = s.seconds;
+  const double mrays_per_second = trace_seconds > 0.0 ? 1e-6 * static_cast<double>(trace.rays) / trace_seconds : 0.0;
   std::snprintf(line, sizeof line,
-                "baked %dx%d x%d spp: %.1f%% texels covered, %llu rays, %llu misses (%.3f%%), "
+                "baked %dx%d x%d spp: %.1f%% texels covered, %llu rays (%.1f Mrays/s), %llu misses (%.3f%%), "
                 "front %.4g back %.4g%s, %.2f s, peak %.0f MiB",
                 width, height, samples, 100.0 * coverage(), static_cast<unsigned long long>(trace.rays),
-                static_cast<unsigned long long>(trace.misses), 100.0 * miss_rate(), front, back,
+                mrays_per_second, static_cast<unsigned long long>(trace.misses), 100.0 * miss_rate(), front, back,
                 distances_estimated ? " (auto)" : "", total_seconds,
                 static_cast<double>(peak_rss_bytes) / (1024.0 * 1024.0));
   return line;

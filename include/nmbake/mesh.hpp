@@ -59,13 +59,13 @@ void compute_vertex_normals(Mesh& mesh, MeshStats& stats);
 void normalize_normals(Mesh& mesh, MeshStats& stats);
 
 // Normals averaged over all vertices that share a position (bitwise equal
-// coordinates), area-weighted: the direction the default cage is pushed along,
+// coordinates), weighted by corner angle (not by area, which would follow the
+// triangulation): the direction the default cage is pushed along,
 // so that hard edges (split normals) do not open gaps in the cage.
 // -0 and +0 count as equal. Where the sum at a position cancels (e.g. the
 // two sides of a sheet) each vertex keeps its own normalised normal (the
-// mesh's, else its own area-weighted one, else (0, 0, 1)), counted in
-// zero_length_normals. Area weighting follows the triangulation: a quad
-// corner on the quad's diagonal weighs twice one off it.
+// mesh's, else its own angle-weighted one, else (0, 0, 1)), counted in
+// zero_length_normals.
 std::vector<glm::vec3> averaged_normals(const Mesh& mesh, MeshStats& stats);
 
 // Makes sure Embree may read 4 bytes past the last position (see above).

@@ -18,7 +18,9 @@
 #include <string>
 
 #include "nmbake/load.hpp"
+#include "nmbake/image.hpp"
 #include "scenes.hpp"
+#include "score.hpp"
 
 namespace {
 
@@ -127,6 +129,23 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
 
+  // Scoring a bake of an analytic scene against its true normals.
+  struct ScoreOptions {
+    std::string scene, map, low;
+    int samples = 4;
+    float front = 0.0f, back = 0.0f;
+  } score;
+  CLI::App* score_cmd = app.add_subcommand("score", "Angular error of a baked map of the heightfield or sphere scene");
+  score_cmd->add_option("scene", score.scene, "heightfield | sphere")->required()->check(CLI::IsMember({"heightfield", "sphere"}));
+  score_cmd->add_option("--map", score.map, "the baked tangent-space map (EXR for the exact value)")->required();
+  score_cmd->add_option("--samples", score.samples, "samples per texel of the bake")->capture_default_str();
+  score_cmd->add_option("--low", score.low, "sphere: the low mesh that was baked");
+  score_cmd->add_option("--front", score.front, "sphere: the bake's front distance (from its report)");
+  score_cmd->add_option("--back", score.back, "sphere: the bake's back distance (from its report)");
+  score_cmd->add_option("--amplitude", options.sphere.amplitude, "the scene's amplitude (sphere: relative)");
+  score_cmd->add_option("--size", options.heightfield.size, "heightfield: side of the square");
+  score_cmd->add_option("--radius", options.sphere.radius, "sphere: radius");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -139,6 +158,30 @@ int main(int argc, char** argv) {
     if (options.threads > 0) {
       thread_limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                            static_cast<std::size_t>(options.threads));
+    }
+    if (score_cmd->parsed()) {
+      nmbake::Image map;
+      if (const nmbake::Status st = nmbake::read_image(score.map, map); !st) {
+        std::fprintf(stderr, "nmbake-gen: %s\n", st.message().c_str());
+        return 2;
+      }
+      scenes::AngularError e;
+      if (score.scene == "heightfield") {
+        if (score_cmd->count("--amplitude")) options.heightfield.amplitude = options.sphere.amplitude;
+        e = scenes::score_heightfield(options.heightfield, map, score.samples);
+      } else {
+        nmbake::Mesh low;
+        nmbake::LoadStats load_stats;
+        if (const nmbake::Status st = nmbake::load_mesh(score.low, {}, low, load_stats); !st) {
+          std::fprintf(stderr, "nmbake-gen: %s\n", st.message().c_str());
+          return 2;
+        }
+        nmbake::MeshStats mesh_stats;
+        nmbake::normalize_normals(low, mesh_stats);
+        e = scenes::score_sphere(options.sphere, low, map, score.samples, score.front, score.back);
+      }
+      std::printf("%s %s: %s\n", score.scene.c_str(), score.map.c_str(), e.to_text().c_str());
+      return 0;
     }
     if (moon->parsed()) {
       return generate_and_write(options, "moon", [&] { return scenes::make_moon(options.moon); });
