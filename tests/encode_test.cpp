@@ -11,8 +11,8 @@ namespace nmbake {
 namespace {
 
 float angle_degrees(const glm::vec3& a, const glm::vec3& b) {
-  const float c = glm::dot(glm::normalize(a), glm::normalize(b));
-  return glm::degrees(std::acos(std::clamp(c, -1.0f, 1.0f)));
+  const glm::dvec3 da(a), db(b);
+  return static_cast<float>(glm::degrees(std::atan2(glm::length(glm::cross(da, db)), glm::dot(da, db))));
 }
 
 TEST(Encode, OrthonormalFrameIsIdentity) {

@@ -16,11 +16,14 @@ namespace nmbake::scenes {
 
 namespace {
 
+// atan2(|a x b|, a . b) in double: acos of a float dot product cannot
+// resolve angles below ~0.02 degrees, which is where a good bake lives.
 float angle_degrees(const glm::vec3& a, const glm::vec3& b) {
-  const float la = glm::length(a), lb = glm::length(b);
-  if (!(la > 0.0f) || !(lb > 0.0f)) return 180.0f;
-  const float c = glm::dot(a / la, b / lb);
-  return glm::degrees(std::acos(std::clamp(c, -1.0f, 1.0f)));
+  const glm::dvec3 da(a), db(b);
+  const double la = glm::length(da), lb = glm::length(db);
+  if (!(la > 0.0) || !(lb > 0.0)) return 180.0f;
+  const double radians = std::atan2(glm::length(glm::cross(da, db)), glm::dot(da, db));
+  return static_cast<float>(radians * 180.0 / 3.14159265358979323846);
 }
 
 glm::vec3 decode(const Image& map, int x, int y) {
