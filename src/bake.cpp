@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <memory>
 #include <string>
 
 #include <sys/resource.h>
@@ -93,10 +94,22 @@ class StageTimer {
     begin_ = Clock::now();
     if (progress_) progress_(name_, 0.0);
   }
-  void stop() {
+  // A stage run several times (once per band) adds up under one name.
+  void stop(bool report_done = true) {
     const double seconds = std::chrono::duration<double>(Clock::now() - begin_).count();
+    for (StageTime& st : report_.stages) {
+      if (st.name == name_) {
+        st.seconds += seconds;
+        if (progress_ && report_done) progress_(name_, 1.0);
+        return;
+      }
+    }
     report_.stages.push_back({name_, seconds});
-    if (progress_) progress_(name_, 1.0);
+    if (progress_ && report_done) progress_(name_, 1.0);
+  }
+  void start_quietly(const char* name) {
+    name_ = name;
+    begin_ = Clock::now();
   }
 
  private:
@@ -129,41 +142,61 @@ void prepare_normals(Mesh& mesh, bool is_low, MeshStats& stats) {
   }
 }
 
-// Per texel: covered, share of missed samples, mean signed hit distance.
-Status write_debug_dump(const std::string& prefix, const TexelSamples& samples, const Hits& hits) {
-  Image coverage{samples.width, samples.height, 3, {}};
-  Image misses = coverage;
-  Image distance = coverage;
-  const std::size_t texels = static_cast<std::size_t>(samples.width) * samples.height;
-  coverage.pixels.assign(texels * 3, 0.0f);
-  misses.pixels.assign(texels * 3, 0.0f);
-  distance.pixels.assign(texels * 3, 0.0f);
-  for (std::size_t t = 0; t < texels; ++t) {
-    int traced = 0, missed = 0;
-    double sum = 0.0;
-    for (int k = 0; k < samples.samples; ++k) {
-      const std::size_t s = t * samples.samples + k;
-      if (samples.triangle[s] < 0) continue;
-      ++traced;
-      if (hits.triangle[s] < 0) {
-        ++missed;
-      } else {
-        sum += hits.distance[s];
-      }
-    }
-    const float c = samples.coverage[t] ? 1.0f : 0.0f;
-    const float m = traced > 0 ? static_cast<float>(missed) / traced : 0.0f;
-    const float d = traced > missed ? static_cast<float>(sum / (traced - missed)) : 0.0f;
-    for (int ch = 0; ch < 3; ++ch) {
-      coverage.pixels[t * 3 + ch] = c;
-      misses.pixels[t * 3 + ch] = ch == 0 ? m : 0.0f;
-      distance.pixels[t * 3 + ch] = d;
+// Per texel: covered, share of missed samples, mean signed hit distance;
+// filled band by band.
+struct DebugImages {
+  Image coverage, misses, distance;
+  DebugImages(int width, int height) {
+    for (Image* image : {&coverage, &misses, &distance}) {
+      image->width = width;
+      image->height = height;
+      image->channels = 3;
+      image->pixels.assign(static_cast<std::size_t>(width) * height * 3, 0.0f);
     }
   }
-  NMBAKE_TRY(write_image(coverage, prefix + "_coverage.png", PixelFormat::png8));
-  NMBAKE_TRY(write_image(misses, prefix + "_misses.png", PixelFormat::png8));
-  NMBAKE_TRY(write_image(distance, prefix + "_distance.exr", PixelFormat::exr_float));
-  return Status::ok();
+  void add_band(const TexelSamples& samples, const Hits& hits) {
+    const std::size_t texels = static_cast<std::size_t>(samples.width) * samples.height;
+    const std::size_t offset = static_cast<std::size_t>(samples.row_begin) * samples.width;
+    for (std::size_t t = 0; t < texels; ++t) {
+      int traced = 0, missed = 0;
+      double sum = 0.0;
+      for (int k = 0; k < samples.samples; ++k) {
+        const std::size_t s = t * samples.samples + k;
+        if (samples.triangle[s] < 0) continue;
+        ++traced;
+        if (hits.triangle[s] < 0) {
+          ++missed;
+        } else {
+          sum += hits.distance[s];
+        }
+      }
+      const float c = samples.coverage[t] ? 1.0f : 0.0f;
+      const float m = traced > 0 ? static_cast<float>(missed) / traced : 0.0f;
+      const float d = traced > missed ? static_cast<float>(sum / (traced - missed)) : 0.0f;
+      for (int ch = 0; ch < 3; ++ch) {
+        coverage.pixels[(offset + t) * 3 + ch] = c;
+        misses.pixels[(offset + t) * 3 + ch] = ch == 0 ? m : 0.0f;
+        distance.pixels[(offset + t) * 3 + ch] = d;
+      }
+    }
+  }
+  Status write(const std::string& prefix) const {
+    NMBAKE_TRY(write_image(coverage, prefix + "_coverage.png", PixelFormat::png8));
+    NMBAKE_TRY(write_image(misses, prefix + "_misses.png", PixelFormat::png8));
+    NMBAKE_TRY(write_image(distance, prefix + "_distance.exr", PixelFormat::exr_float));
+    return Status::ok();
+  }
+};
+
+// Rows per band: about 4M samples, so the per-sample arrays (28 bytes a
+// sample) stay near 110 MB whatever the map size; a multiple of the raster
+// tile so bands start on tile rows.
+int band_rows(int width, int height, int samples, std::size_t band_samples) {
+  if (band_samples == 0) band_samples = std::size_t{1} << 22;
+  const std::size_t per_row = static_cast<std::size_t>(width) * static_cast<std::size_t>(samples);
+  std::size_t rows = std::max<std::size_t>(1, band_samples / per_row);
+  rows = std::max<std::size_t>(kRasterTileSize, rows / kRasterTileSize * kRasterTileSize);
+  return static_cast<int>(std::min<std::size_t>(rows, static_cast<std::size_t>(height)));
 }
 
 }  // namespace
@@ -241,32 +274,53 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   r.front = rays.front;
   r.back = rays.back;
 
-  timer.start("raster");
-  TexelSamples samples;
-  rasterize(surface, o.width, o.height, o.samples, samples, r.raster);
-  timer.stop();
-
-  timer.start("trace");
-  Hits hits;
-  trace(scene, surface, samples, rays, hits, r.trace, [&](double f) {
-    if (progress) progress("trace", f);
-  });
-  timer.stop();
-
-  timer.start("encode");
+  // raster -> trace -> encode, band of rows by band of rows: the per-sample
+  // arrays are reused and bounded, so a 16384^2 map bakes in the memory of a
+  // small one. Bands change nothing in the result: raster tiles and ray
+  // packets both start on band rows.
   EncodeOptions encode_options;
   encode_options.space = o.space;
   encode_options.green = o.green;
   encode_options.high_normals = o.high_normals;
   encode_options.tangent_encode = o.tangent_encode;
   Image image;
-  encode(surface, samples, high, hits, encode_options, image, r.encode);
-  timer.stop();
+  image.width = o.width;
+  image.height = o.height;
+  image.channels = 3;
+  image.pixels.resize(static_cast<std::size_t>(o.width) * o.height * 3);
+  std::vector<std::uint8_t> coverage(static_cast<std::size_t>(o.width) * o.height, 0);
+  std::unique_ptr<DebugImages> debug;
+  if (!o.debug_dump_prefix.empty()) debug = std::make_unique<DebugImages>(o.width, o.height);
+  TexelSamples samples;
+  Hits hits;
+  const int rows_per_band = band_rows(o.width, o.height, o.samples, o.band_samples);
+  for (int row = 0; row < o.height; row += rows_per_band) {
+    const int row_end = std::min(row + rows_per_band, o.height);
+    timer.start_quietly("raster");
+    RasterStats band_raster;
+    rasterize(surface, o.width, o.height, o.samples, samples, band_raster, row, row_end);
+    r.raster.covered_texels += band_raster.covered_texels;
+    r.raster.border_samples += band_raster.border_samples;
+    r.raster.overlapping_samples += band_raster.overlapping_samples;
+    r.raster.degenerate_uv_triangles = band_raster.degenerate_uv_triangles;  // the same in every band
+    std::copy(samples.coverage.begin(), samples.coverage.end(),
+              coverage.begin() + static_cast<std::ptrdiff_t>(row) * o.width);
+    timer.stop(false);
 
-  if (!o.debug_dump_prefix.empty()) NMBAKE_TRY(write_debug_dump(o.debug_dump_prefix, samples, hits));
+    timer.start_quietly("trace");
+    trace(scene, surface, samples, rays, hits, r.trace, [&](double f) {
+      if (progress) progress("trace", (row + f * (row_end - row)) / o.height);
+    });
+    timer.stop(false);
+
+    timer.start_quietly("encode");
+    encode(surface, samples, high, hits, encode_options, image, r.encode);
+    timer.stop(false);
+    if (debug) debug->add_band(samples, hits);
+  }
+  if (debug) NMBAKE_TRY(debug->write(o.debug_dump_prefix));
 
   timer.start("dilate");
-  std::vector<std::uint8_t> coverage = samples.coverage;
   dilate(image, coverage, o.padding, r.dilate);
   timer.stop();
 

@@ -9,6 +9,7 @@
 // kept only to measure what it costs: it is right only for orthonormal frames.
 #include "nmbake/encode.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include <glm/geometric.hpp>
@@ -88,10 +89,15 @@ void encode(const LowSurface& surface, const TexelSamples& samples, const Mesh& 
   const int spp = samples.samples;
   const bool tangent_space = options.space == NormalSpace::tangent;
   const bool smooth = options.high_normals == HighNormals::smooth && high.has_normals();
-  out.width = width;
-  out.height = height;
-  out.channels = 3;
-  out.pixels.assign(static_cast<std::size_t>(width) * height * 3, 0.0f);
+  // A band of rows lands at its place in `out`, which grows to hold it.
+  const int row_begin = samples.row_begin;
+  if (out.width != width || out.channels != 3 || out.height < row_begin + height) {
+    out.width = width;
+    out.height = std::max(out.height, row_begin + height);
+    out.channels = 3;
+    out.pixels.resize(static_cast<std::size_t>(width) * out.height * 3, 0.0f);
+  }
+  float* const band_pixels = out.pixels.data() + static_cast<std::size_t>(row_begin) * width * 3;
   const glm::vec3 background = tangent_space ? glm::vec3(0.0f, 0.0f, 1.0f) : glm::vec3(0.0f);
 
   struct RowCounts {
@@ -174,7 +180,7 @@ void encode(const LowSurface& surface, const TexelSamples& samples, const Mesh& 
         }
         if (tangent_space && options.green == GreenChannel::down) value.y = -value.y;
       }
-      float* p = out.pixels.data() + texel * 3;
+      float* p = band_pixels + texel * 3;
       p[0] = 0.5f * value.x + 0.5f;
       p[1] = 0.5f * value.y + 0.5f;
       p[2] = 0.5f * value.z + 0.5f;

@@ -48,7 +48,7 @@ namespace {
 
 // 32x32 texels: at 64 samples the per-thread scratch (9 bytes per sample) is
 // ~0.6 MB and stays in L2.
-constexpr int tile_size = 32;
+constexpr int tile_size = kRasterTileSize;
 
 // A sample counts as strictly inside when every normalised edge function
 // (its barycentric weight) exceeds this; far above double rounding noise
@@ -263,8 +263,11 @@ std::vector<glm::vec2> sample_offsets(int samples) {
 }
 
 void rasterize(const LowSurface& surface, int width, int height, int samples, TexelSamples& out,
-               RasterStats& stats) {
+               RasterStats& stats, int row_begin, int row_end) {
   NMBAKE_CHECK(width > 0 && height > 0, "raster size must be positive");
+  if (row_end < 0) row_end = height;
+  NMBAKE_CHECK(row_begin >= 0 && row_begin < row_end && row_end <= height && row_begin % kRasterTileSize == 0,
+               "row band must lie in the image and start on a tile row");
   NMBAKE_CHECK(is_supported_sample_count(samples), "unsupported sample count");
   NMBAKE_CHECK(surface.uv.size() % 3 == 0, "LowSurface::uv must hold three corners per triangle");
   const std::size_t triangle_count = surface.uv.size() / 3;
@@ -272,10 +275,12 @@ void rasterize(const LowSurface& surface, int width, int height, int samples, Te
                "too many triangles for 32-bit triangle ids");
 
   stats = RasterStats{};
-  const std::size_t texel_count = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
+  const int rows = row_end - row_begin;
+  const std::size_t texel_count = static_cast<std::size_t>(width) * static_cast<std::size_t>(rows);
   const std::size_t sample_total = texel_count * static_cast<std::size_t>(samples);
   out.width = width;
-  out.height = height;
+  out.height = rows;
+  out.row_begin = row_begin;
   out.samples = samples;
   // A reused `out` keeps its allocation; every element is rewritten by its
   // tile below.
@@ -289,7 +294,8 @@ void rasterize(const LowSurface& surface, int width, int height, int samples, Te
   // in triangle order. Tiles whose box the triangle does not overlap are left
   // out (a long diagonal sliver would otherwise visit the whole map).
   const int tiles_x = (width + tile_size - 1) / tile_size;
-  const int tiles_y = (height + tile_size - 1) / tile_size;
+  const int tile_row0 = row_begin / tile_size;
+  const int tiles_y = (row_end - row_begin + tile_size - 1) / tile_size;
   const std::size_t tile_count = static_cast<std::size_t>(tiles_x) * static_cast<std::size_t>(tiles_y);
   std::vector<SetupTriangle> setup(triangle_count);
   std::vector<std::uint8_t> usable(triangle_count, 0);
@@ -300,12 +306,15 @@ void rasterize(const LowSurface& surface, int width, int height, int samples, Te
       ++stats.degenerate_uv_triangles;
       continue;
     }
-    if (tri.x0 > tri.x1 || tri.y0 > tri.y1) continue;  // entirely off the map
+    // Rows outside the band are someone else's.
+    tri.y0 = std::max(tri.y0, row_begin);
+    tri.y1 = std::min(tri.y1, row_end - 1);
+    if (tri.x0 > tri.x1 || tri.y0 > tri.y1) continue;  // entirely off the map (or the band)
     usable[t] = 1;
     for (int ty = tri.y0 / tile_size; ty <= tri.y1 / tile_size; ++ty) {
       for (int tx = tri.x0 / tile_size; tx <= tri.x1 / tile_size; ++tx) {
         if (box_overlaps(tri, tx * tile_size, ty * tile_size, tile_size)) {
-          ++tile_begin[static_cast<std::size_t>(ty) * tiles_x + tx + 1];
+          ++tile_begin[static_cast<std::size_t>(ty - tile_row0) * tiles_x + tx + 1];
         }
       }
     }
@@ -320,7 +329,7 @@ void rasterize(const LowSurface& surface, int width, int height, int samples, Te
       for (int ty = tri.y0 / tile_size; ty <= tri.y1 / tile_size; ++ty) {
         for (int tx = tri.x0 / tile_size; tx <= tri.x1 / tile_size; ++tx) {
           if (box_overlaps(tri, tx * tile_size, ty * tile_size, tile_size)) {
-            tile_triangles[fill[static_cast<std::size_t>(ty) * tiles_x + tx]++] =
+            tile_triangles[fill[static_cast<std::size_t>(ty - tile_row0) * tiles_x + tx]++] =
                 static_cast<std::int32_t>(t);
           }
         }
@@ -346,14 +355,14 @@ void rasterize(const LowSurface& surface, int width, int height, int samples, Te
         TileScratch& scratch = scratch_pool.local();
         for (std::size_t tile = r.begin(); tile != r.end(); ++tile) {
           const int tx0 = static_cast<int>(tile % tiles_x) * tile_size;
-          const int ty0 = static_cast<int>(tile / tiles_x) * tile_size;
+          const int ty0 = (tile_row0 + static_cast<int>(tile / tiles_x)) * tile_size;
           const int tx1 = std::min(tx0 + tile_size, width) - 1;
-          const int ty1 = std::min(ty0 + tile_size, height) - 1;
+          const int ty1 = std::min(ty0 + tile_size, row_end) - 1;
           const auto local_texel = [&](int x, int y) {
             return static_cast<std::size_t>(y - ty0) * tile_size + static_cast<std::size_t>(x - tx0);
           };
           const auto first_sample = [&](int x, int y) {
-            return (static_cast<std::size_t>(y) * width + static_cast<std::size_t>(x)) * sample_stride;
+            return (static_cast<std::size_t>(y - row_begin) * width + static_cast<std::size_t>(x)) * sample_stride;
           };
 
           std::fill(scratch.best_distance2.begin(), scratch.best_distance2.end(),
@@ -433,7 +442,7 @@ void rasterize(const LowSurface& surface, int width, int height, int samples, Te
           for (int y = ty0; y <= ty1; ++y) {
             for (int x = tx0; x <= tx1; ++x) {
               const std::size_t texel = local_texel(x, y);
-              out.coverage[static_cast<std::size_t>(y) * width + x] = scratch.covered[texel];
+              out.coverage[static_cast<std::size_t>(y - row_begin) * width + x] = scratch.covered[texel];
               if (!scratch.covered[texel]) {
                 // Every sample of a covered texel was written by pass 1 or 2.
                 const std::size_t first = first_sample(x, y);

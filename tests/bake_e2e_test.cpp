@@ -98,6 +98,31 @@ TEST(EndToEnd, DisplacedSphereMatchesAnalyticNormals) {
   EXPECT_LT(e.p99, 1.0);
 }
 
+// Bands of rows bound the memory; they must not show in the result.
+TEST(EndToEnd, BandsDoNotChangeTheMap) {
+  test::TempDir dir;
+  scenes::SphereParams params;
+  params.high_cells = 48;
+  const scenes::ScenePair scene = scenes::make_displaced_sphere(params);
+  ASSERT_TRUE(save_mesh(dir.file("low.obj"), scene.low).is_ok());
+  ASSERT_TRUE(save_mesh(dir.file("high.ply"), scene.high).is_ok());
+  BakeOptions o;
+  o.low_path = dir.file("low.obj");
+  o.high_path = dir.file("high.ply");
+  o.width = o.height = 200;  // not a multiple of the band height
+  o.samples = 4;
+  o.outputs = {{dir.file("one.exr"), PixelFormat::exr_float}};
+  BakeReport one, many;
+  ASSERT_TRUE(bake(o, one).is_ok());
+  o.band_samples = 200 * 4 * 32;  // bands of 32 rows
+  o.outputs = {{dir.file("many.exr"), PixelFormat::exr_float}};
+  ASSERT_TRUE(bake(o, many).is_ok());
+  EXPECT_EQ(read_bytes(dir.file("one.exr")), read_bytes(dir.file("many.exr")));
+  EXPECT_EQ(one.trace.rays, many.trace.rays);
+  EXPECT_EQ(one.raster.covered_texels, many.raster.covered_texels);
+  EXPECT_EQ(one.raster.border_samples, many.raster.border_samples);
+}
+
 class CliBake : public ::testing::Test {
  protected:
   void SetUp() override {

@@ -58,6 +58,9 @@ struct BakeOptions {
   BuildQuality build_quality = BuildQuality::medium;
   int padding = 16;
   std::string debug_dump_prefix;  // non-empty: also write coverage / miss / distance images
+  // Samples per band of rows (raster, trace and encode run band by band);
+  // 0 = about 4M. Changes memory use only, never the result (tested).
+  std::size_t band_samples = 0;
 };
 
 // Checks options that need no file: sizes, sample count, outputs and formats.

@@ -36,7 +36,9 @@ struct EncodeStats {
   std::uint64_t zero_results = 0;       // averaged texel normal of length ~0: low normal kept
 };
 
-// Writes a width x height x 3 image; texels without coverage get the
+// Writes the rows of `samples` (a whole image, or the band of rows starting
+// at samples.row_begin) into a width x height x 3 `out`, which is resized
+// when it is too small; texels without coverage get the
 // background value of the space (tangent (0, 0, 1), object (0, 0, 0)
 // encoded). Also computes the world-space high normal per sample from `hits`.
 void encode(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,

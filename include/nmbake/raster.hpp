@@ -47,11 +47,16 @@ namespace nmbake {
 std::vector<glm::vec2> sample_offsets(int samples);
 bool is_supported_sample_count(int samples);
 
+// Rows of texels are rasterized in tiles of this many rows (and columns); a
+// band of rows (see rasterize) starts on a multiple of it.
+constexpr int kRasterTileSize = 32;
+
 struct TexelSamples {
   int width = 0;
-  int height = 0;
+  int height = 0;     // rows held: the whole image, or one band of it
+  int row_begin = 0;  // image row of the first row held
   int samples = 1;  // per texel
-  // Per sample, index ((y * width) + x) * samples + s:
+  // Per sample, index (((y - row_begin) * width) + x) * samples + s:
   std::vector<std::int32_t> triangle;  // low triangle, -1 = no sample
   std::vector<glm::vec2> bary;         // weights of corners 1 and 2 (corner 0: 1 - x - y)
   // Per texel: 1 when covered.
@@ -70,7 +75,12 @@ struct RasterStats {
 // Reads surface.uv only (three per triangle). Fills `out` (reusing its
 // allocation when large enough) and overwrites `stats`. width, height > 0 and
 // a supported sample count are checked invariants.
+// Rasterizes image rows [row_begin, row_end) of a width x height map (the
+// whole map by default); row_begin must be a multiple of kRasterTileSize.
+// The result for a texel does not depend on the band it was rasterized in.
+// `stats` is overwritten; degenerate_uv_triangles counts every triangle of
+// the mesh, whatever the band.
 void rasterize(const LowSurface& surface, int width, int height, int samples, TexelSamples& out,
-               RasterStats& stats);
+               RasterStats& stats, int row_begin = 0, int row_end = -1);
 
 }  // namespace nmbake
