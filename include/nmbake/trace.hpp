@@ -100,6 +100,17 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
            const RayOptions& options, Hits& hits, TraceStats& stats,
            const std::function<void(double)>& progress = {});
 
+// The speed ceiling of trace(): the same first-hit rays in the same packets,
+// built beforehand, and only Embree's rtcIntersect16 calls timed (no hit
+// bookkeeping, no shading). For tools/bench.
+struct RawTraceResult {
+  std::uint64_t rays = 0;
+  std::uint64_t hits = 0;
+  double seconds = 0.0;
+};
+RawTraceResult trace_raw(const HighScene& scene, const LowSurface& surface, const TexelSamples& samples,
+                         const RayOptions& options);
+
 // Ray distances found by probing: rays from fixed points of every low
 // triangle, outwards and inwards along the averaged normal, find how far the
 // high surface lies outside (front) and inside (back) the low one.

@@ -1,0 +1,126 @@
+// nmbake-bench: one whole bake beside the raw speed of Embree for the same
+// rays, in one process, printed as one fixed-format line (tools/bench runs it
+// over the benchmark scenes). Timings are medians of --repeat runs.
+//
+//   nmbake-bench --low L --high H --size 2048 --samples 4 [--threads N] [--repeat 3]
+//
+// The bake is the library's bake() with default options (auto distances,
+// averaged cage) writing a 16-bit PNG to a temp folder; "raw" is trace_raw():
+// the bake's first-hit rays, prebuilt, fired as the same packets with only
+// rtcIntersect16 timed.
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <tbb/global_control.h>
+#include <unistd.h>
+
+#include "nmbake/bake.hpp"
+
+namespace {
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0.0 : v[v.size() / 2];
+}
+
+double stage(const nmbake::BakeReport& r, const char* name) {
+  for (const auto& s : r.stages)
+    if (s.name == name) return s.seconds;
+  return 0.0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string low, high, label;
+  int size = 2048, samples = 4, threads = 0, repeat = 3;
+  CLI::App app{"nmbake-bench: a whole bake beside raw Embree on the same rays"};
+  app.add_option("--low", low)->required();
+  app.add_option("--high", high)->required();
+  app.add_option("--label", label, "scene name printed in the line");
+  app.add_option("--size", size)->capture_default_str();
+  app.add_option("--samples", samples)->capture_default_str();
+  app.add_option("--threads", threads, "0 = all cores")->capture_default_str();
+  app.add_option("--repeat", repeat)->capture_default_str()->check(CLI::Range(1, 50));
+  CLI11_PARSE(app, argc, argv);
+  if (label.empty()) label = std::filesystem::path(high).stem().string();
+
+  std::unique_ptr<tbb::global_control> limit;
+  if (threads > 0) {
+    limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                  static_cast<std::size_t>(threads));
+  }
+  const auto dir = std::filesystem::temp_directory_path() / ("nmbake_bench_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+
+  nmbake::BakeOptions o;
+  o.low_path = low;
+  o.high_path = high;
+  o.width = o.height = size;
+  o.samples = samples;
+  o.outputs = {{(dir / "map.png").string(), nmbake::PixelFormat::png16}};
+
+  std::vector<double> load, build, raster, trace, encode, write, total, raw;
+  nmbake::BakeReport report;
+  std::uint64_t raw_rays = 0;
+  for (int i = 0; i < repeat; ++i) {
+    const nmbake::Status s = nmbake::bake(o, report);
+    if (!s) {
+      std::fprintf(stderr, "nmbake-bench: %s\n", s.message().c_str());
+      return 2;
+    }
+    load.push_back(stage(report, "load"));
+    build.push_back(stage(report, "build"));
+    raster.push_back(stage(report, "raster"));
+    trace.push_back(stage(report, "trace"));
+    encode.push_back(stage(report, "encode"));
+    write.push_back(stage(report, "write"));
+    total.push_back(report.total_seconds);
+  }
+  const std::uint64_t bake_peak = report.peak_rss_bytes;
+
+  // Raw Embree: the same meshes, rays and packets.
+  {
+    nmbake::Mesh low_mesh, high_mesh;
+    nmbake::LoadStats ls;
+    nmbake::MeshStats ms;
+    if (!nmbake::load_mesh(low, {}, low_mesh, ls) || !nmbake::load_mesh(high, {false, true}, high_mesh, ls)) return 2;
+    if (low_mesh.has_normals()) nmbake::normalize_normals(low_mesh, ms);
+    else low_mesh.normals = nmbake::averaged_normals(low_mesh, ms);
+    nmbake::pad_for_embree(high_mesh);
+    nmbake::SurfaceStats ss;
+    const nmbake::LowSurface surface = nmbake::build_low_surface(low_mesh, nullptr, ss);
+    nmbake::HighScene scene;
+    if (!nmbake::HighScene::build(high_mesh, nmbake::BuildQuality::medium, false, scene)) return 3;
+    nmbake::TexelSamples ts;
+    nmbake::RasterStats rs;
+    nmbake::rasterize(surface, size, size, samples, ts, rs);
+    nmbake::RayOptions rays;
+    rays.front = report.front;
+    rays.back = report.back;
+    for (int i = 0; i < repeat; ++i) {
+      const nmbake::RawTraceResult r = nmbake::trace_raw(scene, surface, ts, rays);
+      raw.push_back(r.seconds);
+      raw_rays = r.rays;
+    }
+  }
+  std::filesystem::remove_all(dir);
+
+  const double bake_rays_per_s = static_cast<double>(report.trace.rays) / median(trace);
+  const double raw_rays_per_s = static_cast<double>(raw_rays) / median(raw);
+  std::printf(
+      "bench %-12s tris %9llu  map %5d x%-2d threads %d | load %6.3f build %6.3f raster %6.3f trace %6.3f "
+      "encode %6.3f write %6.3f total %6.3f s | bake %6.2f Mrays/s raw %6.2f Mrays/s ratio %.2f | peak %6.0f MiB "
+      "(%.0f B/tri)\n",
+      label.c_str(), static_cast<unsigned long long>(report.high_triangles), size, samples, report.threads,
+      median(load), median(build), median(raster), median(trace), median(encode), median(write), median(total),
+      1e-6 * bake_rays_per_s, 1e-6 * raw_rays_per_s, bake_rays_per_s / raw_rays_per_s,
+      static_cast<double>(bake_peak) / (1024.0 * 1024.0),
+      static_cast<double>(bake_peak) / static_cast<double>(std::max<std::uint64_t>(1, report.high_triangles)));
+  return 0;
+}

@@ -1,0 +1,115 @@
+// Google Benchmark kernels of the stages that are not ray casting: each must
+// stay small beside trace (issue: no stage other than load, BVH build and
+// trace above 10% of a bake). Scenes come from the generators.
+#include <filesystem>
+#include <string>
+
+#include <benchmark/benchmark.h>
+#include <unistd.h>
+
+#include "nmbake/bake.hpp"
+#include "scenes.hpp"
+
+namespace {
+
+using namespace nmbake;
+
+const scenes::ScenePair& moon() {
+  static const scenes::ScenePair pair = [] {
+    scenes::MoonParams p;
+    p.high_cells = 289;  // ~1M triangles
+    return scenes::make_moon(p);
+  }();
+  return pair;
+}
+
+const LowSurface& moon_surface() {
+  static const LowSurface surface = [] {
+    Mesh low = moon().low;
+    SurfaceStats stats;
+    return build_low_surface(low, nullptr, stats);
+  }();
+  return surface;
+}
+
+std::string temp_file(const std::string& name) {
+  return (std::filesystem::temp_directory_path() / ("nmbake_kernels_" + std::to_string(::getpid()) + "_" + name)).string();
+}
+
+void BM_Raster(benchmark::State& state) {
+  const int size = static_cast<int>(state.range(0));
+  const int spp = static_cast<int>(state.range(1));
+  TexelSamples samples;
+  for (auto _ : state) {
+    RasterStats stats;
+    rasterize(moon_surface(), size, size, spp, samples, stats);
+    benchmark::DoNotOptimize(samples.triangle.data());
+  }
+  state.SetItemsProcessed(state.iterations() * size * size * spp);
+}
+BENCHMARK(BM_Raster)->Args({2048, 1})->Args({2048, 4})->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_Tangents(benchmark::State& state) {
+  scenes::SphereParams p;
+  p.low_cells = static_cast<int>(state.range(0));
+  const Mesh low = scenes::make_displaced_sphere(p).low;
+  std::vector<glm::vec4> tangents;
+  for (auto _ : state) {
+    TangentStats stats;
+    compute_tangents(low, tangents, stats);
+    benchmark::DoNotOptimize(tangents.data());
+  }
+  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(low.triangle_count()));
+}
+BENCHMARK(BM_Tangents)->Arg(16)->Arg(128)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_Dilate(benchmark::State& state) {
+  const int size = static_cast<int>(state.range(0));
+  TexelSamples samples;
+  RasterStats rs;
+  rasterize(moon_surface(), size, size, 1, samples, rs);
+  Image image{size, size, 3, std::vector<float>(static_cast<std::size_t>(size) * size * 3, 0.5f)};
+  for (auto _ : state) {
+    std::vector<std::uint8_t> coverage = samples.coverage;
+    DilateStats stats;
+    dilate(image, coverage, 16, stats);
+    benchmark::DoNotOptimize(image.pixels.data());
+  }
+}
+BENCHMARK(BM_Dilate)->Arg(2048)->Arg(4096)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_Load(benchmark::State& state, const char* extension) {
+  const std::string path = temp_file(std::string("high") + extension);
+  if (!save_mesh(path, moon().high)) {
+    state.SkipWithError("cannot write the mesh");
+    return;
+  }
+  const auto bytes = static_cast<std::int64_t>(std::filesystem::file_size(path));
+  for (auto _ : state) {
+    Mesh mesh;
+    LoadStats stats;
+    if (!load_mesh(path, LoadOptions{false, true}, mesh, stats)) state.SkipWithError("load failed");
+    benchmark::DoNotOptimize(mesh.positions.data());
+  }
+  state.SetBytesProcessed(state.iterations() * bytes);
+  std::filesystem::remove(path);
+}
+BENCHMARK_CAPTURE(BM_Load, ply, ".ply")->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Load, obj, ".obj")->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_Write(benchmark::State& state, PixelFormat format, const char* extension) {
+  const int size = 2048;
+  Image image{size, size, 3, std::vector<float>(static_cast<std::size_t>(size) * size * 3)};
+  for (std::size_t i = 0; i < image.pixels.size(); ++i) image.pixels[i] = 0.5f + 0.4f * static_cast<float>((i * 2654435761u) % 1000) / 1000.0f;
+  const std::string path = temp_file(std::string("map") + extension);
+  for (auto _ : state) {
+    if (!write_image(image, path, format)) state.SkipWithError("write failed");
+  }
+  std::filesystem::remove(path);
+}
+BENCHMARK_CAPTURE(BM_Write, png16, PixelFormat::png16, ".png")->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Write, exr_float, PixelFormat::exr_float, ".exr")->Unit(benchmark::kMillisecond)->UseRealTime();
+
+}  // namespace
+
+BENCHMARK_MAIN();
