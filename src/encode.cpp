@@ -13,8 +13,6 @@
 #include <cmath>
 
 #include <glm/geometric.hpp>
-#include <glm/mat3x3.hpp>
-#include <glm/matrix.hpp>
 #include <tbb/parallel_for.h>
 
 namespace nmbake {
@@ -59,11 +57,14 @@ bool world_to_tangent(const glm::vec3& n, const glm::vec3& T, const glm::vec3& N
   bool regular = true;
   glm::vec3 t(0.0f);
   if (method == TangentEncode::inverse) {
-    const glm::mat3 M(T, B, N);  // columns
-    const float det = glm::determinant(M);
+    // Cramer's rule: M^-1 n = (n.(BxN), n.(NxT), n.(TxB)) / det(M). The result
+    // is normalised, so only the sign of the determinant matters.
+    const glm::vec3 bn = glm::cross(B, N), nt = glm::cross(N, T), tb = glm::cross(T, B);
+    const float det = glm::dot(T, bn);
     const float scale = glm::length(T) * glm::length(B) * glm::length(N);
     if (std::fabs(det) > 1e-6f * scale && scale > 0.0f && std::isfinite(det)) {
-      t = glm::inverse(M) * n;
+      t = glm::vec3(glm::dot(n, bn), glm::dot(n, nt), glm::dot(n, tb));
+      if (det < 0.0f) t = -t;
     } else {
       regular = false;
     }
