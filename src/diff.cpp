@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <numbers>
 #include <vector>
 
 #include <glm/geometric.hpp>
@@ -187,7 +188,7 @@ Status diff_images(const Image& a, const Image& b, const Image* mask, const Diff
           f |= 2;
           degrees = (la < kDegenerateLength) == (lb < kDegenerateLength) ? 0.0 : 90.0;
         } else {
-          degrees = std::atan2(glm::length(glm::cross(na, nb)), glm::dot(na, nb)) * (180.0 / M_PI);
+          degrees = std::atan2(glm::length(glm::cross(na, nb)), glm::dot(na, nb)) * (180.0 / std::numbers::pi);
         }
         angle[i] = static_cast<float>(degrees);
         flags[i] = f;

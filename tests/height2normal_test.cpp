@@ -6,6 +6,7 @@
 #include <cmath>
 #include <fstream>
 #include <iterator>
+#include <numbers>
 
 #include <gtest/gtest.h>
 #include <glm/geometric.hpp>
@@ -37,13 +38,13 @@ struct Analytic {
   double amplitude, fx, fy, phase;
   int width, height;
   double h(int x, int y) const {
-    const double a = 2.0 * M_PI * fx * (x + 0.5) / width + phase, b = 2.0 * M_PI * fy * (y + 0.5) / height;
+    const double a = 2.0 * std::numbers::pi * fx * (x + 0.5) / width + phase, b = 2.0 * std::numbers::pi * fy * (y + 0.5) / height;
     return amplitude * std::sin(a) * std::cos(b);
   }
   glm::dvec3 normal(int x, int y, double strength) const {
-    const double a = 2.0 * M_PI * fx * (x + 0.5) / width + phase, b = 2.0 * M_PI * fy * (y + 0.5) / height;
-    const double dh_dx = amplitude * std::cos(a) * std::cos(b) * 2.0 * M_PI * fx / width;
-    const double dh_drow = -amplitude * std::sin(a) * std::sin(b) * 2.0 * M_PI * fy / height;
+    const double a = 2.0 * std::numbers::pi * fx * (x + 0.5) / width + phase, b = 2.0 * std::numbers::pi * fy * (y + 0.5) / height;
+    const double dh_dx = amplitude * std::cos(a) * std::cos(b) * 2.0 * std::numbers::pi * fx / width;
+    const double dh_drow = -amplitude * std::sin(a) * std::sin(b) * 2.0 * std::numbers::pi * fy / height;
     return glm::normalize(glm::dvec3(-strength * dh_dx, -strength * -dh_drow, 1.0));
   }
   Image image() const {
