@@ -21,5 +21,7 @@ using Runner = std::function<int()>;
 
 Runner add_bake_command(CLI::App& app, const GlobalOptions& global);
 Runner add_preview_command(CLI::App& app, const GlobalOptions& global);
+Runner add_diff_command(CLI::App& app, const GlobalOptions& global);
+Runner add_height2normal_command(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace nmbake::cli

@@ -23,6 +23,8 @@ int main(int argc, char** argv) {
 
   const Runner bake = add_bake_command(app, global);
   const Runner preview = add_preview_command(app, global);
+  const Runner diff = add_diff_command(app, global);
+  const Runner height2normal = add_height2normal_command(app, global);
 
   try {
     app.parse(argc, argv);
@@ -38,6 +40,8 @@ int main(int argc, char** argv) {
     }
     if (app.got_subcommand("bake")) return bake();
     if (app.got_subcommand("preview")) return preview();
+    if (app.got_subcommand("diff")) return diff();
+    if (app.got_subcommand("height2normal")) return height2normal();
   } catch (const std::exception& e) {
     std::fprintf(stderr, "nmbake: internal error: %s\n", e.what());
     return kInternal;
