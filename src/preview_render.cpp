@@ -82,8 +82,9 @@ Bounds bounds_of(const std::vector<glm::vec3>& points) {
 // Bilinear, texel centres at u = (x + 0.5) / W, v = 1 - (y + 0.5) / H,
 // clamped at the borders (the baker's padding lies inside the map).
 glm::vec3 sample_map(const Image& map, glm::vec2 uv) {
-  const float px = uv.x * static_cast<float>(map.width) - 0.5f;
-  const float py = (1.0f - uv.y) * static_cast<float>(map.height) - 0.5f;
+  // Clamped first, so absurd (huge but finite) UVs cannot give inf - inf.
+  const float px = std::clamp(uv.x * static_cast<float>(map.width) - 0.5f, -1.0f, static_cast<float>(map.width));
+  const float py = std::clamp((1.0f - uv.y) * static_cast<float>(map.height) - 0.5f, -1.0f, static_cast<float>(map.height));
   const float fx0 = std::floor(px), fy0 = std::floor(py);
   const float wx = px - fx0, wy = py - fy0;
   auto clamp_x = [&](float x) { return static_cast<int>(std::clamp(x, 0.0f, static_cast<float>(map.width - 1))); };

@@ -41,9 +41,13 @@ void put(Image& image, int x, int y, const glm::vec3& colour) {
 // decides per step (used for the depth test).
 template <class Visible>
 void draw_line(Image& image, glm::vec2 a, glm::vec2 b, int thickness, const glm::vec3& colour, Visible visible) {
+  // Far off-image points (near the camera plane, absurd UVs) are skipped:
+  // they would overflow the integer pixel coordinates.
+  constexpr float kFar = 1e6f;
+  if (!(std::fabs(a.x) < kFar && std::fabs(a.y) < kFar && std::fabs(b.x) < kFar && std::fabs(b.y) < kFar)) return;
   const glm::vec2 d = b - a;
   const float length = std::max(std::fabs(d.x), std::fabs(d.y));
-  if (!std::isfinite(length) || length > 1e5f) return;
+  if (length > 1e5f) return;
   const int steps = std::max(1, static_cast<int>(std::ceil(length)));
   for (int i = 0; i <= steps; ++i) {
     const float f = static_cast<float>(i) / static_cast<float>(steps);
@@ -195,8 +199,12 @@ Status render_uv_layout(const LowSurface& surface, int size, Image& out, Tangent
     if (!(std::fabs(area) > 1e-12f) || !std::isfinite(area)) continue;
     const float lo_x = std::min({a.x, b.x, c.x}), hi_x = std::max({a.x, b.x, c.x});
     const float lo_y = std::min({a.y, b.y, c.y}), hi_y = std::max({a.y, b.y, c.y});
-    const int x0 = std::max(0, static_cast<int>(std::floor(lo_x))), x1 = std::min(size - 1, static_cast<int>(std::ceil(hi_x)));
-    const int y0 = std::max(0, static_cast<int>(std::floor(lo_y))), y1 = std::min(size - 1, static_cast<int>(std::ceil(hi_y)));
+    // Clamped as floats first: absurd UVs must not overflow the cast.
+    const float top = static_cast<float>(size - 1);
+    const int x0 = static_cast<int>(std::clamp(std::floor(lo_x), 0.0f, top));
+    const int x1 = static_cast<int>(std::clamp(std::ceil(hi_x), -1.0f, top));
+    const int y0 = static_cast<int>(std::clamp(std::floor(lo_y), 0.0f, top));
+    const int y1 = static_cast<int>(std::clamp(std::ceil(hi_y), -1.0f, top));
     for (int y = y0; y <= y1; ++y) {
       for (int x = x0; x <= x1; ++x) {
         const glm::vec2 p(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f);

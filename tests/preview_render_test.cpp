@@ -319,6 +319,20 @@ TEST(TangentsView, MirroredChartIsMarked) {
   EXPECT_NE(plain_frames.pixels, mirrored_frames.pixels);
 }
 
+// Huge but finite UVs are drawn off the image, never overflow a pixel index.
+TEST(TangentsView, AbsurdUvsAreSkipped) {
+  scenes::HeightfieldParams params;
+  params.high_cells = 2;
+  scenes::ScenePair scene = scenes::make_heightfield(params);
+  scene.low.uvs[0] = glm::vec2(1e30f, -1e30f);
+  SurfaceStats surface_stats;
+  const LowSurface surface = build_low_surface(scene.low, nullptr, surface_stats);
+  Image uv;
+  TangentViewStats stats;
+  ASSERT_TRUE(render_uv_layout(surface, 32, uv, stats).is_ok());
+  for (float v : uv.pixels) ASSERT_TRUE(std::isfinite(v));
+}
+
 TEST(TangentsView, CliSameBytesWithOneAndTwoThreads) {
   test::TempDir dir;
   scenes::ScenePair scene;
