@@ -197,9 +197,8 @@ Status render_preview(const LowSurface& surface, const Mesh& high, const Image& 
   // Primary-ray scenes: the low corners as a triangle soup (triangle id =
   // low triangle), the high mesh on its own buffers.
   std::vector<glm::vec3> low_positions;
-  low_positions.reserve(surface.position.size() + 1);
-  low_positions = surface.position;
-  if (low_positions.capacity() <= low_positions.size()) low_positions.reserve(low_positions.size() + 1);
+  low_positions.reserve(surface.position.size() + 1);  // Embree's spare element
+  low_positions.assign(surface.position.begin(), surface.position.end());
   std::vector<std::uint32_t> low_indices(surface.position.size());
   std::iota(low_indices.begin(), low_indices.end(), 0u);
   RayScene low_scene, high_scene;
