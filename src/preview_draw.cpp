@@ -4,15 +4,15 @@
 // 3D views of preview.hpp.
 #include "preview_draw.hpp"
 
+#include <embree3/rtcore.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <glm/geometric.hpp>
 #include <limits>
 #include <mutex>
-
-#include <embree3/rtcore.h>
-#include <glm/geometric.hpp>
-#include <tbb/parallel_for.h>
 
 namespace nmbake::preview_detail {
 
@@ -37,7 +37,8 @@ bool Camera::project(const glm::vec3& p, glm::vec2& pixel, float& depth) const {
   if (!(depth > 1e-6f)) return false;
   const float sx = glm::dot(v, right) / (depth * tan_half_fov);
   const float sy = glm::dot(v, up) / (depth * tan_half_fov);
-  pixel = glm::vec2((sx + 1.0f) * 0.5f * static_cast<float>(size), (1.0f - sy) * 0.5f * static_cast<float>(size));
+  pixel =
+      glm::vec2((sx + 1.0f) * 0.5f * static_cast<float>(size), (1.0f - sy) * 0.5f * static_cast<float>(size));
   return std::isfinite(pixel.x) && std::isfinite(pixel.y);
 }
 
@@ -190,7 +191,8 @@ RayHit RayScene::intersect(const glm::vec3& origin, const glm::vec3& direction) 
 glm::vec2 sample_position(std::size_t sample, int size, int supersample) {
   const std::size_t width = static_cast<std::size_t>(size) * supersample;
   const float k = static_cast<float>(supersample);
-  return glm::vec2((static_cast<float>(sample % width) + 0.5f) / k, (static_cast<float>(sample / width) + 0.5f) / k);
+  return glm::vec2((static_cast<float>(sample % width) + 0.5f) / k,
+                   (static_cast<float>(sample / width) + 0.5f) / k);
 }
 
 void trace_primary(const RayScene& scene, const Camera& camera, int supersample, std::vector<RayHit>& hits) {
@@ -271,7 +273,8 @@ void draw_glyphs(Image& image, int x, int y, const std::string& text, int scale,
     for (int row = 0; row < 8; ++row) {
       for (int col = 0; col < 5; ++col) {
         if (g.rows[row][col] != '#') continue;
-        fill_rect(image, gx + col * scale, y + row * scale, gx + (col + 1) * scale, y + (row + 1) * scale, colour);
+        fill_rect(image, gx + col * scale, y + row * scale, gx + (col + 1) * scale, y + (row + 1) * scale,
+                  colour);
       }
     }
   }
@@ -279,7 +282,9 @@ void draw_glyphs(Image& image, int x, int y, const std::string& text, int scale,
 
 }  // namespace
 
-int text_width(const std::string& text, int scale) { return static_cast<int>(text.size()) * 6 * scale - scale; }
+int text_width(const std::string& text, int scale) {
+  return static_cast<int>(text.size()) * 6 * scale - scale;
+}
 
 void draw_text(Image& image, int x, int y, const std::string& text, int scale, const glm::vec3& colour) {
   draw_glyphs(image, x + 1, y + 1, text, scale, glm::vec3(0.02f));

@@ -5,12 +5,12 @@
 // with T, N interpolated and not normalised and B = sign cross(N, T). The
 // reference normal of the heat map is found with the baker's own rays
 // (trace.hpp), so the panel measures the bake, not the silhouettes.
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
-#include <numeric>
-
 #include <glm/geometric.hpp>
-#include <tbb/parallel_for.h>
+#include <numeric>
 
 #include "nmbake/preview.hpp"
 #include "preview_draw.hpp"
@@ -28,8 +28,10 @@ Status validate_view_options(const ViewOptions& v) {
     return Status::bad_input("--pitch must be within -89 to 89 degrees");
   }
   const float l = glm::length(v.light);
-  if (!(l > 1e-6f) || !std::isfinite(l)) return Status::bad_input("--light must be a non-zero finite direction");
-  if (v.supersample < 1 || v.supersample > 8) return Status::bad_input("supersampling must be 1 to 8 per axis");
+  if (!(l > 1e-6f) || !std::isfinite(l))
+    return Status::bad_input("--light must be a non-zero finite direction");
+  if (v.supersample < 1 || v.supersample > 8)
+    return Status::bad_input("supersampling must be 1 to 8 per axis");
   return Status::ok();
 }
 
@@ -38,7 +40,8 @@ Status load_preview_meshes(const std::string& low_path, const std::string& high_
   LoadStats load_stats;
   NMBAKE_TRY(load_mesh(low_path, LoadOptions{true, true}, low, load_stats));
   if (!low.has_uvs()) {
-    return Status::bad_input(low_path + ": the low mesh has no UV coordinates; a normal map needs a UV layout");
+    return Status::bad_input(low_path +
+                             ": the low mesh has no UV coordinates; a normal map needs a UV layout");
   }
   MeshStats mesh_stats;
   // As the baker does: a seam must not become a shading crease.
@@ -83,12 +86,18 @@ Bounds bounds_of(const std::vector<glm::vec3>& points) {
 // clamped at the borders (the baker's padding lies inside the map).
 glm::vec3 sample_map(const Image& map, glm::vec2 uv) {
   // Clamped first, so absurd (huge but finite) UVs cannot give inf - inf.
-  const float px = std::clamp(uv.x * static_cast<float>(map.width) - 0.5f, -1.0f, static_cast<float>(map.width));
-  const float py = std::clamp((1.0f - uv.y) * static_cast<float>(map.height) - 0.5f, -1.0f, static_cast<float>(map.height));
+  const float px =
+      std::clamp(uv.x * static_cast<float>(map.width) - 0.5f, -1.0f, static_cast<float>(map.width));
+  const float py = std::clamp((1.0f - uv.y) * static_cast<float>(map.height) - 0.5f, -1.0f,
+                              static_cast<float>(map.height));
   const float fx0 = std::floor(px), fy0 = std::floor(py);
   const float wx = px - fx0, wy = py - fy0;
-  auto clamp_x = [&](float x) { return static_cast<int>(std::clamp(x, 0.0f, static_cast<float>(map.width - 1))); };
-  auto clamp_y = [&](float y) { return static_cast<int>(std::clamp(y, 0.0f, static_cast<float>(map.height - 1))); };
+  auto clamp_x = [&](float x) {
+    return static_cast<int>(std::clamp(x, 0.0f, static_cast<float>(map.width - 1)));
+  };
+  auto clamp_y = [&](float y) {
+    return static_cast<int>(std::clamp(y, 0.0f, static_cast<float>(map.height - 1)));
+  };
   const int x0 = clamp_x(fx0), x1 = clamp_x(fx0 + 1.0f), y0 = clamp_y(fy0), y1 = clamp_y(fy0 + 1.0f);
   auto texel = [&](int x, int y) {
     const float* p = map.at(x, y);
@@ -107,13 +116,16 @@ glm::vec3 unit_or(const glm::vec3& v, const glm::vec3& fallback, bool& used_fall
 
 // The high normal at a hit, as encode() computes it: interpolated vertex
 // normals, else the face normal, else `otherwise`.
-glm::vec3 high_normal(const Mesh& high, std::int32_t tri, glm::vec2 b, const glm::vec3& otherwise, bool& fallback) {
+glm::vec3 high_normal(const Mesh& high, std::int32_t tri, glm::vec2 b, const glm::vec3& otherwise,
+                      bool& fallback) {
   const std::uint32_t* h = &high.indices[3 * static_cast<std::size_t>(tri)];
-  const glm::vec3 n = high.normals[h[0]] * (1.0f - b.x - b.y) + high.normals[h[1]] * b.x + high.normals[h[2]] * b.y;
+  const glm::vec3 n =
+      high.normals[h[0]] * (1.0f - b.x - b.y) + high.normals[h[1]] * b.x + high.normals[h[2]] * b.y;
   const float l = glm::length(n);
   if (l > 1e-12f && std::isfinite(l)) return n / l;
   fallback = true;
-  const glm::vec3 f = glm::cross(high.positions[h[1]] - high.positions[h[0]], high.positions[h[2]] - high.positions[h[0]]);
+  const glm::vec3 f =
+      glm::cross(high.positions[h[1]] - high.positions[h[0]], high.positions[h[2]] - high.positions[h[0]]);
   bool unused = false;
   return unit_or(f, otherwise, unused);
 }
@@ -134,7 +146,8 @@ AngleSummary summarize(std::vector<float> angles) {
   double sum = 0.0;
   for (float a : angles) sum += a;
   s.mean = sum / static_cast<double>(angles.size());
-  const std::size_t k = std::min(angles.size() - 1, static_cast<std::size_t>(0.99 * static_cast<double>(angles.size())));
+  const std::size_t k =
+      std::min(angles.size() - 1, static_cast<std::size_t>(0.99 * static_cast<double>(angles.size())));
   std::nth_element(angles.begin(), angles.begin() + static_cast<std::ptrdiff_t>(k), angles.end());
   s.p99 = angles[k];
   s.max = *std::max_element(angles.begin(), angles.end());
@@ -180,10 +193,11 @@ void draw_scale_bar(Image& panel, float heat_max, int scale) {
 
 }  // namespace
 
-Status render_preview(const LowSurface& surface, const Mesh& high, const Image& map, const PreviewOptions& options,
-                      Image& sheet, PreviewStats& stats) {
+Status render_preview(const LowSurface& surface, const Mesh& high, const Image& map,
+                      const PreviewOptions& options, Image& sheet, PreviewStats& stats) {
   NMBAKE_TRY(validate_view_options(options.view));
-  if (options.turntable < 1 || options.turntable > 64) return Status::bad_input("--turntable must be 1 to 64");
+  if (options.turntable < 1 || options.turntable > 64)
+    return Status::bad_input("--turntable must be 1 to 64");
   if (!(options.heat_max_degrees > 0.0f) || !std::isfinite(options.heat_max_degrees)) {
     return Status::bad_input("--heat-max must be a positive number of degrees");
   }
@@ -216,9 +230,12 @@ Status render_preview(const LowSurface& surface, const Mesh& high, const Image& 
   }
   auto resolve = [&](const Distance& d, float estimated) {
     switch (d.kind) {
-      case Distance::Kind::absolute: return d.value;
-      case Distance::Kind::percent: return d.value * 0.01f * diagonal;
-      case Distance::Kind::automatic: break;
+      case Distance::Kind::absolute:
+        return d.value;
+      case Distance::Kind::percent:
+        return d.value * 0.01f * diagonal;
+      case Distance::Kind::automatic:
+        break;
     }
     return estimated;
   };
@@ -343,7 +360,8 @@ Status render_preview(const LowSurface& surface, const Mesh& high, const Image& 
         glm::vec3 h(0.0f), l(0.0f), e(0.0f);
         for (int j = 0; j < k; ++j) {
           for (int i = 0; i < k; ++i) {
-            const std::size_t s = static_cast<std::size_t>(y * k + j) * grid + static_cast<std::size_t>(x * k + i);
+            const std::size_t s =
+                static_cast<std::size_t>(y * k + j) * grid + static_cast<std::size_t>(x * k + i);
             h += high_colour[s];
             l += low_colour[s];
             e += angle[s] == -1.0f   ? kBackground
@@ -389,9 +407,10 @@ Status render_preview(const LowSurface& surface, const Mesh& high, const Image& 
       const float shown = std::fmod(std::fmod(yaw, 360.0f) + 360.0f, 360.0f);
       draw_text(high_panel, margin, margin + line, "yaw " + format_number(shown, 0), text_scale, kTextColour);
     }
-    draw_text(heat_panel, margin, margin, "mean " + format_number(vs.mean_degrees, 2) + " deg", text_scale, kTextColour);
-    draw_text(heat_panel, margin, margin + line, "p99 " + format_number(vs.p99_degrees, 2) + " deg", text_scale,
+    draw_text(heat_panel, margin, margin, "mean " + format_number(vs.mean_degrees, 2) + " deg", text_scale,
               kTextColour);
+    draw_text(heat_panel, margin, margin + line, "p99 " + format_number(vs.p99_degrees, 2) + " deg",
+              text_scale, kTextColour);
     if (vs.bake_misses > 0) {
       const double share = 100.0 * static_cast<double>(vs.bake_misses) / static_cast<double>(vs.low_samples);
       draw_text(heat_panel, margin, margin + 2 * line, "miss " + format_number(share, 1) + "%", text_scale,

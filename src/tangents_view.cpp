@@ -3,14 +3,14 @@
 // low mesh drawn as short T/B/N lines over the shaded mesh, and the UV layout
 // coloured by tangent with mirrored triangles hatched, so a wrong or mirrored
 // frame shows at a glance.
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
+#include <glm/geometric.hpp>
 #include <limits>
 #include <numeric>
 #include <tuple>
-
-#include <glm/geometric.hpp>
-#include <tbb/parallel_for.h>
 
 #include "nmbake/preview.hpp"
 #include "preview_draw.hpp"
@@ -40,11 +40,13 @@ void put(Image& image, int x, int y, const glm::vec3& colour) {
 // A line between two image points, one sample per pixel step; `visible`
 // decides per step (used for the depth test).
 template <class Visible>
-void draw_line(Image& image, glm::vec2 a, glm::vec2 b, int thickness, const glm::vec3& colour, Visible visible) {
+void draw_line(Image& image, glm::vec2 a, glm::vec2 b, int thickness, const glm::vec3& colour,
+               Visible visible) {
   // Far off-image points (near the camera plane, absurd UVs) are skipped:
   // they would overflow the integer pixel coordinates.
   constexpr float kFar = 1e6f;
-  if (!(std::fabs(a.x) < kFar && std::fabs(a.y) < kFar && std::fabs(b.x) < kFar && std::fabs(b.y) < kFar)) return;
+  if (!(std::fabs(a.x) < kFar && std::fabs(a.y) < kFar && std::fabs(b.x) < kFar && std::fabs(b.y) < kFar))
+    return;
   const glm::vec2 d = b - a;
   const float length = std::max(std::fabs(d.x), std::fabs(d.y));
   if (length > 1e5f) return;
@@ -104,7 +106,8 @@ Status render_tangent_frames(const LowSurface& surface, const TangentViewOptions
       float nearest = std::numeric_limits<float>::infinity();
       for (int j = 0; j < k; ++j) {
         for (int i = 0; i < k; ++i) {
-          const std::size_t s = static_cast<std::size_t>(y * k + j) * grid + static_cast<std::size_t>(x * k + i);
+          const std::size_t s =
+              static_cast<std::size_t>(y * k + j) * grid + static_cast<std::size_t>(x * k + i);
           const RayHit& h = hits[s];
           if (h.triangle < 0) {
             sum += kBackground;
@@ -112,7 +115,8 @@ Status render_tangent_frames(const LowSurface& surface, const TangentViewOptions
           }
           const glm::vec2 p = sample_position(s, size, k);
           const glm::vec3 dir = camera.direction(p.x, p.y);
-          const glm::vec3 n = unit_or(interpolate(surface.normal, 3 * static_cast<std::size_t>(h.triangle), h.bary), -dir);
+          const glm::vec3 n =
+              unit_or(interpolate(surface.normal, 3 * static_cast<std::size_t>(h.triangle), h.bary), -dir);
           sum += shade(n, -dir, lights);
           nearest = std::min(nearest, h.t * glm::dot(dir, camera.forward));
         }
@@ -134,8 +138,9 @@ Status render_tangent_frames(const LowSurface& surface, const TangentViewOptions
   std::vector<std::size_t> order(corner_count);
   std::iota(order.begin(), order.end(), std::size_t{0});
   std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return key(a) < key(b); });
-  order.erase(std::unique(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return key(a) == key(b); }),
-              order.end());
+  order.erase(
+      std::unique(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return key(a) == key(b); }),
+      order.end());
   stats.frames = order.size();
   for (std::size_t t = 0; t < surface.triangle_count(); ++t) {
     const float w = surface.tangent[3 * t].w + surface.tangent[3 * t + 1].w + surface.tangent[3 * t + 2].w;
@@ -178,7 +183,8 @@ Status render_tangent_frames(const LowSurface& surface, const TangentViewOptions
 }
 
 Status render_uv_layout(const LowSurface& surface, int size, Image& out, TangentViewStats& stats) {
-  if (size < 16 || size > 8192) return Status::bad_input("--uv-size " + std::to_string(size) + " is out of range (16 to 8192)");
+  if (size < 16 || size > 8192)
+    return Status::bad_input("--uv-size " + std::to_string(size) + " is out of range (16 to 8192)");
   stats.mirrored_triangles = 0;
   out = Image{size, size, 3, {}};
   out.pixels.assign(static_cast<std::size_t>(size) * size * 3, 0.0f);
@@ -191,8 +197,10 @@ Status render_uv_layout(const LowSurface& surface, int size, Image& out, Tangent
   // overlaps): sequential, so the image never depends on threads.
   for (std::size_t t = 0; t < surface.triangle_count(); ++t) {
     const std::size_t base = 3 * t;
-    const glm::vec2 a = to_pixel(surface.uv[base]), b = to_pixel(surface.uv[base + 1]), c = to_pixel(surface.uv[base + 2]);
-    const float sign_sum = surface.tangent[base].w + surface.tangent[base + 1].w + surface.tangent[base + 2].w;
+    const glm::vec2 a = to_pixel(surface.uv[base]), b = to_pixel(surface.uv[base + 1]),
+                    c = to_pixel(surface.uv[base + 2]);
+    const float sign_sum =
+        surface.tangent[base].w + surface.tangent[base + 1].w + surface.tangent[base + 2].w;
     const bool mirrored = sign_sum < 0.0f;
     stats.mirrored_triangles += mirrored ? 1 : 0;
     const float area = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
@@ -212,7 +220,8 @@ Status render_uv_layout(const LowSurface& surface, int size, Image& out, Tangent
         const float w2 = ((b.x - a.x) * (p.y - a.y) - (b.y - a.y) * (p.x - a.x)) / area;
         const float w0 = 1.0f - w1 - w2;
         if (w0 < 0.0f || w1 < 0.0f || w2 < 0.0f) continue;
-        const glm::vec3 T = unit_or(glm::vec3(interpolate(surface.tangent, base, glm::vec2(w1, w2))), glm::vec3(0.0f));
+        const glm::vec3 T =
+            unit_or(glm::vec3(interpolate(surface.tangent, base, glm::vec2(w1, w2))), glm::vec3(0.0f));
         glm::vec3 colour = 0.5f * T + 0.5f;
         if (mirrored && ((x + y) / stripe) % 3 == 0) colour *= 0.25f;
         put(out, x, y, colour);

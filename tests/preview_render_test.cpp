@@ -6,12 +6,12 @@
 // regenerate them with NMBAKE_UPDATE_GOLDEN=1 ./build/tests/nmbake_tests
 // --gtest_filter='PreviewRender*:TangentsView*' and look at them before
 // committing.
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
-
-#include <gtest/gtest.h>
 
 #include "nmbake/bake.hpp"
 #include "nmbake/load.hpp"
@@ -67,7 +67,8 @@ class PreviewRender : public ::testing::Test {
       BakeOptions o;
       o.low_path = dir_->file("low.obj");
       o.high_path = dir_->file("high.ply");
-      o.outputs = {{dir_->file(space == NormalSpace::tangent ? "map.png" : "map_os.png"), PixelFormat::png16}};
+      o.outputs = {
+          {dir_->file(space == NormalSpace::tangent ? "map.png" : "map_os.png"), PixelFormat::png16}};
       o.width = o.height = 128;
       o.space = space;
       BakeReport report;
@@ -89,10 +90,12 @@ class PreviewRender : public ::testing::Test {
     return o;
   }
 
-  static void render(const std::string& map_name, const PreviewOptions& o, Image& sheet, PreviewStats& stats) {
+  static void render(const std::string& map_name, const PreviewOptions& o, Image& sheet,
+                     PreviewStats& stats) {
     Mesh low, high;
     LowSurface surface;
-    ASSERT_TRUE(load_preview_meshes(dir_->file("low.obj"), dir_->file("high.ply"), low, surface, high).is_ok());
+    ASSERT_TRUE(
+        load_preview_meshes(dir_->file("low.obj"), dir_->file("high.ply"), low, surface, high).is_ok());
     Image map;
     ASSERT_TRUE(read_image(dir_->file(map_name), map).is_ok());
     const Status s = render_preview(surface, high, map, o, sheet, stats);
@@ -107,8 +110,9 @@ TEST_F(PreviewRender, PerfectBakeShowsLowError) {
   Image sheet;
   PreviewStats stats;
   render("map.png", options(64), sheet, stats);
-  std::printf("perfect bake: mean %.4f p99 %.4f max %.3f deg over %llu samples, %llu misses\n", stats.all.mean_degrees,
-              stats.all.p99_degrees, stats.all.max_degrees, static_cast<unsigned long long>(stats.all.low_samples),
+  std::printf("perfect bake: mean %.4f p99 %.4f max %.3f deg over %llu samples, %llu misses\n",
+              stats.all.mean_degrees, stats.all.p99_degrees, stats.all.max_degrees,
+              static_cast<unsigned long long>(stats.all.low_samples),
               static_cast<unsigned long long>(stats.all.bake_misses));
   EXPECT_GT(stats.all.low_samples, 64u * 64u);  // the plane fills a good part of the view
   EXPECT_EQ(stats.all.bake_misses, 0u);
@@ -236,15 +240,15 @@ TEST_F(PreviewRender, CliModesAndBadInput) {
   ASSERT_TRUE(read_image(dir_->file("lit.png"), image).is_ok());
   EXPECT_EQ(image.width, 128);
   // The 3D sheet prints its statistics.
-  const auto sheet = test::run_command(cli + " --low " + dir_->file("low.obj") + " --high " + dir_->file("high.ply") +
-                                       " --size 32 -o " + dir_->file("sheet.png"));
+  const auto sheet = test::run_command(cli + " --low " + dir_->file("low.obj") + " --high " +
+                                       dir_->file("high.ply") + " --size 32 -o " + dir_->file("sheet.png"));
   EXPECT_EQ(sheet.exit_code, 0) << sheet.output;
   EXPECT_NE(sheet.output.find("error mean"), std::string::npos) << sheet.output;
   // Usage errors exit 2 and write nothing.
   const auto half = test::run_command(cli + " --low " + dir_->file("low.obj") + " -o " + dir_->file("x.png"));
   EXPECT_EQ(half.exit_code, 2) << half.output;
-  const auto light = test::run_command(cli + " --low " + dir_->file("low.obj") + " --high " + dir_->file("high.ply") +
-                                       " --light 1,2 -o " + dir_->file("x.png"));
+  const auto light = test::run_command(cli + " --low " + dir_->file("low.obj") + " --high " +
+                                       dir_->file("high.ply") + " --light 1,2 -o " + dir_->file("x.png"));
   EXPECT_EQ(light.exit_code, 2) << light.output;
   EXPECT_NE(light.output.find("--light"), std::string::npos);
   const auto missing = test::run_command(cli + " --low " + dir_->file("nope.obj") + " --high " +
@@ -338,16 +342,20 @@ TEST(TangentsView, CliSameBytesWithOneAndTwoThreads) {
   scenes::ScenePair scene;
   sphere_surface(scene);
   ASSERT_TRUE(save_mesh(dir.file("low.obj"), scene.low).is_ok());
-  const std::string common = test::cli_path() + " tangents -q " + dir.file("low.obj") + " --size 64 --uv-size 64";
-  const auto a = test::run_command(common + " --threads 1 --view " + dir.file("a.png") + " --uv-view " + dir.file("ua.png"));
-  const auto b = test::run_command(common + " --threads 2 --view " + dir.file("b.png") + " --uv-view " + dir.file("ub.png"));
+  const std::string common =
+      test::cli_path() + " tangents -q " + dir.file("low.obj") + " --size 64 --uv-size 64";
+  const auto a = test::run_command(common + " --threads 1 --view " + dir.file("a.png") + " --uv-view " +
+                                   dir.file("ua.png"));
+  const auto b = test::run_command(common + " --threads 2 --view " + dir.file("b.png") + " --uv-view " +
+                                   dir.file("ub.png"));
   ASSERT_EQ(a.exit_code, 0) << a.output;
   ASSERT_EQ(b.exit_code, 0) << b.output;
   EXPECT_EQ(read_bytes(dir.file("a.png")), read_bytes(dir.file("b.png")));
   EXPECT_EQ(read_bytes(dir.file("ua.png")), read_bytes(dir.file("ub.png")));
   const auto nothing = test::run_command(test::cli_path() + " tangents " + dir.file("low.obj"));
   EXPECT_EQ(nothing.exit_code, 2) << nothing.output;
-  const auto tif = test::run_command(test::cli_path() + " tangents " + dir.file("low.obj") + " --view " + dir.file("v.tif"));
+  const auto tif = test::run_command(test::cli_path() + " tangents " + dir.file("low.obj") + " --view " +
+                                     dir.file("v.tif"));
   EXPECT_EQ(tif.exit_code, 2) << tif.output;
 }
 

@@ -18,10 +18,9 @@
 #pragma once
 
 #include <cstdint>
+#include <glm/vec3.hpp>
 #include <string>
 #include <vector>
-
-#include <glm/vec3.hpp>
 
 #include "nmbake/bake.hpp"
 #include "nmbake/encode.hpp"
@@ -81,17 +80,18 @@ struct PreviewOptions {
 
 struct PreviewViewStats {
   float yaw_degrees = 0.0f;
-  std::uint64_t low_samples = 0;   // samples whose primary ray hit the low mesh
-  std::uint64_t bake_misses = 0;   // of those, bake ray found no high surface (shown magenta, not in the stats)
-  double mean_degrees = 0.0;       // over the remaining samples
+  std::uint64_t low_samples = 0;  // samples whose primary ray hit the low mesh
+  std::uint64_t bake_misses =
+      0;                      // of those, bake ray found no high surface (shown magenta, not in the stats)
+  double mean_degrees = 0.0;  // over the remaining samples
   double p99_degrees = 0.0;
   double max_degrees = 0.0;
 };
 
 struct PreviewStats {
   std::vector<PreviewViewStats> views;
-  PreviewViewStats all;  // every view together (yaw_degrees unused)
-  float front = 0.0f, back = 0.0f;  // resolved ray distances, scene units
+  PreviewViewStats all;                     // every view together (yaw_degrees unused)
+  float front = 0.0f, back = 0.0f;          // resolved ray distances, scene units
   std::uint64_t decode_fallbacks = 0;       // decoded map normal of length ~0: low normal used
   std::uint64_t high_normal_fallbacks = 0;  // interpolated high normal of length ~0: face normal used
 };
@@ -122,8 +122,8 @@ Status load_preview_meshes(const std::string& low_path, const std::string& high_
 //
 // `high` must be padded (pad_for_embree) and carry unit normals; `map` is an
 // encoded normal map with >= 3 channels. Deterministic for any thread count.
-Status render_preview(const LowSurface& surface, const Mesh& high, const Image& map, const PreviewOptions& options,
-                      Image& sheet, PreviewStats& stats);
+Status render_preview(const LowSurface& surface, const Mesh& high, const Image& map,
+                      const PreviewOptions& options, Image& sheet, PreviewStats& stats);
 
 struct TangentViewOptions {
   ViewOptions view;
@@ -131,7 +131,7 @@ struct TangentViewOptions {
 };
 
 struct TangentViewStats {
-  std::uint64_t frames = 0;           // distinct (position, normal, tangent, sign) corner frames drawn
+  std::uint64_t frames = 0;              // distinct (position, normal, tangent, sign) corner frames drawn
   std::uint64_t mirrored_triangles = 0;  // tangent sign -1
 };
 

@@ -46,8 +46,8 @@ int run_tangents(const TangentFlags& f, const GlobalOptions& global) {
     if (const Status s = render_tangent_frames(surface, options, image, stats); !s) return fail(s);
     if (const Status s = write_image(image, f.view, PixelFormat::png8); !s) return fail(s);
     if (!global.quiet) {
-      std::printf("tangents: %s (%dx%d): %llu frames, %llu mirrored triangles of %zu\n", f.view.c_str(), image.width,
-                  image.height, static_cast<unsigned long long>(stats.frames),
+      std::printf("tangents: %s (%dx%d): %llu frames, %llu mirrored triangles of %zu\n", f.view.c_str(),
+                  image.width, image.height, static_cast<unsigned long long>(stats.frames),
                   static_cast<unsigned long long>(stats.mirrored_triangles), surface.triangle_count());
     }
   }
@@ -57,7 +57,8 @@ int run_tangents(const TangentFlags& f, const GlobalOptions& global) {
     if (const Status s = write_image(image, f.uv_view, PixelFormat::png8); !s) return fail(s);
     if (!global.quiet) {
       std::printf("tangents: %s (%dx%d): %llu mirrored triangles of %zu\n", f.uv_view.c_str(), image.width,
-                  image.height, static_cast<unsigned long long>(stats.mirrored_triangles), surface.triangle_count());
+                  image.height, static_cast<unsigned long long>(stats.mirrored_triangles),
+                  surface.triangle_count());
     }
   }
   return kSuccess;
@@ -67,12 +68,15 @@ int run_tangents(const TangentFlags& f, const GlobalOptions& global) {
 
 Runner add_tangents_command(CLI::App& app, const GlobalOptions& global) {
   auto flags = std::make_shared<TangentFlags>();
-  CLI::App* cmd = app.add_subcommand("tangents", "draw a low mesh's tangent frames (T red, B green, N blue) and UV layout");
+  CLI::App* cmd = app.add_subcommand(
+      "tangents", "draw a low mesh's tangent frames (T red, B green, N blue) and UV layout");
   cmd->add_option("low", flags->low, "the low mesh (OBJ, PLY, with UVs)")->required();
   cmd->add_option("--view", flags->view, "the shaded mesh with its frames (.png)");
-  cmd->add_option("--uv-view", flags->uv_view, "the UV layout coloured by tangent, mirrored triangles hatched (.png)");
+  cmd->add_option("--uv-view", flags->uv_view,
+                  "the UV layout coloured by tangent, mirrored triangles hatched (.png)");
   cmd->add_option("--uv-size", flags->uv_size, "pixels per side of the UV view")->default_val(512);
-  cmd->add_option("--length", flags->length, "length of the drawn vectors, scene units (0: 40% of the mean edge)")
+  cmd->add_option("--length", flags->length,
+                  "length of the drawn vectors, scene units (0: 40% of the mean edge)")
       ->default_val(0.0f);
   add_view_flags(cmd, flags->camera, 512);
   return [flags, &global]() { return run_tangents(*flags, global); };
