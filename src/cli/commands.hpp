@@ -4,7 +4,12 @@
 
 #include <functional>
 
+#include <string>
+
 #include <CLI/CLI.hpp>
+
+#include "nmbake/common.hpp"
+#include "nmbake/preview.hpp"
 
 namespace nmbake::cli {
 
@@ -23,5 +28,16 @@ Runner add_bake_command(CLI::App& app, const GlobalOptions& global);
 Runner add_preview_command(CLI::App& app, const GlobalOptions& global);
 Runner add_diff_command(CLI::App& app, const GlobalOptions& global);
 Runner add_height2normal_command(CLI::App& app, const GlobalOptions& global);
+Runner add_tangents_command(CLI::App& app, const GlobalOptions& global);
+
+// Camera flags shared by `preview` and `tangents` (preview_command.cpp).
+struct ViewFlags {
+  int size = 384;
+  float yaw = 30.0f, pitch = 20.0f;
+  std::string up = "y", light = "-0.55,0.6,0.6";
+  int supersample = 3;
+};
+void add_view_flags(CLI::App* cmd, ViewFlags& flags, int default_size);
+Status parse_view_flags(const ViewFlags& flags, ViewOptions& view);
 
 }  // namespace nmbake::cli

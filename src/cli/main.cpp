@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
   const Runner preview = add_preview_command(app, global);
   const Runner diff = add_diff_command(app, global);
   const Runner height2normal = add_height2normal_command(app, global);
+  const Runner tangents = add_tangents_command(app, global);
 
   try {
     app.parse(argc, argv);
@@ -42,6 +43,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("preview")) return preview();
     if (app.got_subcommand("diff")) return diff();
     if (app.got_subcommand("height2normal")) return height2normal();
+    if (app.got_subcommand("tangents")) return tangents();
   } catch (const std::exception& e) {
     std::fprintf(stderr, "nmbake: internal error: %s\n", e.what());
     return kInternal;
