@@ -21,5 +21,6 @@ using Runner = std::function<int()>;
 
 Runner add_bake_command(CLI::App& app, const GlobalOptions& global);
 Runner add_preview_command(CLI::App& app, const GlobalOptions& global);
+Runner add_unwrap_command(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace nmbake::cli

@@ -23,6 +23,7 @@ int main(int argc, char** argv) {
 
   const Runner bake = add_bake_command(app, global);
   const Runner preview = add_preview_command(app, global);
+  const Runner unwrap = add_unwrap_command(app, global);
 
   try {
     app.parse(argc, argv);
@@ -38,6 +39,7 @@ int main(int argc, char** argv) {
     }
     if (app.got_subcommand("bake")) return bake();
     if (app.got_subcommand("preview")) return preview();
+    if (app.got_subcommand("unwrap")) return unwrap();
   } catch (const std::exception& e) {
     std::fprintf(stderr, "nmbake: internal error: %s\n", e.what());
     return kInternal;
