@@ -73,7 +73,7 @@ struct PackOptions {
   int resolution = 2048;  // atlas width = height, texels
   int gutter = 4;         // free texels between any two charts
   bool rotate = true;     // also try each chart turned by 90 degrees
-  int search_steps = 8;   // bisection steps on the scale after the first fit
+  int search_steps = 6;   // bisection steps on the scale after the first fit
 };
 
 struct UnwrapOptions {
