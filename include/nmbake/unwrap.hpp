@@ -41,16 +41,28 @@ namespace nmbake {
 // seeds taken in breadth-first face order; the face with the lowest cost on
 // the chart's border joins next. cost = normal deviation from the chart's
 // area-weighted mean normal (scaled so the limit is 1) + straightness_weight *
-// share of the face's perimeter that would become new chart border.
+// share of the face's perimeter that would become new chart border +
+// roundness_weight * squared distance from the chart's centroid relative to
+// a disc of the chart's area.
 struct ChartOptions {
   // Hard limit: a face joins only if its normal is within this angle of the
   // chart's mean normal. Bounds the distortion of curved charts.
   float max_normal_deviation_deg = 60.0f;
   float straightness_weight = 0.5f;  // prefers short, straight boundaries
-  float max_cost = 1.25f;            // a face costing more starts a new chart later
+  // Prefers round charts: weight of (distance from the chart's centroid)^2
+  // / (chart area / pi), which is ~1 on the border of a disc (not applied to
+  // faces within flat_angle_deg of the chart's normal).
+  float roundness_weight = 0.5f;
+  float max_cost = 1.75f;  // a face costing more starts a new chart later
   // Charts with fewer faces are merged into the neighbour they share the
   // longest border with, when the merged chart keeps every normal within
   // max_normal_deviation_deg * merge_deviation_slack of its mean.
+  // Curved charts stop growing at this share of the mesh's surface area:
+  // smaller, rounder charts pack tighter and stretch less. A face within
+  // flat_angle_deg of the chart's mean normal is exempt, so flat regions
+  // stay whole.
+  float max_chart_area_fraction = 0.04f;
+  float flat_angle_deg = 5.0f;
   int min_chart_faces = 6;
   float merge_deviation_slack = 1.25f;
   // Normals at a shared position further apart than this make a hard edge.

@@ -67,8 +67,13 @@ glm::vec3 unit_or_zero(const glm::vec3& n) {
 struct Growth {
   glm::dvec3 normal_sum{0.0};
   glm::vec3 mean_normal{0.0f, 0.0f, 1.0f};
-  void add(const glm::vec3& n, double area) {
-    normal_sum += glm::dvec3(n) * std::max(area, 1e-30);
+  double area = 0.0;
+  glm::dvec3 centroid_sum{0.0};
+  glm::dvec3 centroid() const { return area > 0.0 ? centroid_sum / area : centroid_sum; }
+  void add(const glm::vec3& n, double face_area, const glm::dvec3& face_centroid) {
+    area += face_area;
+    centroid_sum += face_centroid * face_area;
+    normal_sum += glm::dvec3(n) * std::max(face_area, 1e-30);
     const double len = glm::length(normal_sum);
     if (len > 0.0) mean_normal = glm::vec3(normal_sum / len);
   }
@@ -209,6 +214,10 @@ void segment_charts(const Mesh& mesh, const ChartOptions& options, Topology& top
   }
 
   const float max_cos = std::cos(glm::radians(std::clamp(options.max_normal_deviation_deg, 1.0f, 179.0f)));
+  const float flat_cos = std::cos(glm::radians(std::clamp(options.flat_angle_deg, 0.0f, 179.0f)));
+  double total_area = 0.0;
+  for (double a : topo.face_areas) total_area += a;
+  const double max_area = std::max(0.0, static_cast<double>(options.max_chart_area_fraction)) * total_area;
   std::vector<std::int32_t> chart_of(tri_count, -1);
   std::vector<Growth> growth;
   struct Candidate {
@@ -216,9 +225,15 @@ void segment_charts(const Mesh& mesh, const ChartOptions& options, Topology& top
     std::uint32_t face;
     bool operator>(const Candidate& o) const { return cost != o.cost ? cost > o.cost : face > o.face; }
   };
+  auto face_centroid = [&](std::uint32_t f) {
+    return (glm::dvec3(topo.positions[topo.corners[3 * f]]) + glm::dvec3(topo.positions[topo.corners[3 * f + 1]]) +
+            glm::dvec3(topo.positions[topo.corners[3 * f + 2]])) / 3.0;
+  };
   auto face_cost = [&](std::uint32_t f, std::int32_t chart) {
     const float deviation = 1.0f - glm::dot(topo.face_normals[f], growth[chart].mean_normal);
     if (!topo.degenerate[f] && deviation > 1.0f - max_cos) return std::numeric_limits<float>::infinity();
+    if (deviation > 1.0f - flat_cos && growth[chart].area + topo.face_areas[f] > max_area)
+      return std::numeric_limits<float>::infinity();
     float shared = 0.0f, perimeter = 0.0f;
     for (int k = 0; k < 3; ++k) {
       perimeter += edge_length[3 * f + k];
@@ -227,7 +242,13 @@ void segment_charts(const Mesh& mesh, const ChartOptions& options, Topology& top
     }
     const float new_border = perimeter > 0.0f ? (perimeter - shared) / perimeter : 0.0f;
     const float normal_term = topo.degenerate[f] ? 0.0f : deviation / std::max(1.0f - max_cos, 1e-6f);
-    return normal_term + options.straightness_weight * new_border;
+    const glm::dvec3 d = face_centroid(f) - growth[chart].centroid();
+    const double disc = (growth[chart].area + topo.face_areas[f]) / 3.14159265358979;
+    // Flat regions stay whole whatever their shape: only curved growth is kept round.
+    const bool flat = deviation <= 1.0f - flat_cos;
+    const float round_term =
+        disc > 0.0 && !flat ? static_cast<float>(std::min(glm::dot(d, d) / disc, 4.0)) : 0.0f;
+    return normal_term + options.straightness_weight * new_border + options.roundness_weight * round_term;
   };
 
   std::priority_queue<Candidate, std::vector<Candidate>, std::greater<>> heap;
@@ -238,7 +259,7 @@ void segment_charts(const Mesh& mesh, const ChartOptions& options, Topology& top
     heap = {};
     auto add_face = [&](std::uint32_t f) {
       chart_of[f] = c;
-      if (!topo.degenerate[f]) growth[c].add(topo.face_normals[f], topo.face_areas[f]);
+      if (!topo.degenerate[f]) growth[c].add(topo.face_normals[f], topo.face_areas[f], face_centroid(f));
       for (int k = 0; k < 3; ++k) {
         const std::int32_t n = neighbour[3 * f + k];
         if (n >= 0 && chart_of[n] < 0) heap.push({face_cost(static_cast<std::uint32_t>(n), c), static_cast<std::uint32_t>(n)});
@@ -286,7 +307,7 @@ void segment_charts(const Mesh& mesh, const ChartOptions& options, Topology& top
     for (const auto& [target, length] : shared) {
       Growth merged = growth[target];
       for (std::uint32_t f : members[c])
-        if (!topo.degenerate[f]) merged.add(topo.face_normals[f], topo.face_areas[f]);
+        if (!topo.degenerate[f]) merged.add(topo.face_normals[f], topo.face_areas[f], face_centroid(f));
       bool fits = true;
       for (const auto* list : {&members[c], &members[target]}) {
         for (std::uint32_t f : *list) {
