@@ -6,6 +6,7 @@
 #include <charconv>
 #include <chrono>
 #include <cmath>
+#include <algorithm>
 #include <filesystem>
 #include <memory>
 #include <string>
@@ -58,6 +59,9 @@ Status validate_options(const BakeOptions& o) {
   }
   if (!is_supported_sample_count(o.samples)) {
     return Status::bad_input("--samples " + std::to_string(o.samples) + " is not supported: use 1, 4, 16 or 64");
+  }
+  if (o.unwrap_gutter < 0 || o.unwrap_gutter > std::min(o.width, o.height) / 4) {
+    return Status::bad_input("unwrap gutter " + std::to_string(o.unwrap_gutter) + " is out of range (0 to size / 4)");
   }
   if (o.padding < 0 || o.padding > 4096) {
     return Status::bad_input("--padding " + std::to_string(o.padding) + " is out of range (0 to 4096)");
@@ -219,10 +223,6 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   timer.start("load");
   Mesh low, high, cage;
   NMBAKE_TRY(load_mesh(o.low_path, LoadOptions{true, true}, low, r.low_load));
-  if (!low.has_uvs()) {
-    return Status::bad_input(o.low_path +
-                             ": the low mesh has no UV coordinates; a normal map needs a UV layout (export it with UVs)");
-  }
   const bool smooth_high = o.high_normals == HighNormals::smooth;
   NMBAKE_TRY(load_mesh(o.high_path, LoadOptions{false, smooth_high}, high, r.high_load));
   const bool use_cage_mesh = !o.cage_path.empty();
@@ -232,6 +232,22 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
     NMBAKE_TRY(check_cage_topology(low, cage, o.cage_path));
   }
   timer.stop();
+  if (!low.has_uvs()) {
+    timer.start("unwrap");
+    // No UV layout: make one; the map is useless without the mesh, so it is
+    // written beside the map (in the write stage, with the maps).
+    UnwrapOptions unwrap_options;
+    unwrap_options.pack.resolution = std::min(o.width, o.height);
+    unwrap_options.pack.gutter = o.unwrap_gutter;
+    Mesh unwrapped;
+    const Status s = unwrap_mesh(low, unwrap_options, unwrapped, r.unwrap);
+    if (!s) return Status::bad_input(o.low_path + ": the low mesh has no UVs; " + s.message());
+    low = std::move(unwrapped);
+    r.unwrapped = true;
+    const std::filesystem::path first(o.outputs.front().path);
+    r.unwrapped_low_path = (first.parent_path() / (first.stem().string() + "_low_uv.obj")).string();
+    timer.stop();
+  }
   r.low_triangles = low.triangle_count();
   r.high_triangles = high.triangle_count();
   r.high_vertices = high.vertex_count();
@@ -330,6 +346,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   tbb::parallel_for(std::size_t{0}, o.outputs.size(),
                     [&](std::size_t i) { written[i] = write_image(image, o.outputs[i].path, o.outputs[i].format); });
   for (const Status& s : written) NMBAKE_TRY(s);
+  if (r.unwrapped) NMBAKE_TRY(save_mesh(r.unwrapped_low_path, low));
   timer.stop();
 
   r.total_seconds = std::chrono::duration<double>(Clock::now() - bake_begin).count();

@@ -62,6 +62,10 @@ std::string BakeReport::to_json() const {
       {"dilate_filled_texels", dilate.filled_texels},
       {"load_skipped_faces", low_load.degenerate_faces + high_load.degenerate_faces},
   };
+  if (unwrapped) {
+    j["unwrap"] = ordered_json::parse(unwrap.to_json());
+    j["unwrap"]["mesh"] = unwrapped_low_path;
+  }
   ordered_json stage_json = ordered_json::object();
   for (const StageTime& s : stages) stage_json[s.name] = s.seconds;
   j["seconds"] = stage_json;
@@ -90,7 +94,14 @@ std::string BakeReport::summary_line() const {
                 mrays_per_second, static_cast<unsigned long long>(trace.misses), 100.0 * miss_rate(), front, back,
                 distances_estimated ? " (auto)" : "", total_seconds,
                 static_cast<double>(peak_rss_bytes) / (1024.0 * 1024.0));
-  return line;
+  std::string text = line;
+  if (unwrapped) {
+    std::snprintf(line, sizeof line, "; no UVs: unwrapped into %llu charts (%.1f%% of the map), mesh %s",
+                  static_cast<unsigned long long>(unwrap.chart_count), 100.0 * unwrap.utilization,
+                  unwrapped_low_path.c_str());
+    text += line;
+  }
+  return text;
 }
 
 }  // namespace nmbake

@@ -212,7 +212,6 @@ TEST_F(CliBake, BadInputsExitTwoAndWriteNothing) {
       {"--low " + dir.file("range.obj") + " --high " + high() + out, "range.obj"},
       {"--low " + dir.file("nan.obj") + " --high " + high() + out, "nan.obj"},
       {"--low " + low() + " --high " + dir.file("nan.obj") + out, "nan.obj"},
-      {"--low " + dir.file("nouv.obj") + " --high " + high() + out, "UV"},
       {"--low " + low() + " --high " + high() + " --size 0" + out, "size"},
       {"--low " + low() + " --high " + high() + " --samples 3" + out, "samples"},
       {"--low " + low() + " --high " + high() + " --front -1" + out, "front"},
@@ -229,6 +228,16 @@ TEST_F(CliBake, BadInputsExitTwoAndWriteNothing) {
   for (const auto& entry : std::filesystem::directory_iterator(dir.path())) {
     EXPECT_EQ(entry.path().filename().string().find("tmp"), std::string::npos) << entry.path();
   }
+  // A low mesh without UVs is no longer an error: it is unwrapped, and the
+  // unwrapped mesh is written beside the map.
+  const auto r = bake("--low " + dir.file("nouv.obj") + " --high " + high() + " --size 64 -o " + dir.file("nouv_map.png"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(std::filesystem::exists(dir.file("nouv_map.png")));
+  Mesh unwrapped;
+  LoadStats load_stats;
+  ASSERT_TRUE(load_mesh(dir.file("nouv_map_low_uv.obj"), LoadOptions{}, unwrapped, load_stats).is_ok()) << r.output;
+  EXPECT_EQ(unwrapped.triangle_count(), 1u);
+  EXPECT_TRUE(unwrapped.has_uvs());
 }
 
 TEST_F(CliBake, CageMeshWithOtherTopologyIsRejected) {

@@ -19,6 +19,7 @@
 #include "nmbake/raster.hpp"
 #include "nmbake/surface.hpp"
 #include "nmbake/trace.hpp"
+#include "nmbake/unwrap.hpp"
 
 namespace nmbake {
 
@@ -57,6 +58,10 @@ struct BakeOptions {
   TangentEncode tangent_encode = TangentEncode::inverse;
   BuildQuality build_quality = BuildQuality::medium;
   int padding = 16;
+  // A low mesh without UVs is unwrapped (atlas of the map's smaller side,
+  // this many texels between charts) and written beside the first map as
+  // <map stem>_low_uv.obj, with the normals it was baked with.
+  int unwrap_gutter = 4;
   std::string debug_dump_prefix;  // non-empty: also write coverage / miss / distance images
   // Samples per band of rows (raster, trace and encode run band by band);
   // 0 = about 4M. Changes memory use only, never the result (tested).
@@ -87,6 +92,9 @@ struct BakeReport {
   EncodeStats encode;
   DilateStats dilate;
   std::uint64_t estimate_probes = 0, estimate_probe_misses = 0;
+  bool unwrapped = false;           // the low mesh had no UVs and was unwrapped
+  std::string unwrapped_low_path;   // where the unwrapped low mesh was written
+  UnwrapReport unwrap;
   std::vector<StageTime> stages;
   double total_seconds = 0.0;
   std::uint64_t peak_rss_bytes = 0;

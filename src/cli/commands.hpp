@@ -39,5 +39,6 @@ struct ViewFlags {
 };
 void add_view_flags(CLI::App* cmd, ViewFlags& flags, int default_size);
 Status parse_view_flags(const ViewFlags& flags, ViewOptions& view);
+Runner add_unwrap_command(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace nmbake::cli

@@ -26,6 +26,7 @@ int main(int argc, char** argv) {
   const Runner diff = add_diff_command(app, global);
   const Runner height2normal = add_height2normal_command(app, global);
   const Runner tangents = add_tangents_command(app, global);
+  const Runner unwrap = add_unwrap_command(app, global);
 
   try {
     app.parse(argc, argv);
@@ -44,6 +45,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("diff")) return diff();
     if (app.got_subcommand("height2normal")) return height2normal();
     if (app.got_subcommand("tangents")) return tangents();
+    if (app.got_subcommand("unwrap")) return unwrap();
   } catch (const std::exception& e) {
     std::fprintf(stderr, "nmbake: internal error: %s\n", e.what());
     return kInternal;
