@@ -55,6 +55,7 @@ struct BakeOptions {
   bool ignore_backfaces = false;
   HighNormals high_normals = HighNormals::smooth;
   TangentEncode tangent_encode = TangentEncode::inverse;
+  TangentBasis tangent_basis = TangentBasis::mikktspace;  // others: for the method comparison only
   BuildQuality build_quality = BuildQuality::medium;
   int padding = 16;
   std::string debug_dump_prefix;  // non-empty: also write coverage / miss / distance images
