@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
@@ -337,6 +338,58 @@ Image expected_image(const Expected& e, const EvalOptions& options) {
     for (int c = 0; c < 3; ++c) out.pixels[3 * t + c] = 0.5f * v[c] + 0.5f;
   }
   return out;
+}
+
+namespace {
+template <class T>
+void put(std::ofstream& f, const std::vector<T>& v) {
+  const std::uint64_t n = v.size();
+  f.write(reinterpret_cast<const char*>(&n), sizeof n);
+  f.write(reinterpret_cast<const char*>(v.data()), static_cast<std::streamsize>(n * sizeof(T)));
+}
+template <class T>
+bool get(std::ifstream& f, std::vector<T>& v, std::size_t expected_size) {
+  std::uint64_t n = 0;
+  f.read(reinterpret_cast<char*>(&n), sizeof n);
+  if (!f || n != expected_size) return false;
+  v.resize(n);
+  f.read(reinterpret_cast<char*>(v.data()), static_cast<std::streamsize>(n * sizeof(T)));
+  return static_cast<bool>(f);
+}
+}  // namespace
+
+bool save_expected(const std::string& path, const std::string& key, const Expected& e) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+    const std::uint64_t header[4] = {key.size(), static_cast<std::uint64_t>(e.width),
+                                     static_cast<std::uint64_t>(e.height), e.covered};
+    f.write(reinterpret_cast<const char*>(header), sizeof header);
+    f.write(key.data(), static_cast<std::streamsize>(key.size()));
+    put(f, e.scored);
+    put(f, e.value);
+    put(f, e.frame_t);
+    put(f, e.frame_n);
+    put(f, e.frame_sign);
+    if (!f.flush()) return false;
+  }
+  return std::rename(tmp.c_str(), path.c_str()) == 0;
+}
+
+bool load_expected(const std::string& path, const std::string& key, Expected& e) {
+  std::ifstream f(path, std::ios::binary);
+  std::uint64_t header[4] = {};
+  f.read(reinterpret_cast<char*>(header), sizeof header);
+  if (!f || header[0] != key.size() || header[1] > 65536 || header[2] > 65536) return false;
+  std::string stored(key.size(), '\0');
+  f.read(stored.data(), static_cast<std::streamsize>(stored.size()));
+  if (!f || stored != key) return false;
+  e.width = static_cast<int>(header[1]);
+  e.height = static_cast<int>(header[2]);
+  e.covered = header[3];
+  const std::size_t n = static_cast<std::size_t>(e.width) * e.height;
+  return get(f, e.scored, n) && get(f, e.value, n) && get(f, e.frame_t, n) && get(f, e.frame_n, n) &&
+         get(f, e.frame_sign, n);
 }
 
 Image quantize(const Image& image, int levels) {

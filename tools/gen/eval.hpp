@@ -10,12 +10,16 @@
 // or misses shows its error in degrees. Samples whose ray meets no analytic
 // surface are not scored (counted as "without truth").
 //
+// The expected texel is the box-filtered truth: the average over a fixed,
+// dense set of samples of the texel (truth_samples, 64 by default) whatever
+// the bake's sample count, so a 1-sample bake pays for its aliasing.
+//
 // A map is always decoded as a renderer does: tangent space through the low
 // mesh's MikkTSpace frame (tangent_to_world), whatever basis it was baked in;
 // object space directly. The expected texel is the analytic normal encoded
 // with the exact inverse through each sample's frame, averaged over the
 // texel's samples like the baker averages, so a perfect bake scores 0 up to
-// float rounding; expected_image() gives that perfect map, for validating
+// float rounding when truth_samples equals the bake's; expected_image() gives that perfect map, for validating
 // the evaluator and measuring the quantisation floors.
 #pragma once
 
@@ -60,7 +64,7 @@ bool intersect_true_surface(const TrueSurface& surface, const glm::dvec3& origin
                             double t_max, double t_target, glm::dvec3& hit, glm::dvec3& normal);
 
 struct EvalOptions {
-  int samples = 4;
+  int samples = 64;  // of the truth (box filter), not of the bake
   NormalSpace space = NormalSpace::tangent;
   GreenChannel green = GreenChannel::up;
   RayOptions rays;  // cage mode and resolved front/back of the bake (hit rule unused)
@@ -88,6 +92,10 @@ struct Expected {
 // `low` as baked (unit normals, UVs); `cage` the explicit cage or null.
 Expected compute_expected(const TrueSurface& surface, const Mesh& low, const Mesh* cage, int width, int height,
                           const EvalOptions& options);
+// Binary cache of an Expected, keyed by a string (scene, size, options,
+// mesh files): the lab scores many bakes against one truth.
+bool save_expected(const std::string& path, const std::string& key, const Expected& expected);
+bool load_expected(const std::string& path, const std::string& key, Expected& expected);
 EvalResult evaluate(const Expected& expected, const Image& map, const EvalOptions& options);
 // The perfect map (float), encoded as the baker encodes; uncovered texels
 // hold the background.

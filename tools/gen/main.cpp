@@ -120,10 +120,10 @@ int fail_with(const std::string& message) {
 int run_eval(const std::string& scene, const std::string& map_path, const std::string& low_path,
              const std::string& cage_path, const std::string& report_path, const std::string& json_path,
              const std::string& space, const std::string& green, const std::string& cage_mode, int samples, int size,
-             float front, float back, bool floors) {
+             float front, float back, bool floors, const std::string& cache) {
   scenes::EvalOptions o;
   o.samples = samples;
-  if (!nmbake::is_supported_sample_count(samples)) return fail_with("--samples: use 1, 4, 16 or 64");
+  if (!nmbake::is_supported_sample_count(samples)) return fail_with("--truth-samples: use 1, 4, 16 or 64");
   if (space != "tangent" && space != "object") return fail_with("--space: expected tangent or object");
   o.space = space == "object" ? nmbake::NormalSpace::object : nmbake::NormalSpace::tangent;
   o.green = green == "down" ? nmbake::GreenChannel::down : nmbake::GreenChannel::up;
@@ -168,8 +168,21 @@ int run_eval(const std::string& scene, const std::string& map_path, const std::s
   }
   const int width = map_path.empty() ? size : map.width, height = map_path.empty() ? size : map.height;
   const std::unique_ptr<scenes::TrueSurface> truth = scenes::make_true_surface(scene);
-  const scenes::Expected expected =
-      scenes::compute_expected(*truth, low, cage_path.empty() ? nullptr : &cage, width, height, o);
+  scenes::Expected expected;
+  auto stamp = [](const std::string& path) {
+    std::error_code ec;
+    if (path.empty()) return std::string("-");
+    return path + ":" + std::to_string(std::filesystem::file_size(path, ec)) + ":" +
+           std::to_string(std::filesystem::last_write_time(path, ec).time_since_epoch().count());
+  };
+  const std::string key = scene + " " + std::to_string(width) + "x" + std::to_string(height) + " s" +
+                          std::to_string(samples) + " " + space + " " + green + " " + cage_mode + " " +
+                          std::to_string(front) + " " + std::to_string(back) + " " + stamp(low_path) + " " +
+                          stamp(cage_path);
+  if (cache.empty() || !scenes::load_expected(cache, key, expected)) {
+    expected = scenes::compute_expected(*truth, low, cage_path.empty() ? nullptr : &cage, width, height, o);
+    if (!cache.empty() && !scenes::save_expected(cache, key, expected)) return fail_with(cache + ": cannot write");
+  }
   nlohmann::ordered_json out;
   if (!map_path.empty()) {
     const scenes::EvalResult r = scenes::evaluate(expected, map, o);
@@ -242,7 +255,8 @@ int main(int argc, char** argv) {
   // The lab's evaluator (eval.hpp).
   struct EvalFlags {
     std::string scene, map, low, cage, report, json, space = "tangent", cage_mode = "averaged", green = "up";
-    int samples = 4, size = 512;
+    int samples = 64, size = 512;
+    std::string cache;
     float front = -1.0f, back = -1.0f;
     bool floors = false;
   } ev;
@@ -253,7 +267,9 @@ int main(int argc, char** argv) {
   eval_cmd->add_option("--map", ev.map, "the baked map (EXR for the exact value)");
   eval_cmd->add_option("--low", ev.low, "the low mesh that was baked")->required();
   eval_cmd->add_option("--cage", ev.cage, "the explicit cage the bake used, if any");
-  eval_cmd->add_option("--samples", ev.samples, "samples per texel of the bake")->capture_default_str();
+  eval_cmd->add_option("--truth-samples", ev.samples, "samples per texel of the truth (box filter): 1, 4, 16, 64")
+      ->capture_default_str();
+  eval_cmd->add_option("--cache", ev.cache, "keep the computed truth in this file and reuse it when it matches");
   eval_cmd->add_option("--space", ev.space, "tangent | object")->capture_default_str();
   eval_cmd->add_option("--green", ev.green, "up | down")->capture_default_str();
   eval_cmd->add_option("--cage-mode", ev.cage_mode, "averaged | interpolated (the bake's)")->capture_default_str();
@@ -262,6 +278,7 @@ int main(int argc, char** argv) {
   eval_cmd->add_option("--report", ev.report, "read the resolved front/back from this bake report");
   eval_cmd->add_option("--json", ev.json, "also write the figures here");
   eval_cmd->add_option("--size", ev.size, "--floors without --map: map size")->capture_default_str();
+  eval_cmd->add_option("--threads", options.threads, "Worker threads, 0 = all cores")->check(CLI::Range(0, 1024));
   eval_cmd->add_flag("--floors", ev.floors, "score the perfect map as float, 16-bit and 8-bit (the evaluator's floors)");
 
   // Scoring a bake of an analytic scene against its true normals.
@@ -319,7 +336,7 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (eval_cmd->parsed()) return run_eval(ev.scene, ev.map, ev.low, ev.cage, ev.report, ev.json, ev.space, ev.green,
-                                            ev.cage_mode, ev.samples, ev.size, ev.front, ev.back, ev.floors);
+                                            ev.cage_mode, ev.samples, ev.size, ev.front, ev.back, ev.floors, ev.cache);
     if (torus->parsed()) return generate_and_write(options, "torus", [&] { return scenes::make_torus(options.torus); });
     if (craters->parsed()) {
       return generate_and_write(options, "craters", [&] { return scenes::make_craters(options.craters); });
