@@ -524,3 +524,33 @@ TEST(StabilityEval, TorusBoxSlotNormalsMatchFieldGradients) {
 
 }  // namespace
 }  // namespace nmbake
+
+namespace nmbake {
+namespace {
+
+TEST(TangentsAlt, LengyelAndFaceMatchTheUvGradientOnAPlaneAndFlipWhenMirrored) {
+  scenes::HeightfieldParams p;
+  p.low_cells = 3;
+  Mesh low = scenes::make_heightfield(p).low;
+  for (const TangentBasis basis : {TangentBasis::lengyel, TangentBasis::face, TangentBasis::mikktspace}) {
+    std::vector<glm::vec4> t;
+    TangentStats stats;
+    compute_tangents(low, basis, t, stats);
+    ASSERT_EQ(t.size(), low.indices.size());
+    EXPECT_EQ(stats.fallback_tangents, 0u);
+    for (const glm::vec4& v : t) EXPECT_NEAR(glm::distance(v, glm::vec4(1, 0, 0, 1)), 0.0f, 1e-6f) << to_string(basis);
+  }
+  for (glm::vec2& uv : low.uvs) uv.x = 1.0f - uv.x;  // mirrored: T = -x, and the sign flips
+  for (const TangentBasis basis : {TangentBasis::lengyel, TangentBasis::face}) {
+    std::vector<glm::vec4> t;
+    TangentStats stats;
+    compute_tangents(low, basis, t, stats);
+    for (const glm::vec4& v : t) EXPECT_NEAR(glm::distance(v, glm::vec4(-1, 0, 0, -1)), 0.0f, 1e-6f) << to_string(basis);
+  }
+  TangentBasis parsed;
+  EXPECT_TRUE(parse_tangent_basis("lengyel", parsed) && parsed == TangentBasis::lengyel);
+  EXPECT_FALSE(parse_tangent_basis("mikk", parsed));
+}
+
+}  // namespace
+}  // namespace nmbake
