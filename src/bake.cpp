@@ -258,7 +258,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   if (smooth_high) prepare_normals(high, false, r.high_mesh);
   pad_for_embree(high);
   SurfaceStats surface_stats;
-  const LowSurface surface = build_low_surface(low, use_cage_mesh ? &cage : nullptr, surface_stats);
+  const LowSurface surface = build_low_surface(low, use_cage_mesh ? &cage : nullptr, o.tangent_basis, surface_stats);
   r.low_mesh.zero_area_triangles += surface_stats.mesh.zero_area_triangles;
   r.low_mesh.zero_length_normals += surface_stats.mesh.zero_length_normals;
   r.tangents = surface_stats.tangents;

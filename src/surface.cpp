@@ -9,6 +9,10 @@
 namespace nmbake {
 
 LowSurface build_low_surface(const Mesh& low, const Mesh* cage, SurfaceStats& stats) {
+  return build_low_surface(low, cage, TangentBasis::mikktspace, stats);
+}
+
+LowSurface build_low_surface(const Mesh& low, const Mesh* cage, TangentBasis basis, SurfaceStats& stats) {
   NMBAKE_CHECK(low.has_uvs() && low.has_normals(), "low mesh needs UVs and normals");
   const std::size_t corner_count = low.indices.size();
   LowSurface s;
@@ -25,7 +29,7 @@ LowSurface build_low_surface(const Mesh& low, const Mesh* cage, SurfaceStats& st
     s.uv[c] = low.uvs[v];
     s.cage_normal[c] = averaged[v];
   }
-  compute_tangents(low, s.tangent, stats.tangents);
+  compute_tangents(low, basis, s.tangent, stats.tangents);
   NMBAKE_CHECK(s.tangent.size() == corner_count, "one tangent per corner");
 
   if (cage != nullptr) {

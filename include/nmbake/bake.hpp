@@ -56,6 +56,7 @@ struct BakeOptions {
   bool ignore_backfaces = false;
   HighNormals high_normals = HighNormals::smooth;
   TangentEncode tangent_encode = TangentEncode::inverse;
+  TangentBasis tangent_basis = TangentBasis::mikktspace;  // others: for the method comparison only
   BuildQuality build_quality = BuildQuality::medium;
   int padding = 16;
   // A low mesh without UVs is unwrapped (atlas of the map's smaller side,

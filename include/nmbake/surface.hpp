@@ -37,6 +37,8 @@ struct SurfaceStats {
 // must have the low mesh's triangle count; its positions are taken corner by
 // corner (checked by check_cage_topology first).
 LowSurface build_low_surface(const Mesh& low, const Mesh* cage, SurfaceStats& stats);
+// The same with another tangent basis (tangents.hpp), for the accuracy lab.
+LowSurface build_low_surface(const Mesh& low, const Mesh* cage, TangentBasis basis, SurfaceStats& stats);
 
 // A cage mesh must have the same triangles as the low mesh: same triangle
 // count and, corner by corner, the same vertex identity pattern (two corners

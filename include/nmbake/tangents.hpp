@@ -19,6 +19,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include <glm/vec4.hpp>
@@ -43,5 +44,27 @@ struct TangentStats {
 // degenerate_triangles also counts triangles with three distinct but
 // collinear positions (the reference still groups those).
 void compute_tangents(const Mesh& mesh, std::vector<glm::vec4>& corner_tangents, TangentStats& stats);
+
+// Tangent bases other than MikkTSpace, for the accuracy lab (src/tangents_alt.cpp):
+// what a baker that does not follow the renderer's basis stores. A renderer
+// decodes with MikkTSpace, so a map baked in another basis is wrong by the
+// angle between the two frames.
+//   lengyel: per-vertex accumulation of the unnormalised face tangents and
+//            bitangents (Lengyel, "Computing Tangent Space Basis Vectors for
+//            an Arbitrary Mesh", 2001), Gram-Schmidt against the vertex
+//            normal, sign from the accumulated bitangent;
+//   face:    each triangle's own UV-gradient tangent at its three corners,
+//            made orthogonal to the corner normal.
+// Same output contract as compute_tangents: 3 per triangle, xyz unit and
+// orthogonal to the corner normal, w = +-1; a corner without a usable
+// tangent gets the same fallback axis and is counted in fallback_tangents.
+enum class TangentBasis : std::uint8_t { mikktspace, lengyel, face };
+bool parse_tangent_basis(const std::string& text, TangentBasis& out);  // mikktspace | lengyel | face
+const char* to_string(TangentBasis basis);
+void compute_tangents_lengyel(const Mesh& mesh, std::vector<glm::vec4>& corner_tangents, TangentStats& stats);
+void compute_tangents_face(const Mesh& mesh, std::vector<glm::vec4>& corner_tangents, TangentStats& stats);
+// Dispatches on `basis`.
+void compute_tangents(const Mesh& mesh, TangentBasis basis, std::vector<glm::vec4>& corner_tangents,
+                      TangentStats& stats);
 
 }  // namespace nmbake

@@ -4,6 +4,12 @@
 //   nmbake-gen moon        --out-dir DIR [--high-cells N] [--low-cells N] [--craters N] [--seed S] [--radius
 //   R] nmbake-gen heightfield --out-dir DIR [--high-cells N] [--low-cells N] [--amplitude A] [--size S]
 //   nmbake-gen sphere      --out-dir DIR [--high-cells N] [--low-cells N] [--amplitude A] [--radius R]
+//   nmbake-gen torus|craters|box|slot --out-dir DIR [--high-cells N] [--low-cells N]
+//   nmbake-gen eval SCENE --map M --low L [--cage C] [--samples N] [--space tangent|object]
+//              [--cage-mode averaged|interpolated] [--front F --back B | --report bake_report.json]
+//              [--json out.json] [--floors]
+// Every scene but the moon also gets <scene>_cage.obj: the low mesh pushed
+// out along averaged normals by the lab's front distance (lab_scenes.hpp).
 //
 // Exit codes as in DESIGN.md: 0 success, 2 bad usage or a file that cannot be
 // written, 3 internal error.
@@ -17,8 +23,13 @@
 #include <memory>
 #include <string>
 
-#include "nmbake/load.hpp"
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "eval.hpp"
+#include "lab_scenes.hpp"
 #include "nmbake/image.hpp"
+#include "nmbake/load.hpp"
 #include "scenes.hpp"
 #include "score.hpp"
 
@@ -32,6 +43,10 @@ struct Options {
   scenes::MoonParams moon;
   scenes::HeightfieldParams heightfield;
   scenes::SphereParams sphere;
+  scenes::TorusParams torus;
+  scenes::CraterParams craters;
+  scenes::BoxParams box;
+  scenes::SlotParams slot;
 };
 
 double seconds_since(std::chrono::steady_clock::time_point start) {
@@ -73,6 +88,11 @@ int generate_and_write(const Options& options, const std::string& scene, const G
   const double generate_seconds = seconds_since(start);
   if (const int code = write_mesh(options.out_dir, scene + "_low.obj", pair.low, generate_seconds))
     return code;
+  const scenes::LabDistances distances = scenes::lab_distances(scene);
+  if (distances.front > 0.0f) {
+    const nmbake::Mesh cage = scenes::make_offset_cage(pair.low, distances.front);
+    if (const int code = write_mesh(options.out_dir, scene + "_cage.obj", cage, generate_seconds)) return code;
+  }
   return write_mesh(options.out_dir, scene + "_high.ply", pair.high, generate_seconds);
 }
 
@@ -90,6 +110,100 @@ void add_common_options(CLI::App& command, Options& options, int& high_cells, in
   command.add_option("--threads", options.threads, "Worker threads, 0 = all cores")
       ->check(CLI::Range(0, 1024))
       ->capture_default_str();
+}
+
+int fail_with(const std::string& message) {
+  std::fprintf(stderr, "nmbake-gen: %s\n", message.c_str());
+  return 2;
+}
+
+int run_eval(const std::string& scene, const std::string& map_path, const std::string& low_path,
+             const std::string& cage_path, const std::string& report_path, const std::string& json_path,
+             const std::string& space, const std::string& green, const std::string& cage_mode, int samples, int size,
+             float front, float back, bool floors, const std::string& cache) {
+  scenes::EvalOptions o;
+  o.samples = samples;
+  if (!nmbake::is_supported_sample_count(samples)) return fail_with("--truth-samples: use 1, 4, 16 or 64");
+  if (space != "tangent" && space != "object") return fail_with("--space: expected tangent or object");
+  o.space = space == "object" ? nmbake::NormalSpace::object : nmbake::NormalSpace::tangent;
+  o.green = green == "down" ? nmbake::GreenChannel::down : nmbake::GreenChannel::up;
+  if (cage_mode != "averaged" && cage_mode != "interpolated") return fail_with("--cage-mode: expected averaged or interpolated");
+  o.rays.cage = cage_mode == "interpolated" ? nmbake::CageMode::interpolated : nmbake::CageMode::averaged;
+  if (!report_path.empty()) {
+    std::ifstream in(report_path);
+    if (!in) return fail_with(report_path + ": cannot read the bake report");
+    try {
+      const nlohmann::json j = nlohmann::json::parse(in);
+      front = j.at("distances").at("front").get<float>();
+      back = j.at("distances").at("back").get<float>();
+    } catch (const std::exception& e) {
+      return fail_with(report_path + ": not a bake report (" + e.what() + ")");
+    }
+  }
+  if (!(front >= 0.0f) || !(back >= 0.0f)) return fail_with("eval needs the bake's distances: --front F --back B or --report");
+  o.rays.front = front;
+  o.rays.back = back;
+
+  nmbake::Mesh low, cage;
+  nmbake::LoadStats load_stats;
+  if (const nmbake::Status st = nmbake::load_mesh(low_path, nmbake::LoadOptions{true, true}, low, load_stats); !st)
+    return fail_with(st.message());
+  nmbake::MeshStats mesh_stats;
+  if (low.has_normals()) {
+    nmbake::normalize_normals(low, mesh_stats);
+  } else {
+    low.normals = nmbake::averaged_normals(low, mesh_stats);
+  }
+  if (!cage_path.empty()) {
+    if (const nmbake::Status st = nmbake::load_mesh(cage_path, nmbake::LoadOptions{false, false}, cage, load_stats); !st)
+      return fail_with(st.message());
+    if (const nmbake::Status st = nmbake::check_cage_topology(low, cage, cage_path); !st) return fail_with(st.message());
+  }
+  nmbake::Image map;
+  if (!map_path.empty()) {
+    if (const nmbake::Status st = nmbake::read_image(map_path, map); !st) return fail_with(st.message());
+    size = map.width;
+  } else if (!floors) {
+    return fail_with("eval needs --map (or --floors)");
+  }
+  const int width = map_path.empty() ? size : map.width, height = map_path.empty() ? size : map.height;
+  const std::unique_ptr<scenes::TrueSurface> truth = scenes::make_true_surface(scene);
+  scenes::Expected expected;
+  auto stamp = [](const std::string& path) {
+    std::error_code ec;
+    if (path.empty()) return std::string("-");
+    return path + ":" + std::to_string(std::filesystem::file_size(path, ec)) + ":" +
+           std::to_string(std::filesystem::last_write_time(path, ec).time_since_epoch().count());
+  };
+  const std::string key = scene + " " + std::to_string(width) + "x" + std::to_string(height) + " s" +
+                          std::to_string(samples) + " " + space + " " + green + " " + cage_mode + " " +
+                          std::to_string(front) + " " + std::to_string(back) + " " + stamp(low_path) + " " +
+                          stamp(cage_path);
+  if (cache.empty() || !scenes::load_expected(cache, key, expected)) {
+    expected = scenes::compute_expected(*truth, low, cage_path.empty() ? nullptr : &cage, width, height, o);
+    if (!cache.empty() && !scenes::save_expected(cache, key, expected)) return fail_with(cache + ": cannot write");
+  }
+  nlohmann::ordered_json out;
+  if (!map_path.empty()) {
+    const scenes::EvalResult r = scenes::evaluate(expected, map, o);
+    std::printf("%s %s:\n%s\n", scene.c_str(), map_path.c_str(), r.to_text().c_str());
+    out["map"] = nlohmann::json::parse(r.to_json());
+  }
+  if (floors) {
+    const nmbake::Image perfect = scenes::expected_image(expected, o);
+    const std::pair<const char*, int> levels[] = {{"float", 0}, {"16bit", 65535}, {"8bit", 255}};
+    for (const auto& [name, n] : levels) {
+      const scenes::EvalResult r = scenes::evaluate(expected, n == 0 ? perfect : scenes::quantize(perfect, n), o);
+      std::printf("floor %-6s %s\n", name, r.error.to_text().c_str());
+      out["floors"][name] = nlohmann::json::parse(r.to_json());
+    }
+  }
+  if (!json_path.empty()) {
+    std::ofstream f(json_path);
+    f << out.dump(2) << "\n";
+    if (!f) return fail_with(json_path + ": cannot write");
+  }
+  return 0;
 }
 
 }  // namespace
@@ -128,6 +242,44 @@ int main(int argc, char** argv) {
   sphere->add_option("--radius", options.sphere.radius, "Radius of the low sphere")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+
+  CLI::App* torus = app.add_subcommand("torus", "Torus with smooth bumps on the tube, analytic normals");
+  add_common_options(*torus, options, options.torus.high_cells, options.torus.low_cells);
+  CLI::App* craters = app.add_subcommand("craters", "Cube-sphere moon with C1-smooth craters, analytic normals");
+  add_common_options(*craters, options, options.craters.high_cells, options.craters.low_cells);
+  CLI::App* box = app.add_subcommand("box", "Hard-edged low cube over a bevelled (rounded) high cube");
+  add_common_options(*box, options, options.box.high_cells, options.box.low_cells);
+  CLI::App* slot = app.add_subcommand("slot", "Concave U groove with bumps: long rays cross the far wall");
+  add_common_options(*slot, options, options.slot.high_cells, options.slot.low_cells);
+
+  // The lab's evaluator (eval.hpp).
+  struct EvalFlags {
+    std::string scene, map, low, cage, report, json, space = "tangent", cage_mode = "averaged", green = "up";
+    int samples = 64, size = 512;
+    std::string cache;
+    float front = -1.0f, back = -1.0f;
+    bool floors = false;
+  } ev;
+  CLI::App* eval_cmd = app.add_subcommand("eval", "Coverage and angular error of a baked map of an analytic scene");
+  eval_cmd->add_option("scene", ev.scene, "heightfield | sphere | torus | craters | box | slot")
+      ->required()
+      ->check(CLI::IsMember(scenes::lab_scene_names()));
+  eval_cmd->add_option("--map", ev.map, "the baked map (EXR for the exact value)");
+  eval_cmd->add_option("--low", ev.low, "the low mesh that was baked")->required();
+  eval_cmd->add_option("--cage", ev.cage, "the explicit cage the bake used, if any");
+  eval_cmd->add_option("--truth-samples", ev.samples, "samples per texel of the truth (box filter): 1, 4, 16, 64")
+      ->capture_default_str();
+  eval_cmd->add_option("--cache", ev.cache, "keep the computed truth in this file and reuse it when it matches");
+  eval_cmd->add_option("--space", ev.space, "tangent | object")->capture_default_str();
+  eval_cmd->add_option("--green", ev.green, "up | down")->capture_default_str();
+  eval_cmd->add_option("--cage-mode", ev.cage_mode, "averaged | interpolated (the bake's)")->capture_default_str();
+  eval_cmd->add_option("--front", ev.front, "the bake's front distance, scene units");
+  eval_cmd->add_option("--back", ev.back, "the bake's back distance, scene units");
+  eval_cmd->add_option("--report", ev.report, "read the resolved front/back from this bake report");
+  eval_cmd->add_option("--json", ev.json, "also write the figures here");
+  eval_cmd->add_option("--size", ev.size, "--floors without --map: map size")->capture_default_str();
+  eval_cmd->add_option("--threads", options.threads, "Worker threads, 0 = all cores")->check(CLI::Range(0, 1024));
+  eval_cmd->add_flag("--floors", ev.floors, "score the perfect map as float, 16-bit and 8-bit (the evaluator's floors)");
 
   // Scoring a bake of an analytic scene against its true normals.
   struct ScoreOptions {
@@ -183,6 +335,14 @@ int main(int argc, char** argv) {
       std::printf("%s %s: %s\n", score.scene.c_str(), score.map.c_str(), e.to_text().c_str());
       return 0;
     }
+    if (eval_cmd->parsed()) return run_eval(ev.scene, ev.map, ev.low, ev.cage, ev.report, ev.json, ev.space, ev.green,
+                                            ev.cage_mode, ev.samples, ev.size, ev.front, ev.back, ev.floors, ev.cache);
+    if (torus->parsed()) return generate_and_write(options, "torus", [&] { return scenes::make_torus(options.torus); });
+    if (craters->parsed()) {
+      return generate_and_write(options, "craters", [&] { return scenes::make_craters(options.craters); });
+    }
+    if (box->parsed()) return generate_and_write(options, "box", [&] { return scenes::make_box(options.box); });
+    if (slot->parsed()) return generate_and_write(options, "slot", [&] { return scenes::make_slot(options.slot); });
     if (moon->parsed()) {
       return generate_and_write(options, "moon", [&] { return scenes::make_moon(options.moon); });
     }
