@@ -132,15 +132,10 @@ float resolve(const Distance& d, float diagonal, float estimated) {
   return estimated;
 }
 
-// File normals are normalised; missing ones are computed. The low mesh's
-// are averaged over coincident positions, because its vertices are split at
-// UV seams and a seam must not become a shading crease.
-void prepare_normals(Mesh& mesh, bool is_low, MeshStats& stats) {
+// High normals: the file's, normalised, or area-weighted ones.
+void prepare_high_normals(Mesh& mesh, MeshStats& stats) {
   if (mesh.has_normals()) {
     normalize_normals(mesh, stats);
-  } else if (is_low) {
-    mesh.normals = averaged_normals(mesh, stats);
-    stats.normals_computed += mesh.vertex_count();
   } else {
     compute_vertex_normals(mesh, stats);
   }
@@ -254,8 +249,8 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
 
   // prepare: normals, tangents, cage
   timer.start("prepare");
-  prepare_normals(low, true, r.low_mesh);
-  if (smooth_high) prepare_normals(high, false, r.high_mesh);
+  prepare_low_normals(low, r.low_mesh);
+  if (smooth_high) prepare_high_normals(high, r.high_mesh);
   pad_for_embree(high);
   SurfaceStats surface_stats;
   const LowSurface surface = build_low_surface(low, use_cage_mesh ? &cage : nullptr, o.tangent_basis, surface_stats);

@@ -250,6 +250,15 @@ std::vector<glm::vec3> averaged_normals(const Mesh& mesh, MeshStats& stats) {
   return averaged;
 }
 
+void prepare_low_normals(Mesh& low, MeshStats& stats) {
+  if (low.has_normals()) {
+    normalize_normals(low, stats);
+  } else {
+    low.normals = averaged_normals(low, stats);
+    stats.normals_computed += low.vertex_count();
+  }
+}
+
 void pad_for_embree(Mesh& mesh) { mesh.positions.reserve(mesh.positions.size() + 1); }
 
 float Bounds::diagonal() const {

@@ -44,12 +44,7 @@ Status load_preview_meshes(const std::string& low_path, const std::string& high_
                              ": the low mesh has no UV coordinates; a normal map needs a UV layout");
   }
   MeshStats mesh_stats;
-  // As the baker does: a seam must not become a shading crease.
-  if (low.has_normals()) {
-    normalize_normals(low, mesh_stats);
-  } else {
-    low.normals = averaged_normals(low, mesh_stats);
-  }
+  prepare_low_normals(low, mesh_stats);
   SurfaceStats surface_stats;
   surface = build_low_surface(low, nullptr, surface_stats);
   if (!high_path.empty()) {

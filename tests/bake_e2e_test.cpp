@@ -87,7 +87,7 @@ TEST(EndToEnd, DisplacedSphereMatchesAnalyticNormals) {
   LoadStats load_stats;
   ASSERT_TRUE(load_mesh(dir.file("low.obj"), LoadOptions{}, low, load_stats).is_ok());
   MeshStats mesh_stats;
-  normalize_normals(low, mesh_stats);
+  prepare_low_normals(low, mesh_stats);
   Image map;
   ASSERT_TRUE(read_image(dir.file("map.exr"), map).is_ok());
   const scenes::AngularError e = scenes::score_sphere(params, low, map, o.samples, report.front, report.back);

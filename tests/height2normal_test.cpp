@@ -271,7 +271,7 @@ TEST(Height2Normal, CubeSphereTangentSpaceMatchesBake) {
   // (s, t) elsewhere (the gutter).
   Mesh low = scene.low;
   MeshStats mesh_stats;
-  normalize_normals(low, mesh_stats);
+  prepare_low_normals(low, mesh_stats);
   SurfaceStats surface_stats;
   const LowSurface surface = build_low_surface(low, nullptr, surface_stats);
   TexelSamples samples;

@@ -68,6 +68,13 @@ void normalize_normals(Mesh& mesh, MeshStats& stats);
 // zero_length_normals.
 std::vector<glm::vec3> averaged_normals(const Mesh& mesh, MeshStats& stats);
 
+// Prepares a loaded low mesh's normals the one way every tool must (bake,
+// preview, height2normal, evaluators): file normals are normalised, missing
+// ones are averaged over coincident positions (averaged_normals), because a
+// low mesh's vertices are split at UV seams and a seam must not become a
+// shading crease. Missing normals are counted in normals_computed.
+void prepare_low_normals(Mesh& low, MeshStats& stats);
+
 // Makes sure Embree may read 4 bytes past the last position (see above).
 void pad_for_embree(Mesh& mesh);
 

@@ -95,13 +95,7 @@ int run_height2normal(const Height2NormalFlags& f, const GlobalOptions& global) 
       if (!loaded) return fail(loaded);
       if (!low.has_uvs()) return usage_error(f.low + ": the low mesh has no UV coordinates");
       MeshStats mesh_stats;
-      // As the bake prepares a low mesh: file normals normalised, missing
-      // ones averaged over coincident positions.
-      if (low.has_normals()) {
-        normalize_normals(low, mesh_stats);
-      } else {
-        low.normals = averaged_normals(low, mesh_stats);
-      }
+      prepare_low_normals(low, mesh_stats);
       SurfaceStats surface_stats;
       surface = build_low_surface(low, nullptr, surface_stats);
     } else if (!f.low.empty()) {

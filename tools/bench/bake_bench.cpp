@@ -90,8 +90,7 @@ int main(int argc, char** argv) {
     nmbake::LoadStats ls;
     nmbake::MeshStats ms;
     if (!nmbake::load_mesh(low, {}, low_mesh, ls) || !nmbake::load_mesh(high, {false, true}, high_mesh, ls)) return 2;
-    if (low_mesh.has_normals()) nmbake::normalize_normals(low_mesh, ms);
-    else low_mesh.normals = nmbake::averaged_normals(low_mesh, ms);
+    nmbake::prepare_low_normals(low_mesh, ms);
     nmbake::pad_for_embree(high_mesh);
     nmbake::SurfaceStats ss;
     const nmbake::LowSurface surface = nmbake::build_low_surface(low_mesh, nullptr, ss);

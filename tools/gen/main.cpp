@@ -149,11 +149,7 @@ int run_eval(const std::string& scene, const std::string& map_path, const std::s
   if (const nmbake::Status st = nmbake::load_mesh(low_path, nmbake::LoadOptions{true, true}, low, load_stats); !st)
     return fail_with(st.message());
   nmbake::MeshStats mesh_stats;
-  if (low.has_normals()) {
-    nmbake::normalize_normals(low, mesh_stats);
-  } else {
-    low.normals = nmbake::averaged_normals(low, mesh_stats);
-  }
+  nmbake::prepare_low_normals(low, mesh_stats);
   if (!cage_path.empty()) {
     if (const nmbake::Status st = nmbake::load_mesh(cage_path, nmbake::LoadOptions{false, false}, cage, load_stats); !st)
       return fail_with(st.message());
@@ -329,7 +325,7 @@ int main(int argc, char** argv) {
           return 2;
         }
         nmbake::MeshStats mesh_stats;
-        nmbake::normalize_normals(low, mesh_stats);
+        nmbake::prepare_low_normals(low, mesh_stats);
         e = scenes::score_sphere(options.sphere, low, map, score.samples, score.front, score.back);
       }
       std::printf("%s %s: %s\n", score.scene.c_str(), score.map.c_str(), e.to_text().c_str());
