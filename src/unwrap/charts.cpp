@@ -127,7 +127,11 @@ void segment_charts(const Mesh& mesh, const ChartOptions& options, Topology& top
     if (can_add_face(om, vh)) fh = om.add_face(vh[0], vh[1], vh[2]);
     if (!fh.is_valid()) {  // non-manifold, or a patch OpenMesh cannot re-link (it then changes nothing)
       ++stats.nonmanifold_faces;
-      for (int k = 0; k < 3; ++k) vh[k] = om.add_vertex(om.point(vh[k]));
+      for (int k = 0; k < 3; ++k) {
+        // A copy: add_vertex may grow the point array that point() refers into.
+        const OMesh::Point p = om.point(vh[k]);
+        vh[k] = om.add_vertex(p);
+      }
       fh = om.add_face(vh[0], vh[1], vh[2]);
     }
     NMBAKE_CHECK(fh.is_valid() && static_cast<std::size_t>(fh.idx()) == t, "unwrap: face insertion out of order");
