@@ -77,15 +77,16 @@ struct ParameterizeOptions {
   int max_split_depth = 24;  // deeper charts are cut to single triangles
 };
 
-// Packing (src/unwrap/pack.cpp): skyline packing of each chart's
-// conservatively rasterized footprint (tight per-column profiles, not
-// bounding boxes), dilated by the gutter; charts sorted by size, each placed
-// where its top ends lowest, trying 0 and 90 degree rotations.
+// Packing (src/unwrap/pack.cpp): bitmap packing of each chart's
+// conservatively rasterized footprint, dilated by the gutter (exact shapes,
+// so charts interlock); charts sorted by bounding-box area, each placed at
+// the lowest-then-leftmost free position of whichever of its four 90-degree
+// turns ends with the lowest centre.
 struct PackOptions {
   int resolution = 2048;  // atlas width = height, texels
   int gutter = 4;         // free texels between any two charts
-  bool rotate = true;     // also try each chart turned by 90 degrees
-  int search_steps = 6;   // bisection steps on the scale after the first fit
+  bool rotate = true;     // also try each chart turned by 90, 180 and 270 degrees
+  int search_steps = 6;   // bisection steps of the coarse (quarter-size) scale search
 };
 
 struct UnwrapOptions {
