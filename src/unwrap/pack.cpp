@@ -9,13 +9,13 @@
 // lowest centre at its lowest-then-leftmost free position. The scale is the
 // largest for which everything fits: searched on a quarter-size atlas, then
 // bracketed and bisected at full size.
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
 #include <numeric>
-
-#include <tbb/parallel_for.h>
 
 #include "unwrap/unwrap_internal.hpp"
 
@@ -29,10 +29,18 @@ glm::dvec2 chart_to_texel(const glm::vec2& uv, const Chart& chart, const Placeme
   const glm::dvec2 box(std::floor(e.x) + 1.0, std::floor(e.y) + 1.0);
   glm::dvec2 t;
   switch (p.turns & 3) {
-    case 1: t = {e.y - q.y, q.x}; break;
-    case 2: t = {box.x - q.x, box.y - q.y}; break;
-    case 3: t = {box.y - e.y + q.y, box.x - q.x}; break;
-    default: t = q; break;
+    case 1:
+      t = {e.y - q.y, q.x};
+      break;
+    case 2:
+      t = {box.x - q.x, box.y - q.y};
+      break;
+    case 3:
+      t = {box.y - e.y + q.y, box.x - q.x};
+      break;
+    default:
+      t = q;
+      break;
   }
   return t + glm::dvec2(p.x, p.y);
 }
@@ -206,8 +214,8 @@ Footprint reflected(const Footprint& f) {
 
 // Lowest row, then leftmost column, where the footprint's keep-out region
 // covers no occupied texel; false when there is none below y_limit.
-bool first_fit(const Bitmap& atlas, const std::vector<int>& free_run, const Footprint& f, int gutter, int y_limit,
-               int& best_x, int& best_y) {
+bool first_fit(const Bitmap& atlas, const std::vector<int>& free_run, const Footprint& f, int gutter,
+               int y_limit, int& best_x, int& best_y) {
   const int size = atlas.width();
   const int rows = static_cast<int>(f.keep_out.size());
   // Quick reject of a row: some keep-out row needs a longer free run than
@@ -282,7 +290,8 @@ bool place_all(const std::vector<std::array<Footprint, 4>>& prepared, const std:
       const long limit = best_key == kNone ? size : (best_key - height_weight * f.height) / 2 + 1;
       if (limit <= 0) continue;
       int x, y;
-      if (!first_fit(atlas, free_run, f, gutter, static_cast<int>(std::min<long>(limit, size)), x, y)) continue;
+      if (!first_fit(atlas, free_run, f, gutter, static_cast<int>(std::min<long>(limit, size)), x, y))
+        continue;
       const long key = 2L * y + height_weight * f.height;
       if (key < best_key || (key == best_key && x < best_x)) {
         best_key = key;
@@ -302,8 +311,8 @@ bool place_all(const std::vector<std::array<Footprint, 4>>& prepared, const std:
 }
 
 // One attempt at a given scale: false as soon as a chart does not fit.
-bool try_pack(const std::vector<Chart>& charts, const std::vector<std::uint32_t>& order, const PackOptions& options,
-              double scale, std::vector<Placement>& placements) {
+bool try_pack(const std::vector<Chart>& charts, const std::vector<std::uint32_t>& order,
+              const PackOptions& options, double scale, std::vector<Placement>& placements) {
   const int turn_count = options.rotate ? 4 : 1;
   const int size = options.resolution;
   for (const Chart& c : charts) {
@@ -323,8 +332,8 @@ bool try_pack(const std::vector<Chart>& charts, const std::vector<std::uint32_t>
 }
 
 // Largest scale found by stepping down from `upper` and bisecting.
-bool search_scale(const std::vector<Chart>& charts, const std::vector<std::uint32_t>& order, const PackOptions& options, double upper,
-                  PackResult& result) {
+bool search_scale(const std::vector<Chart>& charts, const std::vector<std::uint32_t>& order,
+                  const PackOptions& options, double upper, PackResult& result) {
   double fits = 0.0, fails = upper * 1.0001;
   std::vector<Placement> placements;
   for (double s = upper * 0.95; s > upper * 1e-4; s *= 0.85) {
@@ -402,20 +411,29 @@ bool pack_charts(const std::vector<Chart>& charts, const PackOptions& options, P
     fits = start;
     for (int i = 0; i < 8 && fails == 0.0; ++i) {
       const double up = fits * kStep;
-      if (attempt(up)) fits = up; else fails = up;
+      if (attempt(up))
+        fits = up;
+      else
+        fails = up;
     }
   } else {
     fails = start;
     for (int i = 0; i < 24 && fits == 0.0; ++i) {
       const double down = fails / kStep;
-      if (attempt(down)) fits = down; else fails = down;
+      if (attempt(down))
+        fits = down;
+      else
+        fails = down;
     }
     if (fits == 0.0) return search_scale(charts, order, options, upper, result);
   }
   if (fails > 0.0) {
     while (fails / fits > kPrecision) {
       const double mid = std::sqrt(fits * fails);
-      if (attempt(mid)) fits = mid; else fails = mid;
+      if (attempt(mid))
+        fits = mid;
+      else
+        fails = mid;
     }
   }
   result.scale = fits;
