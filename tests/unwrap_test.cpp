@@ -4,19 +4,20 @@
 // the rasterizer), preserved geometry, hard edges as chart boundaries,
 // determinism; plus the CLI and an auto-unwrapped bake scored against the
 // analytic sphere.
+#include "nmbake/unwrap.hpp"
+
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <map>
-
-#include <gtest/gtest.h>
 #include <glm/geometric.hpp>
-#include <tbb/global_control.h>
+#include <map>
 
 #include "nmbake/bake.hpp"
 #include "nmbake/load.hpp"
 #include "nmbake/raster.hpp"
-#include "nmbake/unwrap.hpp"
 #include "scenes.hpp"
 #include "score.hpp"
 #include "test_util.hpp"
@@ -50,7 +51,8 @@ Mesh make_torus(int major_segments, int minor_segments, float major_radius, floa
   };
   for (int i = 0; i < major_segments; ++i)
     for (int j = 0; j < minor_segments; ++j)
-      m.indices.insert(m.indices.end(), {id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j), id(i + 1, j + 1), id(i, j + 1)});
+      m.indices.insert(m.indices.end(),
+                       {id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j), id(i + 1, j + 1), id(i, j + 1)});
   return m;
 }
 
@@ -68,7 +70,8 @@ Mesh make_hard_box(int cells, const glm::vec3& size) {
     const std::uint32_t base = static_cast<std::uint32_t>(m.positions.size());
     for (int j = 0; j <= cells; ++j)
       for (int i = 0; i <= cells; ++i) {
-        const glm::vec3 p = 0.5f * n + (static_cast<float>(i) / cells - 0.5f) * u + (static_cast<float>(j) / cells - 0.5f) * v;
+        const glm::vec3 p = 0.5f * n + (static_cast<float>(i) / cells - 0.5f) * u +
+                            (static_cast<float>(j) / cells - 0.5f) * v;
         m.positions.push_back(p * size);
         m.normals.push_back(n);
       }
@@ -90,8 +93,10 @@ Mesh make_noisy_surface(int cells) {
     for (int i = 0; i <= cells; ++i) {
       const std::uint32_t h = hash32(static_cast<std::uint32_t>(j * 7919 + i));
       const float jx = ((h & 0xff) / 255.0f - 0.5f) * 0.6f, jy = (((h >> 8) & 0xff) / 255.0f - 0.5f) * 0.6f;
-      const float x = (i + (i > 0 && i < cells ? jx : 0.0f)) / cells, y = (j + (j > 0 && j < cells ? jy : 0.0f)) / cells;
-      const float z = 0.15f * std::sin(6.0f * x) * std::cos(5.0f * y) + 0.01f * (((h >> 16) & 0xff) / 255.0f - 0.5f);
+      const float x = (i + (i > 0 && i < cells ? jx : 0.0f)) / cells,
+                  y = (j + (j > 0 && j < cells ? jy : 0.0f)) / cells;
+      const float z =
+          0.15f * std::sin(6.0f * x) * std::cos(5.0f * y) + 0.01f * (((h >> 16) & 0xff) / 255.0f - 0.5f);
       m.positions.emplace_back(x, y, z);
     }
   for (int j = 0; j < cells; ++j)
@@ -168,17 +173,18 @@ UnwrapReport unwrap_and_check(const char* name, const Mesh& in, int size = 2048,
 }
 
 TEST(Unwrap, SphereHasNoFoldsOrOverlaps) {
-  const Mesh sphere = scenes::make_cube_sphere(16, [](const glm::vec3&) { return 1.0f; }, false, 0.0f);
+  const Mesh sphere = scenes::make_cube_sphere(
+      16, [](const glm::vec3&) { return 1.0f; }, false, 0.0f);
   ASSERT_FALSE(sphere.has_uvs());
   const UnwrapReport r = unwrap_and_check("sphere", sphere);
   EXPECT_LE(r.stretch_l2, 1.15);
-  EXPECT_GE(r.utilization, 0.55);  // regression floor; the 70% target is not met yet (BENCHMARKS.md)
+  EXPECT_GE(r.utilization, 0.67);  // regression floor (69.3% measured); the 70% target is just missed here
 }
 
 TEST(Unwrap, TorusHasNoFoldsOrOverlaps) {
   const UnwrapReport r = unwrap_and_check("torus", make_torus(64, 24, 1.0f, 0.35f));
   EXPECT_LE(r.stretch_l2, 1.15);
-  EXPECT_GE(r.utilization, 0.55);  // regression floor, as above
+  EXPECT_GE(r.utilization, 0.70);  // issue 4 target (71.0% measured)
 }
 
 TEST(Unwrap, HardEdgesAreChartBoundaries) {
@@ -207,7 +213,7 @@ TEST(Unwrap, NoisyHoledSurfaceHasNoFoldsOrOverlaps) {
   const Mesh surface = make_noisy_surface(60);
   const UnwrapReport r = unwrap_and_check("noisy surface", surface);
   EXPECT_LE(r.stretch_l2, 1.15);
-  EXPECT_GE(r.utilization, 0.5);  // regression floor
+  EXPECT_GE(r.utilization, 0.63);  // regression floor (65.6% measured; the holes inside charts are lost)
 }
 
 TEST(Unwrap, ExistingUvSeamsAreKept) {
@@ -219,6 +225,7 @@ TEST(Unwrap, ExistingUvSeamsAreKept) {
   const UnwrapReport r = unwrap_and_check("sphere re-uv", scene.low);
   EXPECT_GE(r.boundary_edges_kept, 12u * static_cast<unsigned>(params.low_cells));
   EXPECT_GE(r.chart_count, 6u);
+  EXPECT_GE(r.utilization, 0.70);  // issue 4 target (79.8% measured)
 }
 
 TEST(Unwrap, SameAtlasForAnyThreadCount) {
@@ -240,7 +247,8 @@ TEST(Unwrap, SameAtlasForAnyThreadCount) {
 TEST(Unwrap, DegenerateAndNonManifoldInputHasDefinedResults) {
   // Three triangles on one edge (non-manifold) plus a zero-area triangle.
   Mesh m;
-  m.positions = {{0, 0, 0}, {1, 0, 0}, {0.5f, 1, 0}, {0.5f, -1, 0}, {0.5f, 0, 1}, {2, 0, 0}, {3, 0, 0}, {4, 0, 0}};
+  m.positions = {{0, 0, 0},    {1, 0, 0}, {0.5f, 1, 0}, {0.5f, -1, 0},
+                 {0.5f, 0, 1}, {2, 0, 0}, {3, 0, 0},    {4, 0, 0}};
   m.indices = {0, 1, 2, 1, 0, 3, 0, 1, 4, 5, 6, 7};
   const UnwrapReport r = unwrap_and_check("degenerate", m, 256, 2);
   EXPECT_EQ(r.nonmanifold_faces, 1u);
@@ -268,21 +276,24 @@ TEST(Unwrap, TooSmallAtlasIsReportedNotCrashed) {
 TEST(Unwrap, AssimpTestModels) {
   const std::string root = "/usr/share/assimp/models/";
   if (!std::filesystem::exists(root)) GTEST_SKIP() << "assimp-testmodels is not installed (tools/setup)";
-  for (const char* file : {"OBJ/WusonOBJ.obj", "OBJ/spider.obj"}) {
+  // Utilization floors: Wuson 78.1% and spider 67.7% measured.
+  for (const auto& [file, floor] : {std::pair{"OBJ/WusonOBJ.obj", 0.75}, std::pair{"OBJ/spider.obj", 0.65}}) {
     Mesh mesh;
     LoadStats stats;
     const Status s = load_mesh(root + file, LoadOptions{false, true}, mesh, stats);
     ASSERT_TRUE(s.is_ok()) << s.message();
     const UnwrapReport r = unwrap_and_check(file, mesh, 1024, 2);
     EXPECT_LE(r.stretch_l2, 1.15) << file;
+    EXPECT_GE(r.utilization, floor) << file;
   }
 }
 
 TEST(UnwrapCli, WritesMeshAndReport) {
   test::TempDir dir;
   ASSERT_TRUE(save_mesh(dir.file("torus.obj"), make_torus(32, 12, 1.0f, 0.3f)).is_ok());
-  const auto r = test::run_command(test::cli_path() + " unwrap " + dir.file("torus.obj") + " -o " +
-                                   dir.file("torus_uv.ply") + " --size 512 --gutter 2 --report " + dir.file("r.json"));
+  const auto r =
+      test::run_command(test::cli_path() + " unwrap " + dir.file("torus.obj") + " -o " +
+                        dir.file("torus_uv.ply") + " --size 512 --gutter 2 --report " + dir.file("r.json"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("charts"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("0 overlapping"), std::string::npos) << r.output;
@@ -291,7 +302,8 @@ TEST(UnwrapCli, WritesMeshAndReport) {
   ASSERT_TRUE(load_mesh(dir.file("torus_uv.ply"), LoadOptions{}, out, stats).is_ok());
   EXPECT_TRUE(out.has_uvs());
   EXPECT_TRUE(std::filesystem::exists(dir.file("r.json")));
-  const auto bad = test::run_command(test::cli_path() + " unwrap " + dir.file("missing.obj") + " -o " + dir.file("x.obj"));
+  const auto bad =
+      test::run_command(test::cli_path() + " unwrap " + dir.file("missing.obj") + " -o " + dir.file("x.obj"));
   EXPECT_EQ(bad.exit_code, 2) << bad.output;
 }
 
@@ -303,7 +315,8 @@ TEST(UnwrapEndToEnd, AutoUnwrappedSphereMatchesAnalyticNormals) {
   params.high_cells = 192;
   scenes::ScenePair scene = scenes::make_displaced_sphere(params);
   // Strip the UVs (and the seams they made: weld the faces' copies back).
-  Mesh bare = scenes::make_cube_sphere(params.low_cells, [&](const glm::vec3&) { return params.radius; }, false, 0.0f);
+  Mesh bare = scenes::make_cube_sphere(
+      params.low_cells, [&](const glm::vec3&) { return params.radius; }, false, 0.0f);
   ASSERT_FALSE(bare.has_uvs());
   ASSERT_TRUE(save_mesh(dir.file("low.obj"), bare).is_ok());
   ASSERT_TRUE(save_mesh(dir.file("high.ply"), scene.high).is_ok());

@@ -49,10 +49,12 @@ struct ParameterizeStats {
 void parameterize_charts(const Topology& topology, const std::vector<std::vector<std::uint32_t>>& charts,
                          const ParameterizeOptions& options, std::vector<Chart>& out, ParameterizeStats& stats);
 
-// Where a chart went in the atlas: UV = (offset + R(rotated) * uv * scale) / resolution.
+// Where a chart went in the atlas: UV = (offset + R(turns) * uv * scale) / resolution,
+// R turning counter-clockwise by 90 degrees per turn (a rotation: never a mirror,
+// so no triangle flips), the chart's box kept in the positive quadrant.
 struct Placement {
   int x = 0, y = 0;  // texel offset of the chart's footprint
-  bool rotated = false;
+  int turns = 0;     // 0..3
 };
 
 struct PackResult {
