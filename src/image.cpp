@@ -1,10 +1,12 @@
-// Stage "write": image files through OpenImageIO 2.4 (PNG, TIFF, OpenEXR).
+// Stage "write": PNG through our own parallel encoder (image_png.cpp), TIFF
+// and OpenEXR through OpenImageIO 2.4; every image is read through OpenImageIO.
 //
 // Standards: PNG (ISO/IEC 15948) — no gAMA/sRGB/iCCP/cHRM chunk is written, so
 // a normal map's bytes are shown and sampled as data; OpenEXR — ZIP
 // compression (lossless), half or float channels.
 //
-// OpenImageIO 2.4 behaviour this file relies on (checked by image_test.cpp):
+// OpenImageIO 2.4 behaviour this file relies on (checked by image_test.cpp;
+// the PNG points matter for reading, and for writing before image_png.cpp):
 //  * the PNG writer adds a gAMA chunk for "oiio:ColorSpace" = "Linear" (gamma
 //    1.0, which makes gamma-aware viewers brighten the image) and sRGB chunks
 //    for "sRGB"; with no "oiio:ColorSpace" attribute it writes neither, which
@@ -20,6 +22,7 @@
 #include "nmbake/image.hpp"
 
 #include <OpenImageIO/imageio.h>
+#include "image_png.hpp"
 #include <unistd.h>
 
 #include <algorithm>
@@ -255,7 +258,9 @@ Status write_image(const Image& image, const std::string& path, PixelFormat form
   }
 
   const fs::path temp = temp_path_for(target.parent_path().empty() ? fs::path(".") / target : target);
-  Status status = write_with_oiio(image, path, temp, format);
+  Status status = format == PixelFormat::png8 || format == PixelFormat::png16
+                      ? image_detail::write_png(image, format == PixelFormat::png8 ? 8 : 16, temp.string(), path)
+                      : write_with_oiio(image, path, temp, format);
   if (status.is_ok()) {
     fs::rename(temp, target, ec);
     if (ec)

@@ -1,0 +1,25 @@
+// Private to the write stage: nmbake's own PNG encoder (see image_png.cpp).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "nmbake/common.hpp"
+#include "nmbake/image.hpp"
+
+namespace nmbake::image_detail {
+
+// Rows deflated as one independent piece. Fixed (never derived from the
+// thread count) so the file's bytes are the same on any machine.
+constexpr std::size_t kPngGroupBytes = std::size_t{1} << 18;
+
+// The whole PNG file (signature to IEND) of `image` at 8 or 16 bits per
+// channel, values quantised as round(clamp(v, 0, 1) * max). 1 to 4 channels:
+// grey, grey + alpha, RGB, RGBA.
+std::vector<std::uint8_t> encode_png(const Image& image, int bits);
+
+// encode_png() written to `path`; io error naming `display_path` on failure.
+Status write_png(const Image& image, int bits, const std::string& path, const std::string& display_path);
+
+}  // namespace nmbake::image_detail
