@@ -51,24 +51,33 @@ glm::vec3 tangent_to_world(const glm::vec3& t, const glm::vec3& T, const glm::ve
   return l > 0.0f && std::isfinite(l) ? n / l : glm::vec3(0.0f, 0.0f, 1.0f);
 }
 
+namespace {
+
+// The exact inverse, the hot path of the encode: Cramer's rule,
+// M^-1 n = (n.(BxN), n.(NxT), n.(TxB)) / det(M), unnormalised (the caller
+// normalises; only the sign of det matters). With C = NxT, B = sign C, so
+// BxN = sign CxN and TxB = sign TxC (NxT is C itself). The regularity test
+// |det| > 1e-6 |T||B||N| is done on squares, without square roots.
+// False when the frame is singular (or not finite): `t` is then unset.
+inline bool inverse_tangent(const glm::vec3& n, const glm::vec3& T, const glm::vec3& N, float sign, glm::vec3& t) {
+  const glm::vec3 c = glm::cross(N, T);
+  const glm::vec3 bn = sign * glm::cross(c, N);
+  const glm::vec3 tb = sign * glm::cross(T, c);
+  const float det = glm::dot(T, bn);
+  const float scale2 = glm::dot(T, T) * glm::dot(c, c) * glm::dot(N, N);
+  if (!(det * det > 1e-12f * scale2) || !(scale2 > 0.0f) || !std::isfinite(det) || !std::isfinite(scale2)) return false;
+  t = glm::vec3(glm::dot(n, bn), glm::dot(n, c), glm::dot(n, tb));
+  if (det < 0.0f) t = -t;
+  return true;
+}
+
+}  // namespace
+
 bool world_to_tangent(const glm::vec3& n, const glm::vec3& T, const glm::vec3& N, float sign,
                       TangentEncode method, glm::vec3& out) {
-  const glm::vec3 B = sign * glm::cross(N, T);
   bool regular = true;
   glm::vec3 t(0.0f);
-  if (method == TangentEncode::inverse) {
-    // Cramer's rule: M^-1 n = (n.(BxN), n.(NxT), n.(TxB)) / det(M). The result
-    // is normalised, so only the sign of the determinant matters.
-    const glm::vec3 bn = glm::cross(B, N), nt = glm::cross(N, T), tb = glm::cross(T, B);
-    const float det = glm::dot(T, bn);
-    const float scale = glm::length(T) * glm::length(B) * glm::length(N);
-    if (std::fabs(det) > 1e-6f * scale && scale > 0.0f && std::isfinite(det)) {
-      t = glm::vec3(glm::dot(n, bn), glm::dot(n, nt), glm::dot(n, tb));
-      if (det < 0.0f) t = -t;
-    } else {
-      regular = false;
-    }
-  }
+  if (method == TangentEncode::inverse) regular = inverse_tangent(n, T, N, sign, t);
   if (method == TangentEncode::transpose || !regular) {
     glm::vec3 ot, ob, on;
     orthonormal_frame(T, N, sign, ot, ob, on);
@@ -90,6 +99,7 @@ void encode(const LowSurface& surface, const TexelSamples& samples, const Mesh& 
   const int spp = samples.samples;
   const bool tangent_space = options.space == NormalSpace::tangent;
   const bool smooth = options.high_normals == HighNormals::smooth && high.has_normals();
+  const bool inverse = options.tangent_encode == TangentEncode::inverse;
   // A band of rows lands at its place in `out`, which grows to hold it.
   const int row_begin = samples.row_begin;
   if (out.width != width || out.channels != 3 || out.height < row_begin + height) {
@@ -164,6 +174,14 @@ void encode(const LowSurface& surface, const TexelSamples& samples, const Mesh& 
           const glm::vec4 tw = interpolate(surface.tangent, base, b);
           const float sign = tw.w < 0.0f ? -1.0f : 1.0f;
           glm::vec3 t;
+          if (inverse && inverse_tangent(n_high, glm::vec3(tw), N, sign, t)) {
+            // The sample's direction, normalised so every sample weighs the same.
+            const float lt2 = glm::dot(t, t);
+            if (lt2 > 0.0f && std::isfinite(lt2)) {
+              sum += t * (1.0f / std::sqrt(lt2));
+              continue;
+            }
+          }
           if (!world_to_tangent(n_high, glm::vec3(tw), N, sign, options.tangent_encode, t)) ++counts.singular;
           sum += t;
         }
