@@ -262,7 +262,8 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
 
   timer.start("build");
   HighScene scene;
-  NMBAKE_TRY(HighScene::build(high, o.build_quality, o.ignore_backfaces, scene));
+  NMBAKE_TRY(HighScene::build(high, o.build_quality, o.ignore_backfaces, scene, o.bvh_memory));
+  r.compact_bvh = scene.compact();
   timer.stop();
 
   // Ray distances: as given, or estimated by probing the two meshes.

@@ -20,7 +20,7 @@ namespace nmbake {
 namespace {
 
 template <class V>
-V interpolate(const std::vector<V>& corner, std::size_t base, glm::vec2 b) {
+[[gnu::always_inline]] inline V interpolate(const std::vector<V>& corner, std::size_t base, glm::vec2 b) {
   return corner[base] * (1.0f - b.x - b.y) + corner[base + 1] * b.x + corner[base + 2] * b.y;
 }
 
@@ -149,9 +149,11 @@ void encode(const LowSurface& surface, const TexelSamples& samples, const Mesh& 
           if (smooth) {
             const glm::vec2 hb = hits.bary[s];
             n_high = high.normals[h[0]] * (1.0f - hb.x - hb.y) + high.normals[h[1]] * hb.x + high.normals[h[2]] * hb.y;
-            const float l = glm::length(n_high);
-            if (l > 1e-12f && std::isfinite(l)) {
-              n_high /= l;
+            const float l2 = glm::dot(n_high, n_high);
+            if (l2 > 1e-24f && std::isfinite(l2)) {
+              // Tangent space needs only its direction (each sample's t is
+              // normalised after the inverse); object space sums unit normals.
+              if (!tangent_space) n_high *= 1.0f / std::sqrt(l2);
               have = true;
             } else {
               ++counts.zero_high;

@@ -39,6 +39,14 @@ bool parse_cage_mode(const std::string& t, CageMode& out) {
   else return false;
   return true;
 }
+bool parse_bvh_memory(const std::string& t, BvhMemory& out) {
+  if (t == "auto") out = BvhMemory::automatic;
+  else if (t == "fast") out = BvhMemory::fast;
+  else if (t == "compact") out = BvhMemory::compact;
+  else return false;
+  return true;
+}
+
 bool parse_build_quality(const std::string& t, BuildQuality& out) {
   if (t == "low") out = BuildQuality::low;
   else if (t == "medium") out = BuildQuality::medium;
@@ -110,6 +118,8 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
     if (!get_string(text) || !parse_cage_mode(text, o.cage_mode)) return bad("expected \"averaged\" or \"interpolated\"");
   } else if (key == "build_quality") {
     if (!get_string(text) || !parse_build_quality(text, o.build_quality)) return bad("expected \"low\", \"medium\" or \"high\"");
+  } else if (key == "bvh") {
+    if (!get_string(text) || !parse_bvh_memory(text, o.bvh_memory)) return bad("expected \"auto\", \"fast\" or \"compact\"");
   } else if (key == "ignore_backfaces") {
     if (auto b = value.value<bool>(); b && value.is_boolean()) o.ignore_backfaces = *b;
     else return bad("expected true or false");

@@ -30,6 +30,7 @@ std::string BakeReport::to_json() const {
   j["low_triangles"] = low_triangles;
   j["high_triangles"] = high_triangles;
   j["high_vertices"] = high_vertices;
+  j["bvh"] = compact_bvh ? "compact" : "fast";
   j["distances"] = {{"front", front},
                     {"back", back},
                     {"estimated", distances_estimated},

@@ -74,6 +74,7 @@ struct HighScene::Impl {
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
   const Mesh* mesh = nullptr;
+  bool compact = false;
   ~Impl() {
     if (scene) rtcReleaseScene(scene);
     if (device) rtcReleaseDevice(device);
@@ -85,7 +86,10 @@ HighScene::~HighScene() = default;
 HighScene::HighScene(HighScene&&) noexcept = default;
 HighScene& HighScene::operator=(HighScene&&) noexcept = default;
 
-Status HighScene::build(const Mesh& mesh, BuildQuality quality, bool backface_filter_on, HighScene& out) {
+bool HighScene::compact() const { return impl_ != nullptr && impl_->compact; }
+
+Status HighScene::build(const Mesh& mesh, BuildQuality quality, bool backface_filter_on, HighScene& out,
+                        BvhMemory memory) {
   NMBAKE_CHECK(mesh.positions.capacity() > mesh.positions.size(), "pad_for_embree() before building");
   auto impl = std::make_unique<Impl>();
   impl->mesh = &mesh;
@@ -100,7 +104,10 @@ Status HighScene::build(const Mesh& mesh, BuildQuality quality, bool backface_fi
   // Robust mode: the watertight intersection test. Bake rays often pass
   // exactly through shared edges of the high mesh (where its grid lines
   // up with the low one), and the fast test lets such rays slip through.
-  rtcSetSceneFlags(impl->scene, RTC_SCENE_FLAG_ROBUST);
+  impl->compact = memory == BvhMemory::compact ||
+                  (memory == BvhMemory::automatic && mesh.triangle_count() > kCompactBvhAbove);
+  rtcSetSceneFlags(impl->scene, impl->compact ? RTCSceneFlags(RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_COMPACT)
+                                              : RTC_SCENE_FLAG_ROBUST);
 
   RTCGeometry geometry = rtcNewGeometry(impl->device, RTC_GEOMETRY_TYPE_TRIANGLE);
   // Shared buffers: the high mesh is never copied.

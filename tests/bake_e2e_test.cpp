@@ -123,6 +123,37 @@ TEST(EndToEnd, BandsDoNotChangeTheMap) {
   EXPECT_EQ(one.raster.border_samples, many.raster.border_samples);
 }
 
+// The compact BVH (indices only) finds the same hits as the fast one: the
+// intersector reads the same vertices, only from the shared buffer.
+TEST(EndToEnd, CompactBvhGivesTheSameMap) {
+  test::TempDir dir;
+  scenes::SphereParams params;
+  params.high_cells = 48;
+  const scenes::ScenePair scene = scenes::make_displaced_sphere(params);
+  ASSERT_TRUE(save_mesh(dir.file("low.obj"), scene.low).is_ok());
+  ASSERT_TRUE(save_mesh(dir.file("high.ply"), scene.high).is_ok());
+  BakeOptions o;
+  o.low_path = dir.file("low.obj");
+  o.high_path = dir.file("high.ply");
+  o.width = o.height = 128;
+  o.samples = 4;
+  BakeReport fast, compact, automatic;
+  o.bvh_memory = BvhMemory::fast;
+  o.outputs = {{dir.file("fast.exr"), PixelFormat::exr_float}};
+  ASSERT_TRUE(bake(o, fast).is_ok());
+  o.bvh_memory = BvhMemory::compact;
+  o.outputs = {{dir.file("compact.exr"), PixelFormat::exr_float}};
+  ASSERT_TRUE(bake(o, compact).is_ok());
+  o.bvh_memory = BvhMemory::automatic;
+  o.outputs = {{dir.file("auto.exr"), PixelFormat::exr_float}};
+  ASSERT_TRUE(bake(o, automatic).is_ok());
+  EXPECT_FALSE(fast.compact_bvh);
+  EXPECT_TRUE(compact.compact_bvh);
+  EXPECT_FALSE(automatic.compact_bvh);  // far below kCompactBvhAbove
+  EXPECT_EQ(read_bytes(dir.file("fast.exr")), read_bytes(dir.file("compact.exr")));
+  EXPECT_EQ(fast.trace.hits, compact.trace.hits);
+}
+
 class CliBake : public ::testing::Test {
  protected:
   void SetUp() override {

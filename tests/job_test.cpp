@@ -31,6 +31,7 @@ outputs = ["b.tif"]
 size = 64
 hit = "nearest"
 ignore_backfaces = true
+bvh = "compact"
 )");
   std::vector<BakeJob> jobs;
   const Status s = load_job_file(path, jobs);
@@ -57,6 +58,8 @@ ignore_backfaces = true
   EXPECT_EQ(b.samples, 16);  // from [defaults]
   EXPECT_EQ(b.hit, HitRule::nearest);
   EXPECT_TRUE(b.ignore_backfaces);
+  EXPECT_EQ(b.bvh_memory, BvhMemory::compact);
+  EXPECT_EQ(a.bvh_memory, BvhMemory::automatic);
   EXPECT_EQ(b.outputs[0].format, PixelFormat::tiff16);
 }
 
@@ -78,6 +81,8 @@ TEST(Job, RejectsBadValuesAndSyntax) {
   test::write_text(path, "[[bake]]\nlow = \"l.obj\"\nhigh = \"h.obj\"\noutputs = [\"a.png\"]\nspace = \"world\"\n");
   EXPECT_FALSE(load_job_file(path, jobs).is_ok());
   test::write_text(path, "[[bake]]\nlow = \"l.obj\"\nhigh = \"h.obj\"\noutputs = [\"a.bmp\"]\n");
+  EXPECT_FALSE(load_job_file(path, jobs).is_ok());
+  test::write_text(path, "[[bake]]\nlow = \"l.obj\"\nhigh = \"h.obj\"\noutputs = [\"a.png\"]\nbvh = \"small\"\n");
   EXPECT_FALSE(load_job_file(path, jobs).is_ok());
   test::write_text(path, "[[bake]]\nlow = \"l.obj\"\noutputs = [\"a.png\"]\n");  // no high
   EXPECT_FALSE(load_job_file(path, jobs).is_ok());

@@ -58,6 +58,7 @@ struct BakeOptions {
   TangentEncode tangent_encode = TangentEncode::inverse;
   TangentBasis tangent_basis = TangentBasis::mikktspace;  // others: for the method comparison only
   BuildQuality build_quality = BuildQuality::medium;
+  BvhMemory bvh_memory = BvhMemory::automatic;
   int padding = 16;
   // A low mesh without UVs is unwrapped (atlas of the map's smaller side,
   // this many texels between charts) and written beside the first map as
@@ -84,6 +85,7 @@ struct BakeReport {
   std::uint64_t low_triangles = 0, high_triangles = 0, high_vertices = 0;
   float front = 0.0f, back = 0.0f;  // resolved, scene units
   bool distances_estimated = false;
+  bool compact_bvh = false;  // the BVH was built in Embree's compact layout (--bvh)
   float low_diagonal = 0.0f;
   LoadStats low_load, high_load;
   MeshStats low_mesh, high_mesh;

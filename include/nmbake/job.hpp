@@ -13,7 +13,7 @@
 //
 // Keys of [defaults] and [[bake]]: size, width, height, samples, space,
 // green, front, back, hit, cage_mode, ignore_backfaces, high_normals, padding,
-// build_quality, cage; [[bake]] alone: name, low, high, outputs, report,
+// build_quality, bvh, cage; [[bake]] alone: name, low, high, outputs, report,
 // debug_dump. Unknown keys are errors (a typo must not silently bake with a
 // default).
 #pragma once
@@ -41,6 +41,7 @@ bool parse_hit_rule(const std::string& text, HitRule& out);            // first 
 bool parse_high_normals(const std::string& text, HighNormals& out);    // smooth | face
 bool parse_cage_mode(const std::string& text, CageMode& out);          // averaged | interpolated
 bool parse_build_quality(const std::string& text, BuildQuality& out);  // low | medium | high
+bool parse_bvh_memory(const std::string& text, BvhMemory& out);        // auto | fast | compact
 bool parse_tangent_encode(const std::string& text, TangentEncode& out);  // inverse | transpose
 
 }  // namespace nmbake

@@ -34,6 +34,12 @@ namespace nmbake {
 enum class CageMode : std::uint8_t { averaged, interpolated, mesh };
 enum class HitRule : std::uint8_t { first, nearest };
 enum class BuildQuality : std::uint8_t { low, medium, high };
+// BVH layout: `fast` lets Embree copy each leaf's triangle vertices into the
+// BVH (triangle4v, about 84 bytes per triangle at the build's peak);
+// `compact` keeps only indices into the shared vertex buffer (about 28), for
+// slower traversal; `automatic` is compact above kCompactBvhAbove triangles.
+enum class BvhMemory : std::uint8_t { automatic, fast, compact };
+constexpr std::size_t kCompactBvhAbove = 16'000'000;
 
 struct RayOptions {
   CageMode cage = CageMode::averaged;
@@ -69,7 +75,10 @@ class HighScene {
   HighScene& operator=(const HighScene&) = delete;
 
   // Builds the BVH. `mesh` positions must be padded (pad_for_embree).
-  static Status build(const Mesh& mesh, BuildQuality quality, bool backface_filter, HighScene& out);
+  static Status build(const Mesh& mesh, BuildQuality quality, bool backface_filter, HighScene& out,
+                      BvhMemory memory = BvhMemory::automatic);
+  // Whether the built BVH is the compact layout (automatic resolved).
+  bool compact() const;
 
   struct Impl;
   Impl* impl() const { return impl_.get(); }

@@ -21,7 +21,7 @@ struct BakeFlags {
   std::string size = "2048";
   int samples = 4;
   std::string space = "tangent", green = "up", front = "auto", back = "auto", hit = "first";
-  std::string cage_mode = "averaged", high_normals = "smooth", build_quality = "medium", encode = "inverse";
+  std::string cage_mode = "averaged", high_normals = "smooth", build_quality = "medium", encode = "inverse", bvh = "auto";
   std::string format;
   std::string tangent_basis = "mikktspace";
   bool ignore_backfaces = false;
@@ -69,6 +69,7 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
   if (!parse_hit_rule(f.hit, o.hit)) return Status::bad_input("--hit " + f.hit + ": expected first or nearest");
   if (!parse_cage_mode(f.cage_mode, o.cage_mode)) return Status::bad_input("--cage-mode " + f.cage_mode + ": expected averaged or interpolated");
   if (!parse_high_normals(f.high_normals, o.high_normals)) return Status::bad_input("--high-normals " + f.high_normals + ": expected smooth or face");
+  if (!parse_bvh_memory(f.bvh, o.bvh_memory)) return Status::bad_input("--bvh " + f.bvh + ": expected auto, fast or compact");
   if (!parse_build_quality(f.build_quality, o.build_quality)) return Status::bad_input("--build-quality " + f.build_quality + ": expected low, medium or high");
   if (!parse_tangent_encode(f.encode, o.tangent_encode)) return Status::bad_input("--encode " + f.encode + ": expected inverse or transpose");
   if (!parse_tangent_basis(f.tangent_basis, o.tangent_basis)) return Status::bad_input("--tangent-basis " + f.tangent_basis + ": expected mikktspace, lengyel or face");
@@ -202,6 +203,10 @@ Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--report", flags->report, "write the bake report (JSON) here");
   cmd->add_option("--max-miss-rate", flags->max_miss_rate, "exit 1 when more than this share of rays miss (0..1)")->check(CLI::Range(0.0, 1.0));
   cmd->add_option("--build-quality", flags->build_quality, "BVH build quality: low | medium | high")->default_val("medium");
+  cmd->add_option("--bvh", flags->bvh,
+                  "BVH memory: fast (vertices copied into leaves) | compact (indices only, about a third of the "
+                  "memory, slower rays) | auto (compact above 16M high triangles)")
+      ->default_val("auto");
   cmd->add_option("--encode", flags->encode, "tangent-space encode: inverse (exact) | transpose (for comparison)")->default_val("inverse");
   cmd->add_option("--tangent-basis", flags->tangent_basis, "basis the map is encoded in: mikktspace | lengyel | face (comparison only)")->default_val("mikktspace");
   cmd->add_option("--debug-dump", flags->debug_dump, "also write PREFIX_coverage.png, PREFIX_misses.png, PREFIX_distance.exr");

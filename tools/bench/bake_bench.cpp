@@ -20,6 +20,7 @@
 #include <unistd.h>
 
 #include "nmbake/bake.hpp"
+#include "nmbake/job.hpp"
 
 namespace {
 
@@ -37,7 +38,7 @@ double stage(const nmbake::BakeReport& r, const char* name) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string low, high, label;
+  std::string low, high, label, bvh = "auto";
   int size = 2048, samples = 4, threads = 0, repeat = 3;
   CLI::App app{"nmbake-bench: a whole bake beside raw Embree on the same rays"};
   app.add_option("--low", low)->required();
@@ -46,6 +47,7 @@ int main(int argc, char** argv) {
   app.add_option("--size", size)->capture_default_str();
   app.add_option("--samples", samples)->capture_default_str();
   app.add_option("--threads", threads, "0 = all cores")->capture_default_str();
+  app.add_option("--bvh", bvh, "auto | fast | compact")->capture_default_str();
   app.add_option("--repeat", repeat)->capture_default_str()->check(CLI::Range(1, 50));
   CLI11_PARSE(app, argc, argv);
   if (label.empty()) label = std::filesystem::path(high).stem().string();
@@ -64,6 +66,10 @@ int main(int argc, char** argv) {
   o.width = o.height = size;
   o.samples = samples;
   o.outputs = {{(dir / "map.png").string(), nmbake::PixelFormat::png16}};
+  if (!nmbake::parse_bvh_memory(bvh, o.bvh_memory)) {
+    std::fprintf(stderr, "nmbake-bench: --bvh %s: expected auto, fast or compact\n", bvh.c_str());
+    return 2;
+  }
 
   std::vector<double> load, build, raster, trace, encode, write, total, raw;
   nmbake::BakeReport report;
@@ -95,7 +101,7 @@ int main(int argc, char** argv) {
     nmbake::SurfaceStats ss;
     const nmbake::LowSurface surface = nmbake::build_low_surface(low_mesh, nullptr, ss);
     nmbake::HighScene scene;
-    if (!nmbake::HighScene::build(high_mesh, nmbake::BuildQuality::medium, false, scene)) return 3;
+    if (!nmbake::HighScene::build(high_mesh, nmbake::BuildQuality::medium, false, scene, o.bvh_memory)) return 3;
     nmbake::TexelSamples ts;
     nmbake::RasterStats rs;
     nmbake::rasterize(surface, size, size, samples, ts, rs);
@@ -113,10 +119,11 @@ int main(int argc, char** argv) {
   const double bake_rays_per_s = static_cast<double>(report.trace.rays) / median(trace);
   const double raw_rays_per_s = static_cast<double>(raw_rays) / median(raw);
   std::printf(
-      "bench %-12s tris %9llu  map %5d x%-2d threads %d | load %6.3f build %6.3f raster %6.3f trace %6.3f "
+      "bench %-12s tris %9llu  map %5d x%-2d threads %d bvh %-7s | load %6.3f build %6.3f raster %6.3f trace %6.3f "
       "encode %6.3f write %6.3f total %6.3f s | bake %6.2f Mrays/s raw %6.2f Mrays/s ratio %.2f | peak %6.0f MiB "
       "(%.0f B/tri)\n",
       label.c_str(), static_cast<unsigned long long>(report.high_triangles), size, samples, report.threads,
+      report.compact_bvh ? "compact" : "fast",
       median(load), median(build), median(raster), median(trace), median(encode), median(write), median(total),
       1e-6 * bake_rays_per_s, 1e-6 * raw_rays_per_s, bake_rays_per_s / raw_rays_per_s,
       static_cast<double>(bake_peak) / (1024.0 * 1024.0),
