@@ -65,6 +65,9 @@ struct LoadStats {
   std::uint64_t polygons = 0;        // faces in the file before triangulation
   std::uint64_t triangles = 0;       // after triangulation
   std::uint64_t degenerate_faces = 0;  // faces with fewer than 3 corners: skipped
+
+  // Load rate in MB/s (10^6 bytes), 0 before a load.
+  double mb_per_second() const { return seconds > 0.0 ? static_cast<double>(bytes) / seconds * 1e-6 : 0.0; }
 };
 
 Status load_mesh(const std::string& path, const LoadOptions& options, Mesh& out, LoadStats& stats);
