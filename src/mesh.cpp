@@ -17,6 +17,8 @@
 
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
 
 namespace nmbake {
 namespace {
@@ -117,6 +119,21 @@ std::string vec_text(const float* v, int n) {
 
 bool finite3(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
+// Lowest k in [0, count) with failing(k), or count; scanned on all cores.
+template <typename Failing>
+std::size_t first_failing(std::size_t count, const Failing& failing) {
+  return tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, count, 65536), count,
+      [&](const tbb::blocked_range<std::size_t>& range, std::size_t found) {
+        // Nothing below `found` can be in a later range: stop early.
+        for (std::size_t k = range.begin(); k != range.end() && k < found; ++k) {
+          if (failing(k)) return k;
+        }
+        return found;
+      },
+      [](std::size_t a, std::size_t b) { return std::min(a, b); });
+}
+
 }  // namespace
 
 Status validate_mesh(const Mesh& mesh, const std::string& name) {
@@ -135,29 +152,30 @@ Status validate_mesh(const Mesh& mesh, const std::string& name) {
     return Status::bad_input(name + ": " + std::to_string(mesh.uvs.size()) + " UVs for " +
                              std::to_string(vertex_count) + " vertices");
   }
-  for (std::size_t i = 0; i < vertex_count; ++i) {
-    if (!finite3(mesh.positions[i])) {
-      return Status::bad_input(name + ": vertex " + std::to_string(i) + " has a non-finite position " +
-                               vec_text(&mesh.positions[i].x, 3));
-    }
+  // Checked on all cores; the first bad element (lowest index) is reported,
+  // as a serial scan would.
+  if (const std::size_t i = first_failing(vertex_count, [&](std::size_t k) { return !finite3(mesh.positions[k]); });
+      i < vertex_count) {
+    return Status::bad_input(name + ": vertex " + std::to_string(i) + " has a non-finite position " +
+                             vec_text(&mesh.positions[i].x, 3));
   }
-  for (std::size_t i = 0; i < mesh.normals.size(); ++i) {
-    if (!finite3(mesh.normals[i])) {
-      return Status::bad_input(name + ": vertex " + std::to_string(i) + " has a non-finite normal " +
-                               vec_text(&mesh.normals[i].x, 3));
-    }
+  if (const std::size_t i =
+          first_failing(mesh.normals.size(), [&](std::size_t k) { return !finite3(mesh.normals[k]); });
+      i < mesh.normals.size()) {
+    return Status::bad_input(name + ": vertex " + std::to_string(i) + " has a non-finite normal " +
+                             vec_text(&mesh.normals[i].x, 3));
   }
-  for (std::size_t i = 0; i < mesh.uvs.size(); ++i) {
-    if (!std::isfinite(mesh.uvs[i].x) || !std::isfinite(mesh.uvs[i].y)) {
-      return Status::bad_input(name + ": vertex " + std::to_string(i) + " has a non-finite UV " +
-                               vec_text(&mesh.uvs[i].x, 2));
-    }
+  if (const std::size_t i = first_failing(
+          mesh.uvs.size(), [&](std::size_t k) { return !std::isfinite(mesh.uvs[k].x) || !std::isfinite(mesh.uvs[k].y); });
+      i < mesh.uvs.size()) {
+    return Status::bad_input(name + ": vertex " + std::to_string(i) + " has a non-finite UV " +
+                             vec_text(&mesh.uvs[i].x, 2));
   }
-  for (std::size_t i = 0; i < mesh.indices.size(); ++i) {
-    if (mesh.indices[i] >= vertex_count) {
-      return Status::bad_input(name + ": triangle " + std::to_string(i / 3) + " refers to vertex " +
-                               std::to_string(mesh.indices[i]) + " of " + std::to_string(vertex_count));
-    }
+  if (const std::size_t i =
+          first_failing(mesh.indices.size(), [&](std::size_t k) { return mesh.indices[k] >= vertex_count; });
+      i < mesh.indices.size()) {
+    return Status::bad_input(name + ": triangle " + std::to_string(i / 3) + " refers to vertex " +
+                             std::to_string(mesh.indices[i]) + " of " + std::to_string(vertex_count));
   }
   return Status::ok();
 }

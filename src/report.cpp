@@ -79,6 +79,7 @@ std::string BakeReport::to_json() const {
   j["rays_per_second"] = trace_seconds > 0.0 ? static_cast<double>(trace.rays) / trace_seconds : 0.0;
   j["peak_rss_bytes"] = peak_rss_bytes;
   j["input_bytes"] = {{"low", low_load.bytes}, {"high", high_load.bytes}};
+  j["load_mb_per_second"] = {{"low", low_load.mb_per_second()}, {"high", high_load.mb_per_second()}};
   return j.dump(2) + "\n";
 }
 

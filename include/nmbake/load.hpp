@@ -32,8 +32,17 @@
 //   * Faces with fewer than 3 corners (points, lines) are skipped and counted
 //     in LoadStats::degenerate_faces; LoadStats::polygons counts the others.
 //   * Reals out of float range or NaN/Inf are errors; underflow reads as 0.
+//
+// Speed: the file is read in blocks (LoadOptions::block_bytes, so memory
+// stays near the size of the mesh arrays), and each block is decoded on all
+// cores: fixed-stride binary PLY records (vertices; faces that are triangles
+// with a one-byte count) and OBJ text split at line boundaries. Anything else
+// (ascii PLY, other face layouts) is read by the one-thread parsers. The
+// result does not depend on the thread count or the block size.
 #pragma once
 
+#include <cstddef>
+#include <cstdint>
 #include <string>
 
 #include "nmbake/common.hpp"
@@ -44,13 +53,21 @@ namespace nmbake {
 struct LoadOptions {
   bool keep_uvs = true;      // false for the high mesh: never split vertices at UV seams
   bool keep_normals = true;  // false: file normals are dropped (e.g. --high-normals face)
+  // Tuning of the parallel parsers, for tests and benchmarks; the loaded mesh
+  // and every error are the same whatever they are set to.
+  std::size_t block_bytes = 0;  // bytes read and decoded at a time; 0: 4 MiB
+  bool serial = false;          // true: the one-thread reference parsers only
 };
 
 struct LoadStats {
   std::uint64_t bytes = 0;           // file size
+  double seconds = 0.0;              // wall time of load_mesh
   std::uint64_t polygons = 0;        // faces in the file before triangulation
   std::uint64_t triangles = 0;       // after triangulation
   std::uint64_t degenerate_faces = 0;  // faces with fewer than 3 corners: skipped
+
+  // Load rate in MB/s (10^6 bytes), 0 before a load.
+  double mb_per_second() const { return seconds > 0.0 ? static_cast<double>(bytes) / seconds * 1e-6 : 0.0; }
 };
 
 Status load_mesh(const std::string& path, const LoadOptions& options, Mesh& out, LoadStats& stats);

@@ -151,6 +151,12 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
       std::printf("%s: %s\n", job.name.c_str(), report.summary_line().c_str());
       if (global.verbose) {
         for (const StageTime& st : report.stages) std::printf("  %-10s %8.3f s\n", st.name.c_str(), st.seconds);
+        const auto print_load = [](const char* which, const LoadStats& load) {
+          std::printf("  load %-5s %8.3f s  %.1f MB at %.0f MB/s\n", which, load.seconds,
+                      static_cast<double>(load.bytes) * 1e-6, load.mb_per_second());
+        };
+        print_load("low", report.low_load);
+        print_load("high", report.high_load);
       }
       const std::uint64_t fallbacks = report.tangents.fallback_tangents + report.encode.singular_frames +
                                       report.trace.ray_fallbacks + report.encode.zero_high_normals;

@@ -7,6 +7,7 @@
 // pages fault in once.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -58,6 +59,24 @@ class FileReader {
   // Binary: consumes `count` bytes without keeping them; false when the file
   // ends first.
   bool skip(std::uint64_t count);
+  // Blocks for the parallel decoders: up to `count` bytes at the read
+  // position, not consumed; returns how many (0 only at the end of the file
+  // or after a read error). Refills only when fewer than half are buffered,
+  // so a decoder that stops early and resumes does not move the buffer each
+  // time. The request is capped at what the file still holds, so a small
+  // file keeps a small buffer.
+  std::size_t peek(std::size_t count, const char*& bytes) {
+    const std::uint64_t unread = file_size_ - std::min(file_size_, offset());
+    count = static_cast<std::size_t>(std::min<std::uint64_t>(count, std::max<std::uint64_t>(unread, 1)));
+    if (end_ - pos_ < (count + 1) / 2) fill(count);
+    bytes = data_ + pos_;
+    return std::min(count, end_ - pos_);
+  }
+  // Consumes `count` bytes of what peek() returned.
+  void consume(std::size_t count) { pos_ += count; }
+  // Text blocks: counts the lines the caller consumed through peek().
+  void add_lines(std::uint64_t count) { line_number_ += count; }
+
   // Absolute file offset of the next unread byte.
   std::uint64_t offset() const { return buffer_offset_ + pos_; }
 
@@ -110,6 +129,9 @@ std::string number_error_text(NumberError error, std::string_view token);
 Status text_error(const std::string& path, std::uint64_t line, const std::string& reason);
 // "PATH: byte OFFSET: reason"
 Status binary_error(const std::string& path, std::uint64_t offset, const std::string& reason);
+
+// LoadOptions::block_bytes, or its default.
+std::size_t block_bytes(const LoadOptions& options);
 
 // Removes vertices that no triangle references, keeping the order of the
 // others and remapping the indices. Indices must already be in range.

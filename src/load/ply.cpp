@@ -5,10 +5,14 @@
 // vertex_indices or vertex_index, fan-triangulated); everything else skipped
 // by its declared layout.
 //
-// PLY attributes are per vertex, so no vertex is ever split. Fast paths: a
-// vertex element of fixed-size scalars is read record by record with a fixed
-// stride, and a face element holding only a uchar/char-counted list of
-// int/uint in host byte order reads triangles with one copy.
+// PLY attributes are per vertex, so no vertex is ever split. Fast paths for
+// binary bodies: a vertex element of fixed-size scalars is decoded block by
+// block with a fixed stride on all cores, and so are the triangles of a face
+// element holding only a one-byte-counted list of 32-bit indices (13-byte
+// records); the first record these cannot take (a polygon, a bad value, the
+// end of the file) goes through the record-by-record reader, which also
+// names the byte of any error.
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstring>
@@ -18,11 +22,21 @@
 
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
 
 #include "load/parsers.hpp"
 
 namespace nmbake::load_detail {
 namespace {
+
+// Records per task of the parallel decoders: enough work to hide the task
+// overhead, small enough to balance two cores on a block.
+constexpr std::size_t kRecordGrain = 16384;
+
+std::uint32_t byteswap32(std::uint32_t value) {
+  return (value >> 24) | ((value >> 8) & 0xff00u) | ((value << 8) & 0xff0000u) | (value << 24);
+}
 
 enum class PlyType : std::uint8_t { int8, uint8, int16, uint16, int32, uint32, float32, float64 };
 
@@ -412,41 +426,50 @@ class PlyParser {
                                   " (NaN, Inf or beyond float range)");
   }
 
+  struct WantedValue {
+    std::size_t offset;  // in the record
+    PlyType type;
+    int slot;
+  };
+
+  // One wanted value of a fixed-stride record as float; false when it is not
+  // finite (NaN, Inf or beyond float range).
+  bool decode_value(const char* record, const WantedValue& w, float& value) const {
+    if (w.type == PlyType::float32) {
+      std::uint32_t bits;
+      std::memcpy(&bits, record + w.offset, sizeof(bits));
+      if (swap_) bits = byteswap32(bits);
+      value = std::bit_cast<float>(bits);
+    } else {
+      value = static_cast<float>(load_as_double(record + w.offset, w.type, swap_));
+    }
+    return std::isfinite(value);
+  }
+
   Status read_vertices_binary(const PlyElement& element) {
     float values[kSlotCount] = {};
     if (element.fixed_size()) {
-      // Fixed stride: one take per record, each wanted value copied from its
-      // offset (a plain copy for host-order float32, the common case).
       std::size_t stride = 0;
       std::vector<std::size_t> offsets(element.properties.size());
       for (std::size_t i = 0; i < element.properties.size(); ++i) {
         offsets[i] = stride;
         stride += type_size(element.properties[i].type);
       }
-      struct Wanted {
-        std::size_t offset;
-        PlyType type;
-        int slot;
-      };
-      std::vector<Wanted> wanted;
+      std::vector<WantedValue> wanted;
       for (std::size_t i = 0; i < element.properties.size(); ++i) {
         if (slot_of_property_[i] >= 0) wanted.push_back({offsets[i], element.properties[i].type, slot_of_property_[i]});
       }
-      for (std::uint64_t v = 0; v < element.count; ++v) {
+      std::uint64_t v = options_.serial ? 0 : read_vertex_blocks(element, stride, wanted);
+      // The rest (nothing, or the record with an error, or a truncated end)
+      // record by record, which names the byte of the problem.
+      for (; v < element.count; ++v) {
         const std::uint64_t record_offset = reader_.offset();
         const char* record = reader_.take(stride);
         if (record == nullptr) return truncated(record_offset, element, v);
-        for (const Wanted& w : wanted) {
-          float value;
-          if (w.type == PlyType::float32 && !swap_) {
-            std::memcpy(&value, record + w.offset, sizeof(float));
-          } else {
-            value = static_cast<float>(load_as_double(record + w.offset, w.type, swap_));
-          }
-          if (!std::isfinite(value)) {
+        for (const WantedValue& w : wanted) {
+          if (!decode_value(record, w, values[w.slot])) {
             return non_finite(record_offset + w.offset, v, load_as_double(record + w.offset, w.type, swap_));
           }
-          values[w.slot] = value;
         }
         store_vertex(static_cast<std::size_t>(v), values);
       }
@@ -473,6 +496,40 @@ class PlyParser {
     return Status::ok();
   }
 
+  // Decodes whole blocks of fixed-stride vertex records on all cores, up to
+  // the first record with a non-finite value or the end of the file; returns
+  // how many records were stored. Each record lands in its own slot, so the
+  // result does not depend on the thread count.
+  std::uint64_t read_vertex_blocks(const PlyElement& element, std::size_t stride,
+                                   const std::vector<WantedValue>& wanted) {
+    const std::size_t records_per_block = std::max<std::size_t>(1, block_bytes(options_) / stride);
+    std::uint64_t v = 0;
+    while (v < element.count) {
+      const auto want = static_cast<std::size_t>(std::min<std::uint64_t>(records_per_block, element.count - v));
+      const char* bytes = nullptr;
+      const std::size_t record_count = reader_.peek(want * stride, bytes) / stride;
+      if (record_count == 0) break;
+      const std::size_t first_bad = tbb::parallel_reduce(
+          tbb::blocked_range<std::size_t>(0, record_count, kRecordGrain), record_count,
+          [&](const tbb::blocked_range<std::size_t>& range, std::size_t bad) {
+            float record_values[kSlotCount] = {};
+            for (std::size_t r = range.begin(); r != range.end(); ++r) {
+              const char* record = bytes + r * stride;
+              bool finite = true;
+              for (const WantedValue& w : wanted) finite &= decode_value(record, w, record_values[w.slot]);
+              if (!finite) return std::min(bad, r);
+              store_vertex(static_cast<std::size_t>(v + r), record_values);
+            }
+            return bad;
+          },
+          [](std::size_t a, std::size_t b) { return std::min(a, b); });
+      reader_.consume(first_bad * stride);
+      v += first_bad;
+      if (first_bad < record_count) break;
+    }
+    return v;
+  }
+
   // Reads a list count, checking it against what the file can still hold.
   Status read_list_count_binary(const PlyProperty& property, const PlyElement& element, std::uint64_t entry,
                                 std::uint64_t& count) {
@@ -497,54 +554,105 @@ class PlyParser {
 
   Status read_faces_binary(const PlyElement& element) {
     const PlyProperty& index_property = element.properties[static_cast<std::size_t>(index_property_)];
-    const std::size_t index_size = type_size(index_property.type);
-    const bool fast = element.properties.size() == 1 && type_size(index_property.count_type) == 1 &&
-                      (index_property.type == PlyType::int32 || index_property.type == PlyType::uint32) && !swap_;
-    const bool signed_indices = index_property.type == PlyType::int8 || index_property.type == PlyType::int16 ||
-                                index_property.type == PlyType::int32;
-    const auto vertex_count = static_cast<std::uint32_t>(out_.positions.size());
-    for (std::uint64_t f = 0; f < element.count; ++f) {
-      const std::uint64_t face_offset = reader_.offset();
-      if (fast) {
-        const char* count_byte = reader_.take(1);
-        if (count_byte == nullptr) return truncated(face_offset, element, f);
-        if (*count_byte == 3) {
-          const char* bytes = reader_.take(12);
-          if (bytes == nullptr) return truncated(face_offset, element, f);
-          std::uint32_t triangle[3];
-          std::memcpy(triangle, bytes, sizeof(triangle));
-          for (int c = 0; c < 3; ++c) {
-            if (triangle[c] >= vertex_count) {
-              const std::int64_t shown = signed_indices ? std::int64_t(std::int32_t(triangle[c])) : triangle[c];
-              return byte_error(face_offset + 1 + 4 * c, index_error_text(f, shown));
-            }
-          }
-          ++stats_.polygons;
-          out_.indices.insert(out_.indices.end(), triangle, triangle + 3);
-          continue;
-        }
-        // Any other corner count: same layout, read generically below.
-        const std::int64_t count = load_as_int(count_byte, index_property.count_type, swap_);
-        if (count < 0) return byte_error(face_offset, "face " + std::to_string(f) + ": negative list count");
-        NMBAKE_TRY(read_indices_binary(static_cast<std::uint64_t>(count), index_property, index_size, element, f));
-        emit_face();
-        continue;
+    // The layout of nearly every binary PLY: a one-byte count and 32-bit
+    // indices, nothing else. Its triangles are 13-byte records.
+    const bool one_list = element.properties.size() == 1 && type_size(index_property.count_type) == 1 &&
+                          type_size(index_property.type) == 4;
+    std::uint64_t f = 0;
+    while (f < element.count) {
+      if (one_list && !options_.serial) {
+        f += read_triangle_blocks(element, f);
+        if (f == element.count) break;
       }
-      for (std::size_t i = 0; i < element.properties.size(); ++i) {
-        const PlyProperty& property = element.properties[i];
-        const std::uint64_t value_offset = reader_.offset();
-        if (static_cast<int>(i) == index_property_) {
-          std::uint64_t count = 0;
-          NMBAKE_TRY(read_list_count_binary(property, element, f, count));
-          NMBAKE_TRY(read_indices_binary(count, property, index_size, element, f));
-        } else if (property.is_list) {
-          NMBAKE_TRY(skip_list_binary(property, element, f));
-        } else if (reader_.take(type_size(property.type)) == nullptr) {
-          return truncated(value_offset, element, f);
-        }
-      }
-      emit_face();
+      // One face the blocks could not take (a polygon, an error, the end of
+      // the file), or every face when the layout is another.
+      NMBAKE_TRY(read_face_binary(element, f));
+      ++f;
     }
+    return Status::ok();
+  }
+
+  // Decodes 13-byte triangle records from face `first` on, on all cores, up
+  // to the first record that is not a triangle with indices in range (or the
+  // end of the file); returns how many were stored.
+  std::uint64_t read_triangle_blocks(const PlyElement& element, std::uint64_t first) {
+    constexpr std::size_t kStride = 13;
+    const std::size_t records_per_block = std::max<std::size_t>(1, block_bytes(options_) / kStride);
+    const auto vertex_count = static_cast<std::uint32_t>(out_.positions.size());
+    const bool swap = swap_;
+    if (out_.indices.capacity() == 0) out_.indices.reserve(static_cast<std::size_t>(element.count) * 3);
+    std::uint64_t f = first;
+    while (f < element.count) {
+      const auto want = static_cast<std::size_t>(std::min<std::uint64_t>(records_per_block, element.count - f));
+      const char* bytes = nullptr;
+      const std::size_t record_count = reader_.peek(want * kStride, bytes) / kStride;
+      if (record_count == 0) break;
+      const std::size_t base = out_.indices.size();
+      out_.indices.resize(base + record_count * 3);
+      std::uint32_t* indices = out_.indices.data() + base;
+      const std::size_t first_bad = tbb::parallel_reduce(
+          tbb::blocked_range<std::size_t>(0, record_count, kRecordGrain), record_count,
+          [&](const tbb::blocked_range<std::size_t>& range, std::size_t bad) {
+            for (std::size_t r = range.begin(); r != range.end(); ++r) {
+              const char* record = bytes + r * kStride;
+              std::uint32_t triangle[3];
+              std::memcpy(triangle, record + 1, sizeof(triangle));
+              if (swap) {
+                for (std::uint32_t& index : triangle) index = byteswap32(index);
+              }
+              // A negative int32 index is a huge uint32: out of range too.
+              if (record[0] != 3 || triangle[0] >= vertex_count || triangle[1] >= vertex_count ||
+                  triangle[2] >= vertex_count) {
+                return std::min(bad, r);
+              }
+              std::memcpy(indices + 3 * r, triangle, sizeof(triangle));
+            }
+            return bad;
+          },
+          [](std::size_t a, std::size_t b) { return std::min(a, b); });
+      out_.indices.resize(base + first_bad * 3);
+      stats_.polygons += first_bad;
+      reader_.consume(first_bad * kStride);
+      f += first_bad;
+      if (first_bad < record_count) break;
+    }
+    return f - first;
+  }
+
+  // Face `f`, property by property (fan-triangulated, range-checked).
+  Status read_face_binary(const PlyElement& element, std::uint64_t f) {
+    const PlyProperty& index_property = element.properties[static_cast<std::size_t>(index_property_)];
+    const std::size_t index_size = type_size(index_property.type);
+    if (element.properties.size() == 1 && type_size(index_property.count_type) == 1 && index_size == 4 && !swap_) {
+      // As the record-by-record reader always did for this layout: a
+      // truncated triangle is reported at its start, a truncated polygon at
+      // its first missing index.
+      const std::uint64_t face_offset = reader_.offset();
+      const char* count_byte = reader_.take(1);
+      if (count_byte == nullptr) return truncated(face_offset, element, f);
+      if (*count_byte == 3 && reader_.offset() + 12 > reader_.file_size()) {
+        return truncated(face_offset, element, f);
+      }
+      const std::int64_t count = load_as_int(count_byte, index_property.count_type, swap_);
+      if (count < 0) return byte_error(face_offset, "face " + std::to_string(f) + ": negative list count");
+      NMBAKE_TRY(read_indices_binary(static_cast<std::uint64_t>(count), index_property, index_size, element, f));
+      emit_face();
+      return Status::ok();
+    }
+    for (std::size_t i = 0; i < element.properties.size(); ++i) {
+      const PlyProperty& property = element.properties[i];
+      const std::uint64_t value_offset = reader_.offset();
+      if (static_cast<int>(i) == index_property_) {
+        std::uint64_t count = 0;
+        NMBAKE_TRY(read_list_count_binary(property, element, f, count));
+        NMBAKE_TRY(read_indices_binary(count, property, index_size, element, f));
+      } else if (property.is_list) {
+        NMBAKE_TRY(skip_list_binary(property, element, f));
+      } else if (reader_.take(type_size(property.type)) == nullptr) {
+        return truncated(value_offset, element, f);
+      }
+    }
+    emit_face();
     return Status::ok();
   }
 

@@ -1,0 +1,257 @@
+// The parallel block decoders of the load stage against the one-thread
+// reference parsers (LoadOptions::serial): meshes spanning many small blocks,
+// loaded with one and two threads, must give the same arrays, counters and
+// error messages as the reference.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include <tbb/global_control.h>
+
+#include "nmbake/load.hpp"
+#include "test_util.hpp"
+
+namespace nmbake {
+namespace {
+
+using test::TempDir;
+using test::write_text;
+
+// A binary PLY body in either byte order.
+class PlyBytes {
+ public:
+  explicit PlyBytes(bool big_endian) : big_endian_(big_endian) {}
+  template <typename T>
+  void put(T value) {
+    unsigned char raw[sizeof(T)];
+    std::memcpy(raw, &value, sizeof(T));
+    if (big_endian_ == host_is_little_endian()) {
+      for (std::size_t i = 0; i < sizeof(T) / 2; ++i) std::swap(raw[i], raw[sizeof(T) - 1 - i]);
+    }
+    data_.append(reinterpret_cast<const char*>(raw), sizeof(T));
+  }
+  void text(const std::string& s) { data_ += s; }
+  const std::string& data() const { return data_; }
+  std::size_t size() const { return data_.size(); }
+
+ private:
+  static bool host_is_little_endian() {
+    const std::uint16_t one = 1;
+    unsigned char first = 0;
+    std::memcpy(&first, &one, 1);
+    return first == 1;
+  }
+  bool big_endian_;
+  std::string data_;
+};
+
+// A grid of side x side vertices with irregular coordinates, two triangles
+// per cell; `quad_cells` lists cells written as one quad instead.
+struct GridPly {
+  int side = 60;
+  bool big_endian = false;
+  bool doubles = false;      // vertex values as float64 (the generic stride decode)
+  bool with_uvs = true;
+  std::vector<int> quad_cells;
+  int nan_vertex = -1;       // this vertex's y is NaN
+  int bad_index_face = -1;   // this face's last index is out of range
+
+  std::string bytes() const {
+    const int vertex_count = side * side;
+    const int cell_count = (side - 1) * (side - 1);
+    const int face_count = 2 * cell_count - static_cast<int>(quad_cells.size());
+    PlyBytes file(big_endian);
+    const char* type = doubles ? "double" : "float";
+    std::string header = std::string("ply\nformat ") + (big_endian ? "binary_big_endian" : "binary_little_endian") +
+                         " 1.0\nelement vertex " + std::to_string(vertex_count) + "\n";
+    for (const char* name : {"x", "y", "z", "nx", "ny", "nz"}) header += std::string("property ") + type + " " + name + "\n";
+    if (with_uvs) header += std::string("property ") + type + " u\nproperty " + type + " v\n";
+    header += "element face " + std::to_string(face_count) + "\nproperty list uchar int vertex_indices\nend_header\n";
+    file.text(header);
+    for (int v = 0; v < vertex_count; ++v) {
+      const float x = static_cast<float>(v % side) + 0.001f * static_cast<float>((v * 7919) % 997);
+      const float y = v == nan_vertex ? std::numeric_limits<float>::quiet_NaN() : static_cast<float>(v / side);
+      const float z = std::sin(static_cast<float>(v) * 0.37f);
+      float values[8] = {x, y, z, 0.0f, z, 1.0f, x / static_cast<float>(side), y / static_cast<float>(side)};
+      for (int i = 0; i < (with_uvs ? 8 : 6); ++i) {
+        if (doubles) {
+          file.put(static_cast<double>(values[i]));
+        } else {
+          file.put(values[i]);
+        }
+      }
+    }
+    int face = 0;
+    auto put_face = [&](std::initializer_list<int> corners) {
+      file.put(static_cast<std::uint8_t>(corners.size()));
+      int c = 0;
+      for (const int corner : corners) {
+        const bool bad = face == bad_index_face && ++c == static_cast<int>(corners.size());
+        file.put(static_cast<std::int32_t>(bad ? vertex_count : corner));
+      }
+      ++face;
+    };
+    for (int cell = 0; cell < cell_count; ++cell) {
+      const int row = cell / (side - 1);
+      const int column = cell % (side - 1);
+      const int a = row * side + column;
+      const int b = a + 1;
+      const int c = a + side + 1;
+      const int d = a + side;
+      bool quad = false;
+      for (const int q : quad_cells) quad |= q == cell;
+      if (quad) {
+        put_face({a, b, c, d});
+      } else {
+        put_face({a, b, c});
+        put_face({a, c, d});
+      }
+    }
+    return file.data();
+  }
+};
+
+struct Loaded {
+  Status status;
+  Mesh mesh;
+  LoadStats stats;
+};
+
+Loaded load(const std::string& path, bool serial, int threads, std::size_t block_bytes = 1000) {
+  tbb::global_control control(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
+  LoadOptions options;
+  options.serial = serial;
+  options.block_bytes = block_bytes;
+  Loaded result;
+  result.status = load_mesh(path, options, result.mesh, result.stats);
+  return result;
+}
+
+// Bitwise, so -0 and NaN payloads count too.
+template <typename T>
+bool same_bits(const std::vector<T>& a, const std::vector<T>& b) {
+  return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
+}
+
+void expect_same(const Loaded& reference, const Loaded& other) {
+  ASSERT_EQ(reference.status.is_ok(), other.status.is_ok()) << other.status.message();
+  EXPECT_EQ(reference.status.message(), other.status.message());
+  EXPECT_TRUE(same_bits(reference.mesh.positions, other.mesh.positions));
+  EXPECT_TRUE(same_bits(reference.mesh.normals, other.mesh.normals));
+  EXPECT_TRUE(same_bits(reference.mesh.uvs, other.mesh.uvs));
+  EXPECT_TRUE(same_bits(reference.mesh.indices, other.mesh.indices));
+  EXPECT_EQ(reference.stats.polygons, other.stats.polygons);
+  EXPECT_EQ(reference.stats.triangles, other.stats.triangles);
+  EXPECT_EQ(reference.stats.degenerate_faces, other.stats.degenerate_faces);
+}
+
+// The reference, then the block decoders with 1 and 2 threads and a few
+// block sizes (1000 bytes: ~30 vertex records, ~75 triangles a block).
+Loaded expect_blocks_match_reference(const std::string& path) {
+  Loaded reference = load(path, true, 1);
+  for (const int threads : {1, 2}) {
+    for (const std::size_t block : {std::size_t{1000}, std::size_t{4093}, std::size_t{0}}) {
+      SCOPED_TRACE("threads " + std::to_string(threads) + ", block " + std::to_string(block));
+      expect_same(reference, load(path, false, threads, block));
+    }
+  }
+  return reference;
+}
+
+TEST(LoadParallelPly, BlocksMatchTheReferenceInBothByteOrders) {
+  TempDir dir;
+  for (const bool big_endian : {false, true}) {
+    for (const bool doubles : {false, true}) {
+      SCOPED_TRACE(std::string(big_endian ? "big" : "little") + " endian, " + (doubles ? "doubles" : "floats"));
+      GridPly grid;
+      grid.big_endian = big_endian;
+      grid.doubles = doubles;
+      const std::string path = dir.file("grid.ply");
+      write_text(path, grid.bytes());
+      const Loaded reference = expect_blocks_match_reference(path);
+      ASSERT_TRUE(reference.status.is_ok()) << reference.status.message();
+      EXPECT_EQ(reference.mesh.vertex_count(), 3600u);
+      EXPECT_EQ(reference.stats.triangles, 2u * 59u * 59u);
+      EXPECT_EQ(reference.mesh.positions[61].y, 1.0f);  // decoded, not left at zero
+      EXPECT_EQ(reference.mesh.uvs.size(), 3600u);
+    }
+  }
+}
+
+TEST(LoadParallelPly, PolygonsBetweenTrianglesResumeTheBlocks) {
+  // Quads in the first face, in the middle of a block, on a block edge and
+  // last: each one leaves the block decoder and comes back.
+  TempDir dir;
+  GridPly grid;
+  grid.with_uvs = false;
+  grid.quad_cells = {0, 37, 38, 75, 1000, 59 * 59 - 1};
+  const std::string path = dir.file("mixed.ply");
+  write_text(path, grid.bytes());
+  const Loaded reference = expect_blocks_match_reference(path);
+  ASSERT_TRUE(reference.status.is_ok()) << reference.status.message();
+  EXPECT_EQ(reference.stats.polygons, 2u * 59u * 59u - 6u);
+  EXPECT_EQ(reference.stats.triangles, 2u * 59u * 59u);
+}
+
+TEST(LoadParallelPly, ErrorsInLateBlocksNameTheSameByte) {
+  TempDir dir;
+  const std::string path = dir.file("bad.ply");
+  for (const bool big_endian : {false, true}) {
+    SCOPED_TRACE(big_endian ? "big endian" : "little endian");
+    {
+      GridPly grid;
+      grid.big_endian = big_endian;
+      grid.nan_vertex = 3000;
+      write_text(path, grid.bytes());
+      const Loaded reference = expect_blocks_match_reference(path);
+      EXPECT_NE(reference.status.message().find("vertex 3000: non-finite"), std::string::npos)
+          << reference.status.message();
+    }
+    {
+      GridPly grid;
+      grid.big_endian = big_endian;
+      grid.bad_index_face = 6000;
+      write_text(path, grid.bytes());
+      const Loaded reference = expect_blocks_match_reference(path);
+      EXPECT_NE(reference.status.message().find("face 6000: vertex index 3600 out of range"), std::string::npos)
+          << reference.status.message();
+    }
+    {
+      // Cut inside the last triangles: the header count still fits.
+      GridPly grid;
+      grid.big_endian = big_endian;
+      std::string bytes = grid.bytes();
+      bytes.resize(bytes.size() - 20);
+      write_text(path, bytes);
+      const Loaded reference = expect_blocks_match_reference(path);
+      EXPECT_NE(reference.status.message().find("file ends inside face"), std::string::npos)
+          << reference.status.message();
+    }
+  }
+}
+
+TEST(LoadParallelValidate, FirstBadElementIsReportedWithTwoThreads) {
+  // Several bad values far apart: the lowest index is the one named.
+  Mesh mesh;
+  const std::size_t vertex_count = 300000;
+  mesh.positions.assign(vertex_count, glm::vec3(1.0f));
+  mesh.indices.assign(3 * 200000, 0u);
+  for (std::size_t i = 0; i < mesh.indices.size(); ++i) mesh.indices[i] = static_cast<std::uint32_t>(i % vertex_count);
+  tbb::global_control control(tbb::global_control::max_allowed_parallelism, 2);
+  mesh.positions[250000].y = std::numeric_limits<float>::infinity();
+  mesh.positions[170001].z = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_NE(validate_mesh(mesh, "m").message().find("m: vertex 170001 has a non-finite position"), std::string::npos);
+  mesh.positions.assign(vertex_count, glm::vec3(1.0f));
+  mesh.indices[590000] = 300000;
+  mesh.indices[400001] = 300001;
+  EXPECT_NE(validate_mesh(mesh, "m").message().find("m: triangle 133333 refers to vertex 300001"), std::string::npos)
+      << validate_mesh(mesh, "m").message();
+}
+
+}  // namespace
+}  // namespace nmbake
