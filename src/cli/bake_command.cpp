@@ -138,9 +138,14 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
 
   int exit_code = kSuccess;
   for (const BakeJob& job : jobs) {
-    ProgressBar bar(!global.quiet && stderr_is_terminal());
+    const bool show_progress = !global.quiet && stderr_is_terminal();
+    ProgressBar bar(show_progress);
     BakeReport report;
-    const Status s = bake(job.options, report, [&](const char* stage, double f) { bar.update(stage, f); });
+    // No listener at all when nothing is drawn: the stages then skip the
+    // pauses they make to report progress.
+    ProgressFn listener;
+    if (show_progress) listener = [&](const char* stage, double f) { bar.update(stage, f); };
+    const Status s = bake(job.options, report, listener);
     bar.finish();
     if (!s) return fail(s);
     if (!job.report_path.empty()) {
