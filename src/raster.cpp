@@ -24,6 +24,8 @@
 // precision: at 16384^2 a float keeps only ~1/1000 texel.
 #include "nmbake/raster.hpp"
 
+#include "huge_pages.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
@@ -31,7 +33,6 @@
 #include <limits>
 
 #if defined(__linux__)
-#include <sys/mman.h>
 #endif
 
 #include <tbb/blocked_range.h>
@@ -194,28 +195,7 @@ glm::vec2 inside_bary(double e0, double e1, double e2) {
   return b;
 }
 
-// Sizes `v` to n elements. A new allocation is first reserved (untouched) and
-// advised for transparent huge pages: at 16384^2 the output is 3 GB, and at
-// ~9 us per 4 KB page fault (DESIGN.md) first-touching it would cost seconds.
-// The advice is a hint; the result is the same without it.
-template <typename T>
-void size_output(std::vector<T>& v, std::size_t n) {
-  if (v.capacity() < n) {
-    std::vector<T>().swap(v);
-    v.reserve(n);
-#if defined(__linux__) && defined(MADV_HUGEPAGE)
-    constexpr std::uintptr_t huge_page = std::uintptr_t{2} << 20;
-    const std::uintptr_t begin = reinterpret_cast<std::uintptr_t>(v.data());
-    const std::uintptr_t end = begin + n * sizeof(T);
-    const std::uintptr_t aligned_begin = (begin + huge_page - 1) & ~(huge_page - 1);
-    if (end > aligned_begin + huge_page) {
-      (void)madvise(reinterpret_cast<void*>(aligned_begin), (end - aligned_begin) & ~(huge_page - 1),
-                    MADV_HUGEPAGE);
-    }
-#endif
-  }
-  v.resize(n);
-}
+using detail::size_output;
 
 struct TileScratch {
   std::vector<double> best_distance2;      // per sample of the tile, border candidates only

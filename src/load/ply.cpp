@@ -384,6 +384,9 @@ class PlyParser {
 
   void begin_vertices(const PlyElement& element) {
     const auto count = static_cast<std::size_t>(element.count);
+    // One spare position: Embree reads 16 bytes at the last vertex
+    // (pad_for_embree), and growing later would copy the whole array.
+    out_.positions.reserve(count + 1);
     out_.positions.resize(count);
     if (has_normals_) out_.normals.resize(count);
     if (has_uvs_) out_.uvs.resize(count);
