@@ -182,7 +182,7 @@ namespace {
       length = 1.0f;
     }
   }
-  a /= length;
+  a *= 1.0f / length;  // one division, not three
   ray.origin = ray.surface_point + options.front * a;
   ray.direction = -a;
   ray.t_surface = options.front;
@@ -203,6 +203,8 @@ struct alignas(64) Packet {
   RTCRayHit16 rayhit;
   alignas(64) int valid[kPacket];
   std::size_t sample[kPacket];
+  std::int32_t triangle[kPacket];  // queued lanes (queue_sample): built by build_queued_rays
+  glm::vec2 bary[kPacket];
   float t_surface[kPacket];
   float sign[kPacket];  // +1: distance = t_surface - t; used to turn t into a signed surface distance
   int count = 0;
@@ -235,6 +237,79 @@ void add_ray(Packet& p, std::size_t sample, const glm::vec3& origin, const glm::
   p.sample[i] = sample;
   p.t_surface[i] = t_surface;
   p.sign[i] = sign;
+}
+
+// The common case (first hit, averaged or interpolated cage): samples are
+// queued and their rays built together, lane by lane with no branch between
+// lanes, so the square roots and divisions of 16 rays overlap instead of
+// running one after the other. The arithmetic is build_ray()'s, so the rays
+// are bit for bit the same; lanes that need its fallback take build_ray().
+bool batched_rays(const RayOptions& options) {
+  return options.hit == HitRule::first && options.cage != CageMode::mesh;
+}
+
+void queue_sample(Packet& p, std::size_t sample, std::int32_t tri, glm::vec2 b) {
+  const int i = p.count++;
+  p.sample[i] = sample;
+  p.triangle[i] = tri;
+  p.bary[i] = b;
+}
+
+// Returns the number of lanes that took build_ray's fallback.
+std::uint64_t build_queued_rays(Packet& p, const LowSurface& surface, const RayOptions& options) {
+  const std::vector<glm::vec3>& normals = options.cage == CageMode::interpolated ? surface.normal : surface.cage_normal;
+  RTCRay16& r = p.rayhit.ray;
+  const int n = p.count;
+  float ax[kPacket], ay[kPacket], az[kPacket], length[kPacket];
+  for (int i = 0; i < n; ++i) {
+    const std::size_t base = 3 * static_cast<std::size_t>(p.triangle[i]);
+    const glm::vec3 P = interpolate(surface.position, base, p.bary[i]);
+    const glm::vec3 a = interpolate(normals, base, p.bary[i]);
+    r.org_x[i] = P.x;
+    r.org_y[i] = P.y;
+    r.org_z[i] = P.z;
+    ax[i] = a.x;
+    ay[i] = a.y;
+    az[i] = a.z;
+  }
+  for (int i = 0; i < n; ++i) length[i] = std::sqrt(ax[i] * ax[i] + ay[i] * ay[i] + az[i] * az[i]);
+  std::uint64_t fallbacks = 0;
+  for (int i = 0; i < n; ++i) {
+    if (!(length[i] > 1e-12f) || !std::isfinite(length[i])) {
+      bool fallback = false;
+      const Ray ray = build_ray(surface, p.triangle[i], p.bary[i], options, fallback);
+      fallbacks += fallback ? 1 : 0;
+      r.org_x[i] = ray.origin.x;
+      r.org_y[i] = ray.origin.y;
+      r.org_z[i] = ray.origin.z;
+      r.dir_x[i] = ray.direction.x;
+      r.dir_y[i] = ray.direction.y;
+      r.dir_z[i] = ray.direction.z;
+      continue;
+    }
+    const float inv = 1.0f / length[i];
+    const glm::vec3 a = glm::vec3(ax[i], ay[i], az[i]) * inv;
+    r.org_x[i] += options.front * a.x;
+    r.org_y[i] += options.front * a.y;
+    r.org_z[i] += options.front * a.z;
+    r.dir_x[i] = -a.x;
+    r.dir_y[i] = -a.y;
+    r.dir_z[i] = -a.z;
+  }
+  for (int i = 0; i < n; ++i) {
+    r.tnear[i] = 0.0f;
+    r.time[i] = 0.0f;
+    r.tfar[i] = options.front + options.back;
+    r.mask[i] = 0xffffffffu;
+    r.id[i] = static_cast<unsigned>(i);
+    r.flags[i] = 0;
+    p.rayhit.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+    p.rayhit.hit.primID[i] = RTC_INVALID_GEOMETRY_ID;
+    p.valid[i] = -1;
+    p.t_surface[i] = options.front;
+    p.sign[i] = 1.0f;
+  }
+  return fallbacks;
 }
 
 // A candidate hit per sample while a tile is traced (nearest needs two rays).
@@ -284,8 +359,10 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
 
     // `nearest` keeps per sample the best of two rays; a packet holds both
     // rays of up to 8 samples, so the best is settled inside one flush.
+    const bool batched = batched_rays(options);
     auto flush = [&]() {
       if (packet.count == 0) return;
+      if (batched) counts.fallbacks += build_queued_rays(packet, surface, options);
       rtcIntersect16(packet.valid, rtc_scene, &context, &packet.rayhit);
       counts.rays += static_cast<std::uint64_t>(packet.count);
       for (int i = 0; i < packet.count; ++i) {
@@ -315,6 +392,11 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
               hits.triangle[s] = -1;
               if (tri < 0) continue;
               ++counts.samples;
+              if (batched) {
+                if (packet.count == kPacket) flush();
+                queue_sample(packet, s, tri, samples.bary[s]);
+                continue;
+              }
               bool fallback = false;
               const Ray ray = build_ray(surface, tri, samples.bary[s], options, fallback);
               counts.fallbacks += fallback ? 1 : 0;

@@ -123,8 +123,9 @@ TEST(EndToEnd, BandsDoNotChangeTheMap) {
   EXPECT_EQ(one.raster.border_samples, many.raster.border_samples);
 }
 
-// The compact BVH (indices only) finds the same hits as the fast one: the
-// intersector reads the same vertices, only from the shared buffer.
+// The compact BVH (indices only) finds the same surface as the fast one. Not
+// bit for bit: Embree's two leaf layouts compute triangle edges in a different
+// order, so a few texels differ in the last float bits.
 TEST(EndToEnd, CompactBvhGivesTheSameMap) {
   test::TempDir dir;
   scenes::SphereParams params;
@@ -150,8 +151,15 @@ TEST(EndToEnd, CompactBvhGivesTheSameMap) {
   EXPECT_FALSE(fast.compact_bvh);
   EXPECT_TRUE(compact.compact_bvh);
   EXPECT_FALSE(automatic.compact_bvh);  // far below kCompactBvhAbove
-  EXPECT_EQ(read_bytes(dir.file("fast.exr")), read_bytes(dir.file("compact.exr")));
-  EXPECT_EQ(fast.trace.hits, compact.trace.hits);
+  Image a, c;
+  ASSERT_TRUE(read_image(dir.file("fast.exr"), a).is_ok());
+  ASSERT_TRUE(read_image(dir.file("compact.exr"), c).is_ok());
+  ASSERT_EQ(a.pixels.size(), c.pixels.size());
+  float worst = 0.0f;
+  for (std::size_t i = 0; i < a.pixels.size(); ++i) worst = std::max(worst, std::fabs(a.pixels[i] - c.pixels[i]));
+  EXPECT_LT(worst, 1e-4f);
+  EXPECT_NEAR(static_cast<double>(fast.trace.hits), static_cast<double>(compact.trace.hits),
+              1e-4 * static_cast<double>(fast.trace.rays));
 }
 
 class CliBake : public ::testing::Test {
