@@ -390,12 +390,24 @@ TEST(LoadParallelObj, ErrorsInLateSlicesNameTheSameLine) {
       {late_face, "f 1/1/1 2/2/2 3/3/x", "bad normal index 'x'"},
       {late_face, "f 1/1/1 2/2/2 3/3/", "missing normal index"},
       {late_face, "f 1//1 2//2 3//3", "has no texture coordinate index"},
+      // The edges of the slice parser's own digit reader.
+      {late_face, "f 1/1/1 2/2/2 -0/3/3", "vertex index 0"},
+      {late_face, "f 1/1/1 2/2/2 -/3/3", "bad vertex index '-'"},
+      {late_face, "f 1/1/1 2/2/2 --3/3/3", "bad vertex index '--3'"},
+      {late_face, "f 1/1/1 2/2/2 123456789012345678/3/3", "vertex index 123456789012345678 out of range"},
+      {late_face, "f 1/1/1 2/2/2 99999999999999999999/3/3", "bad vertex index '99999999999999999999'"},
+      {late_face, "f 1/1/1 2/2/2 +99999/3/3", "vertex index 99999 out of range"},
+      {late_face, "f +1/01/1 2/2/+2 0003/-00000000000000000001/3", ""},  // valid
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.text);
     grid.replaced = {{c.line, c.text}};
     write_text(path, grid.text());
     const Loaded reference = expect_obj_slices_match_reference(path);
+    if (c.reason.empty()) {
+      EXPECT_TRUE(reference.status.is_ok()) << reference.status.message();
+      continue;
+    }
     // Appended piecewise: GCC 12 warns falsely (-Wrestrict) on ":" + string.
     std::string where(1, ':');
     where += std::to_string(c.line + 1);

@@ -118,8 +118,25 @@ bool read_reals(const char* p, const char* end, float* values, int required, int
   return true;
 }
 
-// One index as written; false when it is not a number or is 0.
+// One index as written; false when it is not a number or is 0. Plain
+// "-?digits" (what exporters write) is read here, 18 digits at most so it
+// cannot overflow; anything else goes to parse_int, the serial parser's reader.
 bool read_index(const char* first, const char* last, std::int64_t& value) {
+  const char* p = first;
+  const bool negative = p < last && *p == '-';
+  if (negative) ++p;
+  if (p < last && last - p <= 18) {
+    std::int64_t magnitude = 0;
+    for (; p < last; ++p) {
+      const auto digit = static_cast<unsigned>(*p - '0');
+      if (digit > 9) break;
+      magnitude = magnitude * 10 + static_cast<std::int64_t>(digit);
+    }
+    if (p == last) {
+      value = negative ? -magnitude : magnitude;
+      return value != 0;
+    }
+  }
   return parse_int(first, last, value) == NumberError::none && value != 0;
 }
 
