@@ -15,6 +15,18 @@
 // Indices must refer to data defined earlier in the file (the manual's rule),
 // which lets every error name its line. Vertices no face uses are dropped by
 // load_mesh.
+//
+// Parallel path: the file is read in blocks (LoadOptions::block_bytes), each
+// cut at line boundaries into a few slices per core. The slices are parsed on
+// all cores into raw records (reals, and face corners as the written, possibly
+// negative, numbers with the slice-local counts of v/vt/vn before the face);
+// then the slices are applied in file order by the same code as the serial
+// path, so relative indices, vertex splitting and numbering are unchanged.
+// Whatever the slice parser does not accept (a syntax error, an index out of
+// range, a layout change) sends the rest of that slice through the serial
+// line parser from the state just before that line, so messages and line
+// numbers are the serial ones.
+#include <algorithm>
 #include <cstring>
 #include <string>
 #include <string_view>
@@ -22,6 +34,9 @@
 
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include "load/parsers.hpp"
 
@@ -37,6 +52,94 @@ struct Corner {
   std::uint32_t vertex = kNone;
 };
 
+// A face corner as written; 0 (never valid) when the part is absent or its
+// attribute is not kept.
+struct RawCorner {
+  std::int64_t v = 0;
+  std::int64_t vt = 0;
+  std::int64_t vn = 0;
+};
+
+struct RawFace {
+  std::uint32_t first_corner = 0;
+  std::uint32_t corner_count = 0;
+  // v / vt / vn statements of the slice before this face.
+  std::uint64_t v_before = 0;
+  std::uint64_t vt_before = 0;
+  std::uint64_t vn_before = 0;
+  std::uint64_t line = 0;        // 0-based within the slice
+  const char* line_begin = nullptr;
+};
+
+// Complete lines [begin, end) of a block and what the slice parser made of
+// them. Reused from block to block, so the vectors keep their capacity.
+struct ObjSlice {
+  const char* begin = nullptr;
+  const char* end = nullptr;
+  std::vector<glm::vec3> positions;
+  std::vector<glm::vec2> texcoords;  // only when kept
+  std::vector<glm::vec3> normals;    // only when kept
+  std::uint64_t texcoord_count = 0;  // vt statements, kept or not
+  std::uint64_t normal_count = 0;    // vn statements, kept or not
+  std::vector<RawFace> faces;
+  std::vector<RawCorner> corners;
+  std::uint64_t line_count = 0;
+  const char* stop = nullptr;  // first line the slice parser did not take, or nullptr
+  std::uint64_t stop_line = 0;
+
+  void clear() {
+    positions.clear();
+    texcoords.clear();
+    normals.clear();
+    texcoord_count = 0;
+    normal_count = 0;
+    faces.clear();
+    corners.clear();
+    line_count = 0;
+    stop = nullptr;
+    stop_line = 0;
+  }
+};
+
+// Lines end at '\n'; a "\r\n" ending loses its '\r' as FileReader does.
+const char* line_content_end(const char* line_begin, const char* newline) {
+  return newline > line_begin && newline[-1] == '\r' ? newline - 1 : newline;
+}
+
+// The serial parse_reals without messages: false on any error.
+bool read_reals(const char* p, const char* end, float* values, int required, int count) {
+  for (int i = 0; i < count; ++i) {
+    p = skip_blanks(p, end);
+    if (p == end) return i >= required;
+    const char* token_end = skip_token(p, end);
+    if (parse_float(p, token_end, values[i]) != NumberError::none) return false;
+    p = token_end;
+  }
+  return true;
+}
+
+// One index as written; false when it is not a number or is 0. Plain
+// "-?digits" (what exporters write) is read here, 18 digits at most so it
+// cannot overflow; anything else goes to parse_int, the serial parser's reader.
+bool read_index(const char* first, const char* last, std::int64_t& value) {
+  const char* p = first;
+  const bool negative = p < last && *p == '-';
+  if (negative) ++p;
+  if (p < last && last - p <= 18) {
+    std::int64_t magnitude = 0;
+    for (; p < last; ++p) {
+      const auto digit = static_cast<unsigned>(*p - '0');
+      if (digit > 9) break;
+      magnitude = magnitude * 10 + static_cast<std::int64_t>(digit);
+    }
+    if (p == last) {
+      value = negative ? -magnitude : magnitude;
+      return value != 0;
+    }
+  }
+  return parse_int(first, last, value) == NumberError::none && value != 0;
+}
+
 class ObjParser {
  public:
   ObjParser(const std::string& path, FileReader& reader, const LoadOptions& options, Mesh& out,
@@ -50,28 +153,14 @@ class ObjParser {
     positions_.reserve(static_cast<std::size_t>(bytes / 80));
     out_.indices.reserve(static_cast<std::size_t>(bytes / 14));
 
-    std::string_view line;
-    while (reader_.next_line(line)) {
-      const char* p = skip_blanks(line.data(), line.data() + line.size());
-      const char* end = line.data() + line.size();
-      if (p == end || *p == '#') continue;
-      const char* keyword_end = skip_token(p, end);
-      const std::string_view keyword(p, static_cast<std::size_t>(keyword_end - p));
-      // A comment may follow a statement.
-      if (const void* hash = std::memchr(keyword_end, '#', static_cast<std::size_t>(end - keyword_end))) {
-        end = static_cast<const char*>(hash);
+    if (options_.serial) {
+      std::string_view line;
+      while (reader_.next_line(line)) {
+        line_number_ = reader_.line_number();
+        NMBAKE_TRY(parse_line(line));
       }
-      if (keyword == "v") {
-        NMBAKE_TRY(parse_position(keyword_end, end));
-      } else if (keyword == "vt") {
-        NMBAKE_TRY(parse_texcoord(keyword_end, end));
-      } else if (keyword == "vn") {
-        NMBAKE_TRY(parse_normal(keyword_end, end));
-      } else if (keyword == "f") {
-        NMBAKE_TRY(parse_face(keyword_end, end));
-      }
-      // Everything else (o, g, s, usemtl, mtllib, l, p, vp, curves) carries
-      // nothing a bake uses.
+    } else {
+      NMBAKE_TRY(parse_blocks());
     }
     if (!reader_.read_status().is_ok()) return reader_.read_status();
     if (out_.indices.empty()) {
@@ -83,7 +172,27 @@ class ObjParser {
   }
 
  private:
-  Status error(const std::string& reason) const { return text_error(path_, reader_.line_number(), reason); }
+  Status error(const std::string& reason) const { return text_error(path_, line_number_, reason); }
+
+  Status parse_line(std::string_view line) {
+    const char* p = skip_blanks(line.data(), line.data() + line.size());
+    const char* end = line.data() + line.size();
+    if (p == end || *p == '#') return Status::ok();
+    const char* keyword_end = skip_token(p, end);
+    const std::string_view keyword(p, static_cast<std::size_t>(keyword_end - p));
+    // A comment may follow a statement.
+    if (const void* hash = std::memchr(keyword_end, '#', static_cast<std::size_t>(end - keyword_end))) {
+      end = static_cast<const char*>(hash);
+    }
+    if (keyword == "v") return parse_position(keyword_end, end);
+    if (keyword == "vt") return parse_texcoord(keyword_end, end);
+    if (keyword == "vn") return parse_normal(keyword_end, end);
+    if (keyword == "f") return parse_face(keyword_end, end);
+    // Everything else (o, g, s, usemtl, mtllib, l, p, vp, curves) carries
+    // nothing a bake uses.
+    return Status::ok();
+  }
+
 
   // Reads `count` reals (at least `required`), the rest left at their value.
   Status parse_reals(const char* p, const char* end, float* values, int required, int count) {
@@ -206,6 +315,11 @@ class ObjParser {
       corners_.push_back(corner);
       p = token_end;
     }
+    return add_face();
+  }
+
+  // Counts, splits and fan-triangulates the resolved corners_.
+  Status add_face() {
     if (corners_.size() < 3) {
       ++stats_.degenerate_faces;  // a point or a line, not a surface
       return Status::ok();
@@ -230,6 +344,232 @@ class ObjParser {
     }
     return Status::ok();
   }
+
+  // ---------------------------------------------------------------- blocks
+
+  Status parse_blocks() {
+    const std::size_t group_bytes = block_bytes(options_);
+    // A few slices per core balance lines of uneven cost (faces against
+    // vertices); their count does not change the result.
+    const auto slice_count = static_cast<std::size_t>(2 * std::max(1, tbb::this_task_arena::max_concurrency()));
+    slices_.resize(slice_count);
+    for (;;) {
+      const char* bytes = nullptr;
+      const std::size_t size = reader_.peek(group_bytes, bytes);
+      if (size == 0) break;
+      const auto* last_newline = static_cast<const char*>(::memrchr(bytes, '\n', size));
+      if (last_newline == nullptr) {
+        // The last line without a newline, or a line longer than a block.
+        std::string_view line;
+        if (!reader_.next_line(line)) break;
+        line_number_ = reader_.line_number();
+        NMBAKE_TRY(parse_line(line));
+        continue;
+      }
+      const char* end = last_newline + 1;
+      // Cut at the first line end after each even share of the block.
+      const char* begin = bytes;
+      for (std::size_t s = 0; s < slice_count; ++s) {
+        ObjSlice& slice = slices_[s];
+        slice.begin = begin;
+        if (s + 1 == slice_count) {
+          slice.end = end;
+        } else {
+          const char* target = bytes + (static_cast<std::size_t>(end - bytes) * (s + 1)) / slice_count;
+          if (target < begin) target = begin;
+          const auto* newline = static_cast<const char*>(std::memchr(target, '\n', static_cast<std::size_t>(end - target)));
+          slice.end = newline == nullptr ? end : newline + 1;
+        }
+        begin = slice.end;
+      }
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, slice_count, 1),
+                        [&](const tbb::blocked_range<std::size_t>& range) {
+                          for (std::size_t s = range.begin(); s != range.end(); ++s) parse_slice(slices_[s]);
+                        });
+      std::uint64_t line = reader_.line_number() + 1;
+      for (ObjSlice& slice : slices_) {
+        NMBAKE_TRY(apply_slice(slice, line));
+        line += slice.line_count;
+      }
+      reader_.consume(static_cast<std::size_t>(end - bytes));
+      reader_.add_lines(line - 1 - reader_.line_number());
+    }
+    return Status::ok();
+  }
+
+  // Runs on any thread: reads only the slice and the options.
+  void parse_slice(ObjSlice& slice) const {
+    slice.clear();
+    const char* p = slice.begin;
+    std::uint64_t line = 0;
+    while (p < slice.end) {
+      const auto* newline = static_cast<const char*>(std::memchr(p, '\n', static_cast<std::size_t>(slice.end - p)));
+      if (!parse_line_records(p, line_content_end(p, newline), line, slice)) {
+        slice.stop = p;
+        slice.stop_line = line;
+        line += static_cast<std::uint64_t>(std::count(p, slice.end, '\n'));
+        break;
+      }
+      p = newline + 1;
+      ++line;
+    }
+    slice.line_count = line;
+  }
+
+  // parse_line as records; false where the serial parser might report an
+  // error (nothing of the line is recorded then).
+  bool parse_line_records(const char* line_begin, const char* end, std::uint64_t line, ObjSlice& slice) const {
+    const char* p = skip_blanks(line_begin, end);
+    if (p == end || *p == '#') return true;
+    const char* keyword_end = skip_token(p, end);
+    const std::string_view keyword(p, static_cast<std::size_t>(keyword_end - p));
+    if (const void* hash = std::memchr(keyword_end, '#', static_cast<std::size_t>(end - keyword_end))) {
+      end = static_cast<const char*>(hash);
+    }
+    if (keyword == "v") {
+      glm::vec3 position{0.0f};
+      if (!read_reals(keyword_end, end, &position.x, 3, 3)) return false;
+      slice.positions.push_back(position);
+    } else if (keyword == "vt") {
+      if (options_.keep_uvs) {
+        glm::vec2 uv{0.0f};
+        if (!read_reals(keyword_end, end, &uv.x, 1, 2)) return false;
+        slice.texcoords.push_back(uv);
+      }
+      ++slice.texcoord_count;
+    } else if (keyword == "vn") {
+      if (options_.keep_normals) {
+        glm::vec3 normal{0.0f};
+        if (!read_reals(keyword_end, end, &normal.x, 3, 3)) return false;
+        slice.normals.push_back(normal);
+      }
+      ++slice.normal_count;
+    } else if (keyword == "f") {
+      RawFace face;
+      face.first_corner = static_cast<std::uint32_t>(slice.corners.size());
+      face.v_before = slice.positions.size();
+      face.vt_before = slice.texcoord_count;
+      face.vn_before = slice.normal_count;
+      face.line = line;
+      face.line_begin = line_begin;
+      p = keyword_end;
+      for (;;) {
+        p = skip_blanks(p, end);
+        if (p == end) break;
+        const char* token_end = skip_token(p, end);
+        if (!read_corner(p, token_end, slice.corners.emplace_back())) {
+          slice.corners.resize(face.first_corner);
+          return false;
+        }
+        p = token_end;
+      }
+      face.corner_count = static_cast<std::uint32_t>(slice.corners.size() - face.first_corner);
+      slice.faces.push_back(face);
+    }
+    return true;
+  }
+
+  // The syntax checks of parse_corner.
+  bool read_corner(const char* p, const char* token_end, RawCorner& corner) const {
+    const char* slash = p;
+    while (slash < token_end && *slash != '/') ++slash;
+    if (!read_index(p, slash, corner.v)) return false;
+    if (slash == token_end) return true;
+    const char* vt_first = slash + 1;
+    const char* vt_last = vt_first;
+    while (vt_last < token_end && *vt_last != '/') ++vt_last;
+    if (vt_last > vt_first && options_.keep_uvs && !read_index(vt_first, vt_last, corner.vt)) return false;
+    if (vt_last < token_end) {
+      if (vt_last + 1 == token_end) return false;
+      if (options_.keep_normals && !read_index(vt_last + 1, token_end, corner.vn)) return false;
+    } else if (vt_last == vt_first) {
+      return false;
+    }
+    return true;
+  }
+
+  // An index of resolve_index, without the messages.
+  static bool resolve_raw(std::int64_t value, std::uint64_t count, std::uint32_t& index) {
+    const std::int64_t resolved = value > 0 ? value - 1 : static_cast<std::int64_t>(count) + value;
+    if (resolved < 0 || static_cast<std::uint64_t>(resolved) >= count) return false;
+    index = static_cast<std::uint32_t>(resolved);
+    return true;
+  }
+
+  // Applies a parsed slice in file order; `first_line` is the number of its
+  // first line.
+  Status apply_slice(const ObjSlice& slice, std::uint64_t first_line) {
+    const std::uint64_t base_v = positions_.size();
+    const std::uint64_t base_vt = texcoord_count_;
+    const std::uint64_t base_vn = normal_count_;
+    if (base_v + slice.positions.size() >= kNone) {
+      // "too many vertices" is named on its line by the serial parser.
+      return parse_lines_serially(slice.begin, slice.end, first_line);
+    }
+    positions_.insert(positions_.end(), slice.positions.begin(), slice.positions.end());
+    texcoords_.insert(texcoords_.end(), slice.texcoords.begin(), slice.texcoords.end());
+    normals_.insert(normals_.end(), slice.normals.begin(), slice.normals.end());
+    texcoord_count_ += slice.texcoord_count;
+    normal_count_ += slice.normal_count;
+    if (split_) first_vertex_.resize(positions_.size(), kNone);
+    for (const RawFace& face : slice.faces) {
+      const std::uint64_t v_count = base_v + face.v_before;
+      const std::uint64_t vt_count = base_vt + face.vt_before;
+      const std::uint64_t vn_count = base_vn + face.vn_before;
+      const bool layout_known = layout_known_;
+      const bool has_vt = has_vt_;
+      const bool has_vn = has_vn_;
+      bool resolved = true;
+      corners_.clear();
+      for (std::uint32_t c = 0; c < face.corner_count && resolved; ++c) {
+        const RawCorner& raw = slice.corners[face.first_corner + c];
+        Corner corner;
+        resolved = resolve_raw(raw.v, v_count, corner.v) && (raw.vt == 0 || resolve_raw(raw.vt, vt_count, corner.vt)) &&
+                   (raw.vn == 0 || resolve_raw(raw.vn, vn_count, corner.vn));
+        const bool kept_vt = raw.vt != 0;
+        const bool kept_vn = raw.vn != 0;
+        if (!layout_known_) {
+          layout_known_ = true;
+          has_vt_ = kept_vt;
+          has_vn_ = kept_vn;
+        } else if (kept_vt != has_vt_ || kept_vn != has_vn_) {
+          resolved = false;
+        }
+        corners_.push_back(corner);
+      }
+      if (!resolved) {
+        // Back to the state before this line; the serial parser names the
+        // problem and takes the rest of the slice.
+        layout_known_ = layout_known;
+        has_vt_ = has_vt;
+        has_vn_ = has_vn;
+        positions_.resize(v_count);
+        texcoord_count_ = vt_count;
+        normal_count_ = vn_count;
+        if (options_.keep_uvs) texcoords_.resize(vt_count);
+        if (options_.keep_normals) normals_.resize(vn_count);
+        if (split_) first_vertex_.resize(positions_.size());
+        return parse_lines_serially(face.line_begin, slice.end, first_line + face.line);
+      }
+      line_number_ = first_line + face.line;
+      NMBAKE_TRY(add_face());
+    }
+    if (slice.stop != nullptr) return parse_lines_serially(slice.stop, slice.end, first_line + slice.stop_line);
+    return Status::ok();
+  }
+
+  // Complete lines [p, end) through parse_line, the first numbered `line`.
+  Status parse_lines_serially(const char* p, const char* end, std::uint64_t line) {
+    while (p < end) {
+      const auto* newline = static_cast<const char*>(std::memchr(p, '\n', static_cast<std::size_t>(end - p)));
+      line_number_ = line++;
+      NMBAKE_TRY(parse_line(std::string_view(p, static_cast<std::size_t>(line_content_end(p, newline) - p))));
+      p = newline + 1;
+    }
+    return Status::ok();
+  }
+
+  // ---------------------------------------------------------------- vertices
 
   void enter_split_mode() {
     split_ = true;
@@ -310,6 +650,8 @@ class ObjParser {
   std::vector<std::uint32_t> vertex_vn_;
 
   std::vector<Corner> corners_;  // scratch of the current face
+  std::uint64_t line_number_ = 0;  // of the line being parsed, for messages
+  std::vector<ObjSlice> slices_;    // of the parallel path
 };
 
 }  // namespace
