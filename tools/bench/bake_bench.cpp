@@ -38,7 +38,7 @@ double stage(const nmbake::BakeReport& r, const char* name) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string low, high, label, bvh = "auto";
+  std::string low, high, label, bvh = "auto", quality = "medium";
   int size = 2048, samples = 4, threads = 0, repeat = 3;
   CLI::App app{"nmbake-bench: a whole bake beside raw Embree on the same rays"};
   app.add_option("--low", low)->required();
@@ -48,6 +48,7 @@ int main(int argc, char** argv) {
   app.add_option("--samples", samples)->capture_default_str();
   app.add_option("--threads", threads, "0 = all cores")->capture_default_str();
   app.add_option("--bvh", bvh, "auto | fast | compact")->capture_default_str();
+  app.add_option("--build-quality", quality, "low | medium | high")->capture_default_str();
   app.add_option("--repeat", repeat)->capture_default_str()->check(CLI::Range(1, 50));
   CLI11_PARSE(app, argc, argv);
   if (label.empty()) label = std::filesystem::path(high).stem().string();
@@ -66,12 +67,17 @@ int main(int argc, char** argv) {
   o.width = o.height = size;
   o.samples = samples;
   o.outputs = {{(dir / "map.png").string(), nmbake::PixelFormat::png16}};
+  if (!nmbake::parse_build_quality(quality, o.build_quality)) {
+    std::fprintf(stderr, "nmbake-bench: --build-quality %s: expected low, medium or high\n", quality.c_str());
+    return 2;
+  }
   if (!nmbake::parse_bvh_memory(bvh, o.bvh_memory)) {
     std::fprintf(stderr, "nmbake-bench: --bvh %s: expected auto, fast or compact\n", bvh.c_str());
     return 2;
   }
 
-  std::vector<double> load, build, raster, trace, encode, write, total, raw;
+  // rest: prepare (normals, tangents) + distances (auto estimate) + dilate.
+  std::vector<double> load, build, raster, trace, encode, write, rest, total, raw;
   nmbake::BakeReport report;
   std::uint64_t raw_rays = 0;
   for (int i = 0; i < repeat; ++i) {
@@ -86,6 +92,7 @@ int main(int argc, char** argv) {
     trace.push_back(stage(report, "trace"));
     encode.push_back(stage(report, "encode"));
     write.push_back(stage(report, "write"));
+    rest.push_back(stage(report, "prepare") + stage(report, "distances") + stage(report, "dilate"));
     total.push_back(report.total_seconds);
   }
   const std::uint64_t bake_peak = report.peak_rss_bytes;
@@ -101,17 +108,30 @@ int main(int argc, char** argv) {
     nmbake::SurfaceStats ss;
     const nmbake::LowSurface surface = nmbake::build_low_surface(low_mesh, nullptr, ss);
     nmbake::HighScene scene;
-    if (!nmbake::HighScene::build(high_mesh, nmbake::BuildQuality::medium, false, scene, o.bvh_memory)) return 3;
-    nmbake::TexelSamples ts;
-    nmbake::RasterStats rs;
-    nmbake::rasterize(surface, size, size, samples, ts, rs);
+    if (!nmbake::HighScene::build(high_mesh, o.build_quality, false, scene, o.bvh_memory)) return 3;
     nmbake::RayOptions rays;
     rays.front = report.front;
     rays.back = report.back;
+    // Bands of rows of about 4M samples, as the bake's: the prebuilt packets
+    // of a whole 4096^2 x16 map would not fit in memory. Only the Embree
+    // calls are timed.
+    const std::size_t per_row = static_cast<std::size_t>(size) * static_cast<std::size_t>(samples);
+    const int rows = static_cast<int>(std::min<std::size_t>(
+        static_cast<std::size_t>(size),
+        std::max<std::size_t>(nmbake::kRasterTileSize,
+                              (std::size_t{1} << 22) / per_row / nmbake::kRasterTileSize * nmbake::kRasterTileSize)));
+    nmbake::TexelSamples ts;
     for (int i = 0; i < repeat; ++i) {
-      const nmbake::RawTraceResult r = nmbake::trace_raw(scene, surface, ts, rays);
-      raw.push_back(r.seconds);
-      raw_rays = r.rays;
+      double seconds = 0.0;
+      raw_rays = 0;
+      for (int row = 0; row < size; row += rows) {
+        nmbake::RasterStats rs;
+        nmbake::rasterize(surface, size, size, samples, ts, rs, row, std::min(row + rows, size));
+        const nmbake::RawTraceResult r = nmbake::trace_raw(scene, surface, ts, rays);
+        seconds += r.seconds;
+        raw_rays += r.rays;
+      }
+      raw.push_back(seconds);
     }
   }
   std::filesystem::remove_all(dir);
@@ -119,12 +139,12 @@ int main(int argc, char** argv) {
   const double bake_rays_per_s = static_cast<double>(report.trace.rays) / median(trace);
   const double raw_rays_per_s = static_cast<double>(raw_rays) / median(raw);
   std::printf(
-      "bench %-12s tris %9llu  map %5d x%-2d threads %d bvh %-7s | load %6.3f build %6.3f raster %6.3f trace %6.3f "
-      "encode %6.3f write %6.3f total %6.3f s | bake %6.2f Mrays/s raw %6.2f Mrays/s ratio %.2f | peak %6.0f MiB "
+      "bench %-12s tris %9llu  map %5d x%-2d threads %d bvh %-7s %-6s | load %6.3f build %6.3f raster %6.3f trace %6.3f "
+      "encode %6.3f write %6.3f rest %6.3f total %6.3f s | bake %6.2f Mrays/s raw %6.2f Mrays/s ratio %.2f | peak %6.0f MiB "
       "(%.0f B/tri)\n",
       label.c_str(), static_cast<unsigned long long>(report.high_triangles), size, samples, report.threads,
-      report.compact_bvh ? "compact" : "fast",
-      median(load), median(build), median(raster), median(trace), median(encode), median(write), median(total),
+      report.compact_bvh ? "compact" : "fast", quality.c_str(),
+      median(load), median(build), median(raster), median(trace), median(encode), median(write), median(rest), median(total),
       1e-6 * bake_rays_per_s, 1e-6 * raw_rays_per_s, bake_rays_per_s / raw_rays_per_s,
       static_cast<double>(bake_peak) / (1024.0 * 1024.0),
       static_cast<double>(bake_peak) / static_cast<double>(std::max<std::uint64_t>(1, report.high_triangles)));
