@@ -35,9 +35,9 @@ enum class CageMode : std::uint8_t { averaged, interpolated, mesh };
 enum class HitRule : std::uint8_t { first, nearest };
 enum class BuildQuality : std::uint8_t { low, medium, high };
 // BVH layout: `fast` lets Embree copy each leaf's triangle vertices into the
-// BVH (triangle4v, about 84 bytes per triangle at the build's peak);
-// `compact` keeps only indices into the shared vertex buffer (about 28), for
-// slower traversal; `automatic` is compact above kCompactBvhAbove triangles.
+// BVH (triangle4v); `compact` keeps only indices into the shared vertex
+// buffer: about a third of the BVH's memory, rays ~20% slower (measured in
+// BENCHMARKS.md); `automatic` is compact above kCompactBvhAbove triangles.
 enum class BvhMemory : std::uint8_t { automatic, fast, compact };
 constexpr std::size_t kCompactBvhAbove = 16'000'000;
 

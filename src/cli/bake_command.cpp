@@ -21,7 +21,7 @@ struct BakeFlags {
   std::string size = "2048";
   int samples = 4;
   std::string space = "tangent", green = "up", front = "auto", back = "auto", hit = "first";
-  std::string cage_mode = "averaged", high_normals = "smooth", build_quality = "medium", encode = "inverse", bvh = "auto";
+  std::string cage_mode = "averaged", high_normals = "smooth", build_quality = "low", encode = "inverse", bvh = "auto";
   std::string format;
   std::string tangent_basis = "mikktspace";
   bool ignore_backfaces = false;
@@ -213,7 +213,7 @@ Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--format", flags->format, "png8 | png16 | tiff16 | exr-half | exr-float (default: from the extension)");
   cmd->add_option("--report", flags->report, "write the bake report (JSON) here");
   cmd->add_option("--max-miss-rate", flags->max_miss_rate, "exit 1 when more than this share of rays miss (0..1)")->check(CLI::Range(0.0, 1.0));
-  cmd->add_option("--build-quality", flags->build_quality, "BVH build quality: low | medium | high")->default_val("medium");
+  cmd->add_option("--build-quality", flags->build_quality, "BVH build quality: low | medium | high")->default_val("low");
   cmd->add_option("--bvh", flags->bvh,
                   "BVH memory: fast (vertices copied into leaves) | compact (indices only, about a third of the "
                   "memory, slower rays) | auto (compact above 16M high triangles)")

@@ -38,7 +38,7 @@ double stage(const nmbake::BakeReport& r, const char* name) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string low, high, label, bvh = "auto", quality = "medium";
+  std::string low, high, label, bvh = "auto", quality = "low";
   int size = 2048, samples = 4, threads = 0, repeat = 3;
   CLI::App app{"nmbake-bench: a whole bake beside raw Embree on the same rays"};
   app.add_option("--low", low)->required();
