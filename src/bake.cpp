@@ -187,9 +187,10 @@ struct DebugImages {
   }
 };
 
-// Rows per band: about 4M samples, so the per-sample arrays (28 bytes a
-// sample) stay near 110 MB whatever the map size; a multiple of the raster
-// tile so bands start on tile rows.
+}  // namespace
+
+// About 4M samples a band, so the per-sample arrays (28 bytes a sample) stay
+// near 110 MB whatever the map size.
 int band_rows(int width, int height, int samples, std::size_t band_samples) {
   if (band_samples == 0) band_samples = std::size_t{1} << 22;
   const std::size_t per_row = static_cast<std::size_t>(width) * static_cast<std::size_t>(samples);
@@ -197,8 +198,6 @@ int band_rows(int width, int height, int samples, std::size_t band_samples) {
   rows = std::max<std::size_t>(kRasterTileSize, rows / kRasterTileSize * kRasterTileSize);
   return static_cast<int>(std::min<std::size_t>(rows, static_cast<std::size_t>(height)));
 }
-
-}  // namespace
 
 Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   const Clock::time_point bake_begin = Clock::now();

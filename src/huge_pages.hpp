@@ -30,30 +30,16 @@ inline void advise_huge_pages(const void* data, std::size_t bytes) {
 #endif
 }
 
-// Capacity for n elements, advised before any is touched (no-op when `v`
-// already has the room).
+// Sizes `v` to n elements. When the capacity is too small the old contents
+// are dropped (an output buffer) and the new allocation is reserved, advised
+// and only then touched.
 template <typename T>
-void reserve_huge(std::vector<T>& v, std::size_t n) {
-  if (v.capacity() >= n) return;
-  if (v.empty()) {
+void size_output(std::vector<T>& v, std::size_t n) {
+  if (v.capacity() < n) {
     std::vector<T>().swap(v);
     v.reserve(n);
     advise_huge_pages(v.data(), n * sizeof(T));
-    return;
   }
-  std::vector<T> bigger;
-  bigger.reserve(n);
-  advise_huge_pages(bigger.data(), n * sizeof(T));
-  bigger.insert(bigger.end(), v.begin(), v.end());
-  v.swap(bigger);
-}
-
-// Sizes `v` to n elements, a new allocation reserved and advised first. Old
-// contents are dropped when the capacity is too small (an output buffer).
-template <typename T>
-void size_output(std::vector<T>& v, std::size_t n) {
-  if (v.capacity() < n) std::vector<T>().swap(v);
-  reserve_huge(v, n);
   v.resize(n);
 }
 

@@ -563,6 +563,12 @@ RawTraceResult trace_raw(const HighScene& scene, const LowSurface& surface, cons
   const int tiles_x = (samples.width + kTile - 1) / kTile;
   const int tiles_y = (samples.height + kTile - 1) / kTile;
   const int spp = samples.samples;
+  // Built by the bake's own code: queued and built together where trace()
+  // does so, one by one where it does not.
+  const bool batched = batched_rays(options);
+  const auto finish_packet = [&](Packet& p) {
+    if (batched) build_queued_rays(p, surface, options);
+  };
   std::vector<std::vector<Packet>> tile_packets(static_cast<std::size_t>(tiles_x) * tiles_y);
   tbb::parallel_for(0, tiles_x * tiles_y, [&](int tile) {
     std::vector<Packet>& packets = tile_packets[static_cast<std::size_t>(tile)];
@@ -577,14 +583,20 @@ RawTraceResult trace_raw(const HighScene& scene, const LowSurface& surface, cons
             for (int k = 0; k < spp; ++k) {
               const std::size_t s = (static_cast<std::size_t>(y) * samples.width + x) * spp + k;
               if (samples.triangle[s] < 0) continue;
-              bool fallback = false;
-              const Ray ray = build_ray(surface, samples.triangle[s], samples.bary[s], options, fallback);
               if (packets.back().count == kPacket) {
+                finish_packet(packets.back());
                 packets.emplace_back();
                 reset_packet(packets.back());
               }
+              if (batched) {
+                queue_sample(packets.back(), s, samples.triangle[s], samples.bary[s]);
+                continue;
+              }
+              bool fallback = false;
+              const Ray ray = build_ray(surface, samples.triangle[s], samples.bary[s], options, fallback);
               add_ray(packets.back(), s, ray.origin, ray.direction, ray.tfar, ray.t_surface, 1.0f);
             }
+    finish_packet(packets.back());
   });
   RTCScene rtc_scene = scene.impl()->scene;
   std::vector<std::uint64_t> tile_rays(tile_packets.size(), 0), tile_hits(tile_packets.size(), 0);

@@ -27,22 +27,27 @@ std::string read_bytes(const std::string& path) {
   return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
 
+// Writes the scene's meshes to `dir` (low.obj, high.ply) and returns the
+// options of a size x size, 4-sample bake of them, outputs still to set.
+BakeOptions save_scene(const test::TempDir& dir, const scenes::ScenePair& scene, int size) {
+  EXPECT_TRUE(save_mesh(dir.file("low.obj"), scene.low).is_ok());
+  EXPECT_TRUE(save_mesh(dir.file("high.ply"), scene.high).is_ok());
+  BakeOptions o;
+  o.low_path = dir.file("low.obj");
+  o.high_path = dir.file("high.ply");
+  o.width = o.height = size;
+  o.samples = 4;
+  return o;
+}
+
 // Heightfield over a plane: flat low grid, so the tangent frame is the
 // identity and the map must hold normalize(-dh/dx, -dh/dy, 1) directly.
 TEST(EndToEnd, HeightfieldMatchesAnalyticNormals) {
   test::TempDir dir;
   scenes::HeightfieldParams params;
   params.high_cells = 384;
-  const scenes::ScenePair scene = scenes::make_heightfield(params);
-  ASSERT_TRUE(save_mesh(dir.file("low.obj"), scene.low).is_ok());
-  ASSERT_TRUE(save_mesh(dir.file("high.ply"), scene.high).is_ok());
-
-  BakeOptions o;
-  o.low_path = dir.file("low.obj");
-  o.high_path = dir.file("high.ply");
+  BakeOptions o = save_scene(dir, scenes::make_heightfield(params), 256);
   o.outputs = {{dir.file("map.exr"), PixelFormat::exr_float}};
-  o.width = o.height = 256;
-  o.samples = 4;
   BakeReport report;
   const Status s = bake(o, report);
   ASSERT_TRUE(s.is_ok()) << s.message();
@@ -67,16 +72,8 @@ TEST(EndToEnd, DisplacedSphereMatchesAnalyticNormals) {
   test::TempDir dir;
   scenes::SphereParams params;
   params.high_cells = 192;
-  const scenes::ScenePair scene = scenes::make_displaced_sphere(params);
-  ASSERT_TRUE(save_mesh(dir.file("low.obj"), scene.low).is_ok());
-  ASSERT_TRUE(save_mesh(dir.file("high.ply"), scene.high).is_ok());
-
-  BakeOptions o;
-  o.low_path = dir.file("low.obj");
-  o.high_path = dir.file("high.ply");
+  BakeOptions o = save_scene(dir, scenes::make_displaced_sphere(params), 256);
   o.outputs = {{dir.file("map.exr"), PixelFormat::exr_float}};
-  o.width = o.height = 256;
-  o.samples = 4;
   o.padding = 0;
   BakeReport report;
   const Status s = bake(o, report);
@@ -103,14 +100,7 @@ TEST(EndToEnd, BandsDoNotChangeTheMap) {
   test::TempDir dir;
   scenes::SphereParams params;
   params.high_cells = 48;
-  const scenes::ScenePair scene = scenes::make_displaced_sphere(params);
-  ASSERT_TRUE(save_mesh(dir.file("low.obj"), scene.low).is_ok());
-  ASSERT_TRUE(save_mesh(dir.file("high.ply"), scene.high).is_ok());
-  BakeOptions o;
-  o.low_path = dir.file("low.obj");
-  o.high_path = dir.file("high.ply");
-  o.width = o.height = 200;  // not a multiple of the band height
-  o.samples = 4;
+  BakeOptions o = save_scene(dir, scenes::make_displaced_sphere(params), 200);  // not a multiple of the band height
   o.outputs = {{dir.file("one.exr"), PixelFormat::exr_float}};
   BakeReport one, many;
   ASSERT_TRUE(bake(o, one).is_ok());
@@ -130,14 +120,7 @@ TEST(EndToEnd, CompactBvhGivesTheSameMap) {
   test::TempDir dir;
   scenes::SphereParams params;
   params.high_cells = 48;
-  const scenes::ScenePair scene = scenes::make_displaced_sphere(params);
-  ASSERT_TRUE(save_mesh(dir.file("low.obj"), scene.low).is_ok());
-  ASSERT_TRUE(save_mesh(dir.file("high.ply"), scene.high).is_ok());
-  BakeOptions o;
-  o.low_path = dir.file("low.obj");
-  o.high_path = dir.file("high.ply");
-  o.width = o.height = 128;
-  o.samples = 4;
+  BakeOptions o = save_scene(dir, scenes::make_displaced_sphere(params), 128);
   BakeReport fast, compact, automatic;
   o.bvh_memory = BvhMemory::fast;
   o.outputs = {{dir.file("fast.exr"), PixelFormat::exr_float}};

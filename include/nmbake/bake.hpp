@@ -113,6 +113,11 @@ struct BakeReport {
 // the calling thread only.
 using ProgressFn = std::function<void(const char* stage, double fraction)>;
 
+// Rows per band of a width x height map at `samples` per texel: about
+// `band_samples` samples (0: 4M), a multiple of kRasterTileSize so bands
+// start on tile rows, at most `height`.
+int band_rows(int width, int height, int samples, std::size_t band_samples = 0);
+
 // Runs one bake. Nothing is written unless every stage succeeded; each output
 // is written atomically.
 Status bake(const BakeOptions& options, BakeReport& report, const ProgressFn& progress = {});

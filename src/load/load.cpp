@@ -200,6 +200,15 @@ Status binary_error(const std::string& path, std::uint64_t offset, const std::st
   return Status::bad_input(path + ": byte " + std::to_string(offset) + ": " + reason);
 }
 
+std::string lower_extension(const std::string& path) {
+  const std::size_t slash = path.find_last_of('/');
+  const std::size_t dot = path.find_last_of('.');
+  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return {};
+  std::string extension = path.substr(dot);
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return extension;
+}
+
 std::size_t block_bytes(const LoadOptions& options) {
   // Many tasks for every core, yet small enough to stay in cache between
   // read(2) and the decoders; a larger block was slower (measured: 32 MiB
@@ -249,24 +258,11 @@ void drop_unreferenced_vertices(Mesh& mesh) {
 
 }  // namespace load_detail
 
-namespace {
-
-std::string lower_extension(const std::string& path) {
-  const std::size_t slash = path.find_last_of('/');
-  const std::size_t dot = path.find_last_of('.');
-  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return {};
-  std::string extension = path.substr(dot);
-  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return extension;
-}
-
-}  // namespace
-
 Status load_mesh(const std::string& path, const LoadOptions& options, Mesh& out, LoadStats& stats) {
   const auto begin = std::chrono::steady_clock::now();
   out = Mesh{};
   stats = LoadStats{};
-  const std::string extension = lower_extension(path);
+  const std::string extension = load_detail::lower_extension(path);
   if (extension != ".obj" && extension != ".ply") {
     return Status::bad_input(path + ": unknown mesh format '" + extension + "' (expected .obj or .ply)");
   }

@@ -130,6 +130,9 @@ Status text_error(const std::string& path, std::uint64_t line, const std::string
 // "PATH: byte OFFSET: reason"
 Status binary_error(const std::string& path, std::uint64_t offset, const std::string& reason);
 
+// ".obj", ".ply", ...: the file name's extension in lower case, "" if none.
+std::string lower_extension(const std::string& path);
+
 // LoadOptions::block_bytes, or its default.
 std::size_t block_bytes(const LoadOptions& options);
 

@@ -5,7 +5,6 @@
 // then renamed over the target.
 #include <atomic>
 #include <bit>
-#include <cctype>
 #include <cerrno>
 #include <charconv>
 #include <cstring>
@@ -155,19 +154,10 @@ void write_ply(Writer& out, const Mesh& mesh) {
   }
 }
 
-std::string lower_extension(const std::string& path) {
-  const std::size_t slash = path.find_last_of('/');
-  const std::size_t dot = path.find_last_of('.');
-  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return {};
-  std::string extension = path.substr(dot);
-  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return extension;
-}
-
 }  // namespace
 
 Status save_mesh(const std::string& path, const Mesh& mesh) {
-  const std::string extension = lower_extension(path);
+  const std::string extension = load_detail::lower_extension(path);
   if (extension != ".obj" && extension != ".ply") {
     return Status::bad_input(path + ": unknown mesh format '" + extension + "' (expected .obj or .ply)");
   }

@@ -112,14 +112,9 @@ int main(int argc, char** argv) {
     nmbake::RayOptions rays;
     rays.front = report.front;
     rays.back = report.back;
-    // Bands of rows of about 4M samples, as the bake's: the prebuilt packets
-    // of a whole 4096^2 x16 map would not fit in memory. Only the Embree
-    // calls are timed.
-    const std::size_t per_row = static_cast<std::size_t>(size) * static_cast<std::size_t>(samples);
-    const int rows = static_cast<int>(std::min<std::size_t>(
-        static_cast<std::size_t>(size),
-        std::max<std::size_t>(nmbake::kRasterTileSize,
-                              (std::size_t{1} << 22) / per_row / nmbake::kRasterTileSize * nmbake::kRasterTileSize)));
+    // The bake's bands of rows: the prebuilt packets of a whole 4096^2 x16
+    // map would not fit in memory. Only the Embree calls are timed.
+    const int rows = nmbake::band_rows(size, size, samples);
     nmbake::TexelSamples ts;
     for (int i = 0; i < repeat; ++i) {
       double seconds = 0.0;
