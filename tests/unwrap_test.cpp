@@ -272,21 +272,31 @@ TEST(Unwrap, TooSmallAtlasIsReportedNotCrashed) {
   EXPECT_NE(s.message().find("do not fit"), std::string::npos) << s.message();
 }
 
-// Real meshes from Debian's assimp-testmodels (tools/setup installs it).
-TEST(Unwrap, AssimpTestModels) {
+// Real meshes from Debian's assimp-testmodels (tools/setup installs it), at
+// the target size (2048², gutter 4) and, for the sanitizer build
+// (which skips `Heavy`), at 1024², gutter 2.
+void unwrap_assimp_models(int size, int gutter, double wuson_floor, double spider_floor) {
   const std::string root = "/usr/share/assimp/models/";
   if (!std::filesystem::exists(root)) GTEST_SKIP() << "assimp-testmodels is not installed (tools/setup)";
-  // Utilization floors: Wuson 79.6% and spider 68.7% measured (spider misses the 70% target).
-  for (const auto& [file, floor] : {std::pair{"OBJ/WusonOBJ.obj", 0.78}, std::pair{"OBJ/spider.obj", 0.67}}) {
+  for (const auto& [file, floor] :
+       {std::pair{"OBJ/WusonOBJ.obj", wuson_floor}, std::pair{"OBJ/spider.obj", spider_floor}}) {
     Mesh mesh;
     LoadStats stats;
-    const Status s = load_mesh(root + file, LoadOptions{false, true}, mesh, stats);
+    // As `nmbake unwrap` loads it: the file's UV seams and hard edges are chart boundaries.
+    const Status s = load_mesh(root + file, LoadOptions{true, true}, mesh, stats);
     ASSERT_TRUE(s.is_ok()) << s.message();
-    const UnwrapReport r = unwrap_and_check(file, mesh, 1024, 2);
+    const UnwrapReport r = unwrap_and_check(file, mesh, size, gutter);
     EXPECT_LE(r.stretch_l2, 1.15) << file;
     EXPECT_GE(r.utilization, floor) << file;
   }
 }
+
+// Measured: Wuson 81.3%, spider 70.4% (215 charts, most forced by the
+// model's hard edges and UV seams).
+TEST(Unwrap, AssimpTestModelsAtTargetSizeHeavy) { unwrap_assimp_models(2048, 4, 0.79, 0.70); }
+
+// Measured: Wuson 80.3%, spider 68.7%.
+TEST(Unwrap, AssimpTestModels) { unwrap_assimp_models(1024, 2, 0.79, 0.675); }
 
 TEST(UnwrapCli, WritesMeshAndReport) {
   test::TempDir dir;
