@@ -18,7 +18,10 @@
 #include <vector>
 
 #include "test_util.hpp"
+#include "deflate_huffman.hpp"
 #include "image_png.hpp"
+
+#include <zlib.h>
 
 #include <tbb/global_control.h>
 
@@ -488,6 +491,87 @@ TEST(ImagePng, ManyRowGroupsRoundTrip) {
       }
     }
   }
+}
+
+// The Huffman-only deflate encoder, checked by zlib's inflate: streams of
+// every shape decode to their input, and pieces (non-final) concatenate.
+std::vector<std::uint8_t> inflate_raw(const std::vector<std::uint8_t>& stream, std::size_t expected) {
+  std::vector<std::uint8_t> out(expected + 16);
+  z_stream z{};
+  EXPECT_EQ(inflateInit2(&z, -15), Z_OK);
+  z.next_in = const_cast<std::uint8_t*>(stream.data());
+  z.avail_in = static_cast<uInt>(stream.size());
+  z.next_out = out.data();
+  z.avail_out = static_cast<uInt>(out.size());
+  const int result = inflate(&z, Z_FINISH);
+  EXPECT_EQ(result, Z_STREAM_END) << (z.msg ? z.msg : "");
+  EXPECT_EQ(z.avail_in, 0u) << "bytes after the end of the stream";
+  out.resize(out.size() - z.avail_out);
+  inflateEnd(&z);
+  return out;
+}
+
+TEST(DeflateHuffman, InflatesToTheInput) {
+  std::vector<std::vector<std::uint8_t>> inputs;
+  inputs.emplace_back();                                   // empty
+  inputs.emplace_back(1, std::uint8_t{7});                 // one byte
+  inputs.emplace_back(200000, std::uint8_t{0});            // one value only, several blocks
+  std::vector<std::uint8_t> all_values(256 * 1000), noise(300001), skewed(150000);
+  for (std::size_t i = 0; i < all_values.size(); ++i) all_values[i] = static_cast<std::uint8_t>(i);
+  std::uint32_t h = 12345;
+  for (auto& b : noise) b = static_cast<std::uint8_t>((h = h * 1664525u + 1013904223u) >> 24);
+  // Fibonacci-like counts: an unlimited Huffman code would need ~25 bits.
+  std::size_t at = 0;
+  std::uint64_t f0 = 1, f1 = 1;
+  for (int v = 0; v < 26 && at < skewed.size(); ++v) {
+    for (std::uint64_t k = 0; k < f0 && at < skewed.size(); ++k) skewed[at++] = static_cast<std::uint8_t>(v);
+    const std::uint64_t f2 = f0 + f1;
+    f0 = f1, f1 = f2;
+  }
+  inputs.push_back(all_values), inputs.push_back(noise), inputs.push_back(skewed);
+  for (std::size_t n = 0; n < inputs.size(); ++n) {
+    SCOPED_TRACE("input " + std::to_string(n));
+    std::vector<std::uint8_t> stream;
+    image_detail::deflate_huffman(inputs[n].data(), inputs[n].size(), true, stream);
+    EXPECT_EQ(inflate_raw(stream, inputs[n].size()), inputs[n]);
+    // The same input cut into non-final pieces and a final one.
+    std::vector<std::uint8_t> pieces;
+    const std::size_t cut = inputs[n].size() / 3;
+    image_detail::deflate_huffman(inputs[n].data(), cut, false, pieces);
+    image_detail::deflate_huffman(inputs[n].data() + cut, cut, false, pieces);
+    image_detail::deflate_huffman(inputs[n].data() + 2 * cut, inputs[n].size() - 2 * cut, true, pieces);
+    EXPECT_EQ(inflate_raw(pieces, inputs[n].size()), inputs[n]);
+  }
+}
+
+TEST(DeflateHuffman, CodeLengthsAreLimitedAndComplete) {
+  std::vector<std::uint32_t> freq(257, 0);
+  std::uint32_t a = 1, b = 1;
+  for (int s = 0; s < 40; ++s) {  // Fibonacci counts: the unlimited code is 39 bits deep
+    freq[s] = a;
+    const std::uint32_t c = a + b;
+    a = b, b = c;
+  }
+  for (int max_bits : {7, 15}) {
+    const std::vector<std::uint8_t> lengths = image_detail::huffman_lengths(freq, max_bits);
+    double kraft = 0.0;
+    for (std::size_t s = 0; s < freq.size(); ++s) {
+      if (freq[s] == 0) {
+        EXPECT_EQ(lengths[s], 0) << s;
+        continue;
+      }
+      EXPECT_GE(lengths[s], 1) << s;
+      EXPECT_LE(lengths[s], max_bits) << s;
+      kraft += std::ldexp(1.0, -lengths[s]);
+    }
+    EXPECT_DOUBLE_EQ(kraft, 1.0) << "a complete prefix code";
+  }
+  // One symbol used: a second one-bit code completes the code.
+  std::vector<std::uint32_t> one(19, 0);
+  one[5] = 10;
+  const std::vector<std::uint8_t> lengths = image_detail::huffman_lengths(one, 7);
+  EXPECT_EQ(lengths[5], 1);
+  EXPECT_EQ(lengths[0], 1);
 }
 
 TEST(ImagePng, SameBytesWithOneThreadOrAll) {
