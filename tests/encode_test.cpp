@@ -156,5 +156,104 @@ TEST(Encode, ZeroLengthHighNormalFallsBackToFace) {
   EXPECT_NEAR(image.at(0, 0)[2], 1.0f, 1e-6f);
 }
 
+// The four-lane path (tangent space, smooth normals, inverse) against a
+// reference written here from world_to_tangent(): random skewed and mirrored
+// frames, one singular frame, a zero-length high normal, misses and samples
+// outside the chart mixed into the lanes, at 1 and 4 samples per texel and
+// a row length that leaves a scalar tail.
+TEST(Encode, FourLanePathMatchesThePerSampleReference) {
+  std::uint32_t h = 2024;
+  auto rnd = [&] { return static_cast<float>((h = h * 1664525u + 1013904223u) >> 8) / 16777216.0f; };
+  LowSurface surface;
+  const int low_triangles = 7;
+  for (int t = 0; t < low_triangles; ++t) {
+    for (int c = 0; c < 3; ++c) {
+      surface.position.push_back({rnd(), rnd(), rnd()});
+      surface.uv.push_back({rnd(), rnd()});
+      surface.normal.push_back({0.3f * (rnd() - 0.5f), 0.3f * (rnd() - 0.5f), 0.5f + rnd()});
+      surface.cage_normal.push_back(surface.normal.back());
+      // Skewed, unnormalised tangents; triangles 2 and 5 mirrored.
+      surface.tangent.push_back({0.5f + rnd(), rnd() - 0.5f, rnd() - 0.5f, (t == 2 || t == 5) ? -1.0f : 1.0f});
+    }
+  }
+  // Triangle 3: the tangent parallel to the normal (a singular frame).
+  for (int c = 0; c < 3; ++c) surface.tangent[9 + c] = glm::vec4(surface.normal[9 + c], 1.0f);
+  Mesh high;
+  for (int v = 0; v < 30; ++v) {
+    high.positions.push_back({rnd(), rnd(), rnd()});
+    high.normals.push_back(glm::normalize(glm::vec3(rnd() - 0.5f, rnd() - 0.5f, 1.0f)));
+  }
+  high.normals[4] = -high.normals[5];  // triangle 1 (vertices 3, 4, 5): zero normal halfway from 4 to 5
+  for (std::uint32_t t = 0; t < 10; ++t) high.indices.insert(high.indices.end(), {3 * t, 3 * t + 1, 3 * t + 2});
+
+  for (int spp : {1, 4}) {
+    SCOPED_TRACE("spp " + std::to_string(spp));
+    TexelSamples samples;
+    samples.width = 37;
+    samples.height = 3;
+    samples.samples = spp;
+    Hits hits;
+    const std::size_t count = static_cast<std::size_t>(samples.width) * samples.height * spp;
+    for (std::size_t s = 0; s < count; ++s) {
+      const float r = rnd();
+      samples.triangle.push_back(r < 0.05f ? -1 : static_cast<std::int32_t>(rnd() * low_triangles) % low_triangles);
+      const float bu = rnd(), bv = rnd() * (1.0f - bu);
+      samples.bary.push_back({bu, bv});
+      const float m = rnd();
+      hits.triangle.push_back(m < 0.08f ? -1 : static_cast<std::int32_t>(rnd() * 10) % 10);
+      hits.bary.push_back(hits.triangle.back() == 1 && m < 0.3f ? glm::vec2(0.5f, 0.5f)
+                                                                 : glm::vec2(rnd() * 0.5f, rnd() * 0.5f));
+      hits.distance.push_back(0.0f);
+    }
+    samples.coverage.assign(static_cast<std::size_t>(samples.width) * samples.height, 0);
+    for (std::size_t t = 0; t < samples.coverage.size(); ++t)
+      for (int k = 0; k < spp; ++k) samples.coverage[t] |= samples.triangle[t * spp + k] >= 0 ? 1 : 0;
+
+    Image image;
+    EncodeStats stats;
+    encode(surface, samples, high, hits, EncodeOptions{}, image, stats);
+
+    std::uint64_t singular = 0, zero_high = 0;
+    auto lerp = [](const auto& c0, const auto& c1, const auto& c2, glm::vec2 b) {
+      return c0 * (1.0f - b.x - b.y) + c1 * b.x + c2 * b.y;
+    };
+    for (std::size_t texel = 0; texel < samples.coverage.size(); ++texel) {
+      glm::vec3 expected(0.0f, 0.0f, 1.0f);
+      if (samples.coverage[texel]) {
+        glm::vec3 sum(0.0f);
+        for (int k = 0; k < spp; ++k) {
+          const std::size_t s = texel * spp + k;
+          const std::int32_t tri = samples.triangle[s];
+          if (tri < 0) continue;
+          const std::size_t base = 3 * static_cast<std::size_t>(tri);
+          if (hits.triangle[s] < 0) {
+            sum += glm::vec3(0.0f, 0.0f, 1.0f);
+            continue;
+          }
+          const std::uint32_t* v = &high.indices[3 * static_cast<std::size_t>(hits.triangle[s])];
+          glm::vec3 n = lerp(high.normals[v[0]], high.normals[v[1]], high.normals[v[2]], hits.bary[s]);
+          if (glm::dot(n, n) <= 1e-24f) {
+            ++zero_high;
+            n = glm::normalize(glm::cross(high.positions[v[1]] - high.positions[v[0]],
+                                          high.positions[v[2]] - high.positions[v[0]]));
+          }
+          const glm::vec3 N = lerp(surface.normal[base], surface.normal[base + 1], surface.normal[base + 2], samples.bary[s]);
+          const glm::vec4 T = lerp(surface.tangent[base], surface.tangent[base + 1], surface.tangent[base + 2], samples.bary[s]);
+          glm::vec3 t;
+          if (!world_to_tangent(n, glm::vec3(T), N, T.w < 0.0f ? -1.0f : 1.0f, TangentEncode::inverse, t)) ++singular;
+          sum += t;
+        }
+        expected = glm::normalize(sum);
+      }
+      const float* p = &image.pixels[texel * 3];
+      for (int c = 0; c < 3; ++c) ASSERT_NEAR(p[c], 0.5f * expected[c] + 0.5f, 2e-6f) << "texel " << texel << " channel " << c;
+    }
+    EXPECT_EQ(stats.singular_frames, singular);
+    EXPECT_EQ(stats.zero_high_normals, zero_high);
+    EXPECT_GT(singular, 0u);
+    EXPECT_GT(zero_high, 0u);
+  }
+}
+
 }  // namespace
 }  // namespace nmbake
