@@ -141,8 +141,8 @@ std::vector<std::uint8_t> encode_png(const Image& image, int bits) {
     group.raw_bytes = filtered.size();
     group.adler = adler32(adler32(0L, Z_NULL, 0), filtered.data(), static_cast<uInt>(filtered.size()));
     const bool last = g + 1 == group_count;
+    if (g == 0) group.deflated = {0x78, 0x01};  // zlib header: deflate, 32K window, "fastest"
     deflate_huffman(filtered.data(), filtered.size(), last, group.deflated);
-    if (g == 0) group.deflated.insert(group.deflated.begin(), {0x78, 0x01});  // zlib: deflate, 32K window, "fastest"
     if (!last) group.idat_crc = idat_crc(group.deflated);
   });
 

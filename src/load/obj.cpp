@@ -106,6 +106,19 @@ const char* line_content_end(const char* line_begin, const char* newline) {
   return newline > line_begin && newline[-1] == '\r' ? newline - 1 : newline;
 }
 
+// A statement's keyword and the end of its arguments (a trailing comment
+// cut off); false for a blank line or a comment. Shared by the serial and the
+// slice parsers, so both read the same statements.
+bool split_statement(const char* p, const char* end, std::string_view& keyword, const char*& args_end) {
+  p = skip_blanks(p, end);
+  if (p == end || *p == '#') return false;
+  const char* keyword_end = skip_token(p, end);
+  keyword = std::string_view(p, static_cast<std::size_t>(keyword_end - p));
+  const void* hash = std::memchr(keyword_end, '#', static_cast<std::size_t>(end - keyword_end));
+  args_end = hash != nullptr ? static_cast<const char*>(hash) : end;
+  return true;
+}
+
 // The serial parse_reals without messages: false on any error.
 bool read_reals(const char* p, const char* end, float* values, int required, int count) {
   for (int i = 0; i < count; ++i) {
@@ -175,15 +188,10 @@ class ObjParser {
   Status error(const std::string& reason) const { return text_error(path_, line_number_, reason); }
 
   Status parse_line(std::string_view line) {
-    const char* p = skip_blanks(line.data(), line.data() + line.size());
-    const char* end = line.data() + line.size();
-    if (p == end || *p == '#') return Status::ok();
-    const char* keyword_end = skip_token(p, end);
-    const std::string_view keyword(p, static_cast<std::size_t>(keyword_end - p));
-    // A comment may follow a statement.
-    if (const void* hash = std::memchr(keyword_end, '#', static_cast<std::size_t>(end - keyword_end))) {
-      end = static_cast<const char*>(hash);
-    }
+    std::string_view keyword;
+    const char* end = nullptr;
+    if (!split_statement(line.data(), line.data() + line.size(), keyword, end)) return Status::ok();
+    const char* keyword_end = keyword.data() + keyword.size();
     if (keyword == "v") return parse_position(keyword_end, end);
     if (keyword == "vt") return parse_texcoord(keyword_end, end);
     if (keyword == "vn") return parse_normal(keyword_end, end);
@@ -418,14 +426,11 @@ class ObjParser {
 
   // parse_line as records; false where the serial parser might report an
   // error (nothing of the line is recorded then).
-  bool parse_line_records(const char* line_begin, const char* end, std::uint64_t line, ObjSlice& slice) const {
-    const char* p = skip_blanks(line_begin, end);
-    if (p == end || *p == '#') return true;
-    const char* keyword_end = skip_token(p, end);
-    const std::string_view keyword(p, static_cast<std::size_t>(keyword_end - p));
-    if (const void* hash = std::memchr(keyword_end, '#', static_cast<std::size_t>(end - keyword_end))) {
-      end = static_cast<const char*>(hash);
-    }
+  bool parse_line_records(const char* line_begin, const char* line_end, std::uint64_t line, ObjSlice& slice) const {
+    std::string_view keyword;
+    const char* end = nullptr;
+    if (!split_statement(line_begin, line_end, keyword, end)) return true;
+    const char* keyword_end = keyword.data() + keyword.size();
     if (keyword == "v") {
       glm::vec3 position{0.0f};
       if (!read_reals(keyword_end, end, &position.x, 3, 3)) return false;
@@ -452,8 +457,7 @@ class ObjParser {
       face.vn_before = slice.normal_count;
       face.line = line;
       face.line_begin = line_begin;
-      p = keyword_end;
-      for (;;) {
+      for (const char* p = keyword_end;;) {
         p = skip_blanks(p, end);
         if (p == end) break;
         const char* token_end = skip_token(p, end);

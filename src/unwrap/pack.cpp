@@ -351,8 +351,8 @@ constexpr std::array<Heuristic, kHeuristicCount> kHeuristics = {{
 
 using Orders = std::array<std::vector<std::uint32_t>, kHeuristicCount>;
 
-// The chart orders of kHeuristics: by decreasing key, chart order on ties.
-Orders chart_orders(const std::vector<Chart>& charts) {
+// Each chart's UV area (the sum of its triangles').
+std::vector<double> chart_areas(const std::vector<Chart>& charts) {
   std::vector<double> area(charts.size(), 0.0);
   for (std::size_t k = 0; k < charts.size(); ++k) {
     const Chart& c = charts[k];
@@ -361,6 +361,11 @@ Orders chart_orders(const std::vector<Chart>& charts) {
       area[k] += 0.5 * std::abs((b.x - a.x) * (d.y - a.y) - (b.y - a.y) * (d.x - a.x));
     }
   }
+  return area;
+}
+
+// The chart orders of kHeuristics: by decreasing key, chart order on ties.
+Orders chart_orders(const std::vector<Chart>& charts, const std::vector<double>& area) {
   Orders orders;
   for (std::size_t h = 0; h < kHeuristicCount; ++h) {
     auto key = [&](std::uint32_t i) -> double {
@@ -469,13 +474,10 @@ bool search_scale(const std::vector<Chart>& charts, const Orders& order, const P
 bool pack_charts(const std::vector<Chart>& charts, const PackOptions& options, PackResult& result) {
   result = PackResult{};
   if (charts.empty()) return true;
+  const std::vector<double> areas = chart_areas(charts);
   double area = 0.0;
-  for (const Chart& c : charts)
-    for (std::size_t i = 0; i < c.faces.size(); ++i) {
-      const glm::dvec2 a = c.uv[3 * i], b = c.uv[3 * i + 1], d = c.uv[3 * i + 2];
-      area += 0.5 * std::abs((b.x - a.x) * (d.y - a.y) - (b.y - a.y) * (d.x - a.x));
-    }
-  const Orders order = chart_orders(charts);
+  for (double a : areas) area += a;
+  const Orders order = chart_orders(charts, areas);
 
   // At this scale the charts' own area fills the atlas: nothing larger fits.
   const double upper = area > 0.0 ? options.resolution / std::sqrt(area) : 1.0;
