@@ -352,6 +352,16 @@ void rasterize(const LowSurface& surface, int width, int height, int samples, Te
           std::fill(scratch.covered.begin(), scratch.covered.end(), 0);
           std::fill(scratch.inside_count.begin(), scratch.inside_count.end(), 0);
 
+          // Raw pointers: the byte stores below may alias anything reached
+          // through a vector, which would reload every data pointer per sample.
+          std::uint8_t* const covered = scratch.covered.data();
+          std::uint8_t* const inside = scratch.inside.data();
+          std::uint8_t* const strict_count = scratch.strict_count.data();
+          std::uint8_t* const inside_count = scratch.inside_count.data();
+          double* const best_distance2 = scratch.best_distance2.data();
+          std::int32_t* const out_triangle = out.triangle.data();
+          glm::vec2* const out_bary = out.bary.data();
+
           // Pass 1: containing triangles, first in order wins; overlap counts.
           for (std::size_t k = tile_begin[tile]; k < tile_begin[tile + 1]; ++k) {
             const std::int32_t t = tile_triangles[k];
@@ -362,7 +372,7 @@ void rasterize(const LowSurface& surface, int width, int height, int samples, Te
               for (int x = x_begin; x <= x_end; ++x) {
                 if (!box_overlaps(tri, x, y, 1.0)) continue;
                 const std::size_t texel = local_texel(x, y);
-                scratch.covered[texel] = 1;
+                covered[texel] = 1;
                 const std::size_t local0 = texel * sample_stride;
                 const std::size_t global0 = first_sample(x, y);
                 for (int s = 0; s < samples; ++s) {
@@ -372,14 +382,14 @@ void rasterize(const LowSurface& surface, int width, int height, int samples, Te
                   if (!(e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0)) continue;
                   const std::size_t local = local0 + s;
                   if (e0 > tri.strict_threshold && e1 > tri.strict_threshold && e2 > tri.strict_threshold &&
-                      scratch.strict_count[local] < 2) {
-                    ++scratch.strict_count[local];
+                      strict_count[local] < 2) {
+                    ++strict_count[local];
                   }
-                  if (!scratch.inside[local]) {
-                    scratch.inside[local] = 1;
-                    ++scratch.inside_count[texel];
-                    out.triangle[global0 + s] = t;
-                    out.bary[global0 + s] = inside_bary(e0, e1, e2);
+                  if (!inside[local]) {
+                    inside[local] = 1;
+                    ++inside_count[texel];
+                    out_triangle[global0 + s] = t;
+                    out_bary[global0 + s] = inside_bary(e0, e1, e2);
                   }
                 }
               }
@@ -398,20 +408,20 @@ void rasterize(const LowSurface& surface, int width, int height, int samples, Te
             for (int y = y_begin; y <= y_end; ++y) {
               for (int x = x_begin; x <= x_end; ++x) {
                 const std::size_t texel = local_texel(x, y);
-                if (scratch.inside_count[texel] == samples || !box_overlaps(tri, x, y, 1.0)) continue;
+                if (inside_count[texel] == samples || !box_overlaps(tri, x, y, 1.0)) continue;
                 const std::size_t local0 = texel * sample_stride;
                 const std::size_t global0 = first_sample(x, y);
                 for (int s = 0; s < samples; ++s) {
                   const std::size_t local = local0 + s;
-                  if (scratch.inside[local]) continue;
+                  if (inside[local]) continue;
                   const glm::dvec2 p{x + static_cast<double>(offsets[s].x),
                                      y + static_cast<double>(offsets[s].y)};
                   glm::vec2 b;
                   const double d2 = nearest_point(tri, p, b);
-                  if (d2 < scratch.best_distance2[local]) {
-                    scratch.best_distance2[local] = d2;
-                    out.triangle[global0 + s] = t;
-                    out.bary[global0 + s] = b;
+                  if (d2 < best_distance2[local]) {
+                    best_distance2[local] = d2;
+                    out_triangle[global0 + s] = t;
+                    out_bary[global0 + s] = b;
                   }
                 }
               }
