@@ -17,9 +17,13 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "simd4.hpp"
+
 namespace nmbake {
 
 namespace {
+
+using namespace detail;
 
 template <class V>
 [[gnu::always_inline]] inline V interpolate(const std::vector<V>& corner, std::size_t base, glm::vec2 b) {
@@ -177,43 +181,6 @@ bool sample_contribution(const LowSurface& surface, const TexelSamples& samples,
 // so results are bit-identical to it. A lane that is not the plain case (no
 // sample, a miss, a zero high normal, a singular frame) is redone by
 // sample_contribution(), which also counts it.
-typedef float f4 __attribute__((vector_size(16)));
-typedef std::int32_t i4 __attribute__((vector_size(16)));
-
-inline i4 finite4(f4 v) { return (v - v) == f4{0.0f, 0.0f, 0.0f, 0.0f}; }  // inf - inf and NaN are NaN
-
-inline f4 sqrt4(f4 v) {
-#if defined(__SSE__)
-  return reinterpret_cast<f4>(__builtin_ia32_sqrtps(reinterpret_cast<__v4sf>(v)));
-#else
-  f4 r;
-  for (int i = 0; i < 4; ++i) r[i] = std::sqrt(v[i]);
-  return r;
-#endif
-}
-
-// Three corners interpolated per lane in array-of-structures form (the same
-// products and sums as interpolate(), so the same bits), then transposed to
-// one vector per axis.
-inline f4 load4(const glm::vec3& v) { return f4{v.x, v.y, v.z, 0.0f}; }
-inline f4 load4(const glm::vec4& v) { return f4{v.x, v.y, v.z, v.w}; }
-
-template <class V>
-inline f4 corner_mix(const V& c0, const V& c1, const V& c2, float w0, float bx, float by) {
-  return load4(c0) * w0 + load4(c1) * bx + load4(c2) * by;
-}
-
-struct Axes {
-  f4 x, y, z, w;
-};
-
-inline Axes transpose(f4 r0, f4 r1, f4 r2, f4 r3) {
-  const f4 t0 = __builtin_shuffle(r0, r1, i4{0, 4, 1, 5}), t1 = __builtin_shuffle(r2, r3, i4{0, 4, 1, 5});
-  const f4 t2 = __builtin_shuffle(r0, r1, i4{2, 6, 3, 7}), t3 = __builtin_shuffle(r2, r3, i4{2, 6, 3, 7});
-  return {__builtin_shuffle(t0, t1, i4{0, 1, 4, 5}), __builtin_shuffle(t0, t1, i4{2, 3, 6, 7}),
-          __builtin_shuffle(t2, t3, i4{0, 1, 4, 5}), __builtin_shuffle(t2, t3, i4{2, 3, 6, 7})};
-}
-
 void encode_four(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
                  const EncodeOptions& options, std::size_t s0, Counts& counts, glm::vec3* out, bool* used) {
   bool plain = true;
@@ -229,10 +196,9 @@ void encode_four(const LowSurface& surface, const TexelSamples& samples, const M
     const std::size_t base = 3 * static_cast<std::size_t>(samples.triangle[s]);
     const std::uint32_t* h = &high.indices[3 * static_cast<std::size_t>(hits.triangle[s])];
     const glm::vec2 b = samples.bary[s], hb = hits.bary[s];
-    const float w0 = 1.0f - b.x - b.y, hw0 = 1.0f - hb.x - hb.y;
-    low_n[i] = corner_mix(surface.normal[base], surface.normal[base + 1], surface.normal[base + 2], w0, b.x, b.y);
-    low_t[i] = corner_mix(surface.tangent[base], surface.tangent[base + 1], surface.tangent[base + 2], w0, b.x, b.y);
-    high_n[i] = corner_mix(high.normals[h[0]], high.normals[h[1]], high.normals[h[2]], hw0, hb.x, hb.y);
+    low_n[i] = corner_mix(&surface.normal[base], b);
+    low_t[i] = corner_mix(surface.tangent[base], surface.tangent[base + 1], surface.tangent[base + 2], b);
+    high_n[i] = corner_mix(high.normals[h[0]], high.normals[h[1]], high.normals[h[2]], hb);
   }
   const f4 one = {1.0f, 1.0f, 1.0f, 1.0f}, zero = {0.0f, 0.0f, 0.0f, 0.0f};
   const Axes N = transpose(low_n[0], low_n[1], low_n[2], low_n[3]);

@@ -22,6 +22,9 @@
 #include <glm/geometric.hpp>
 #include <tbb/parallel_for.h>
 
+#include "huge_pages.hpp"
+#include "simd4.hpp"
+
 namespace nmbake {
 
 namespace {
@@ -255,27 +258,43 @@ void queue_sample(Packet& p, std::size_t sample, std::int32_t tri, glm::vec2 b) 
   p.bary[i] = b;
 }
 
-// Returns the number of lanes that took build_ray's fallback.
+// Builds the queued lanes' rays four at a time in SIMD lanes: per lane the
+// point and the cage normal are interpolated, then one vector per axis gives
+// the lengths, the unit normals and the origins. The operations are
+// build_ray()'s, in its order, so the rays are bit for bit the same; a lane
+// whose normal is zero or not finite takes build_ray() and its fallback.
+// The fields Embree does not write are filled for all 16 lanes (lanes past
+// the count are invalid). Returns the number of lanes that took the fallback.
 std::uint64_t build_queued_rays(Packet& p, const LowSurface& surface, const RayOptions& options) {
+  using namespace detail;
   const std::vector<glm::vec3>& normals = options.cage == CageMode::interpolated ? surface.normal : surface.cage_normal;
   RTCRay16& r = p.rayhit.ray;
   const int n = p.count;
-  float ax[kPacket], ay[kPacket], az[kPacket], length[kPacket];
-  for (int i = 0; i < n; ++i) {
-    const std::size_t base = 3 * static_cast<std::size_t>(p.triangle[i]);
-    const glm::vec3 P = interpolate(surface.position, base, p.bary[i]);
-    const glm::vec3 a = interpolate(normals, base, p.bary[i]);
-    r.org_x[i] = P.x;
-    r.org_y[i] = P.y;
-    r.org_z[i] = P.z;
-    ax[i] = a.x;
-    ay[i] = a.y;
-    az[i] = a.z;
-  }
-  for (int i = 0; i < n; ++i) length[i] = std::sqrt(ax[i] * ax[i] + ay[i] * ay[i] + az[i] * az[i]);
+  const f4 front = splat4(options.front);
   std::uint64_t fallbacks = 0;
-  for (int i = 0; i < n; ++i) {
-    if (!(length[i] > 1e-12f) || !std::isfinite(length[i])) {
+  for (int g = 0; g < n; g += 4) {
+    f4 point[4], normal[4];
+    for (int k = 0; k < 4; ++k) {
+      const int i = std::min(g + k, n - 1);  // past the count: a copy of the last lane
+      const std::size_t base = 3 * static_cast<std::size_t>(p.triangle[i]);
+      point[k] = corner_mix(&surface.position[base], p.bary[i]);
+      normal[k] = corner_mix(&normals[base], p.bary[i]);
+    }
+    const Axes P = transpose(point[0], point[1], point[2], point[3]);
+    const Axes a = transpose(normal[0], normal[1], normal[2], normal[3]);
+    const f4 length = sqrt4(a.x * a.x + a.y * a.y + a.z * a.z);
+    const i4 ok = (length > splat4(1e-12f)) & finite4(length);
+    const f4 inv = splat4(1.0f) / length;
+    const f4 ax = a.x * inv, ay = a.y * inv, az = a.z * inv;
+    store4(r.org_x + g, P.x + front * ax);
+    store4(r.org_y + g, P.y + front * ay);
+    store4(r.org_z + g, P.z + front * az);
+    store4(r.dir_x + g, -ax);
+    store4(r.dir_y + g, -ay);
+    store4(r.dir_z + g, -az);
+    for (int k = 0; k < 4 && g + k < n; ++k) {
+      if (ok[k]) continue;
+      const int i = g + k;
       bool fallback = false;
       const Ray ray = build_ray(surface, p.triangle[i], p.bary[i], options, fallback);
       fallbacks += fallback ? 1 : 0;
@@ -285,27 +304,19 @@ std::uint64_t build_queued_rays(Packet& p, const LowSurface& surface, const RayO
       r.dir_x[i] = ray.direction.x;
       r.dir_y[i] = ray.direction.y;
       r.dir_z[i] = ray.direction.z;
-      continue;
     }
-    const float inv = 1.0f / length[i];
-    const glm::vec3 a = glm::vec3(ax[i], ay[i], az[i]) * inv;
-    r.org_x[i] += options.front * a.x;
-    r.org_y[i] += options.front * a.y;
-    r.org_z[i] += options.front * a.z;
-    r.dir_x[i] = -a.x;
-    r.dir_y[i] = -a.y;
-    r.dir_z[i] = -a.z;
   }
-  for (int i = 0; i < n; ++i) {
+  const float tfar = options.front + options.back;
+  for (int i = 0; i < kPacket; ++i) {
     r.tnear[i] = 0.0f;
     r.time[i] = 0.0f;
-    r.tfar[i] = options.front + options.back;
+    r.tfar[i] = tfar;
     r.mask[i] = 0xffffffffu;
     r.id[i] = static_cast<unsigned>(i);
     r.flags[i] = 0;
     p.rayhit.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
     p.rayhit.hit.primID[i] = RTC_INVALID_GEOMETRY_ID;
-    p.valid[i] = -1;
+    p.valid[i] = i < n ? -1 : 0;
     p.t_surface[i] = options.front;
     p.sign[i] = 1.0f;
   }
@@ -329,9 +340,9 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
   // Kept from the previous band: every sample's triangle is written below
   // (-1 before its rays are traced), and bary and distance are read only
   // where a triangle was hit, so the arrays are not refilled each band.
-  hits.triangle.resize(sample_count);
-  hits.bary.resize(sample_count);
-  hits.distance.resize(sample_count);
+  detail::size_output(hits.triangle, sample_count);
+  detail::size_output(hits.bary, sample_count);
+  detail::size_output(hits.distance, sample_count);
 
   const int tiles_x = (samples.width + kTile - 1) / kTile;
   const int tiles_y = (samples.height + kTile - 1) / kTile;
@@ -357,12 +368,54 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
     Packet packet;
     reset_packet(packet);
 
+    // The common case (first hit, rays queued and built together): each
+    // sample's result is written once, -1 for no sample or a miss, and the
+    // hits are counted as the packets come back.
+    if (batched_rays(options)) {
+      auto flush = [&]() {
+        if (packet.count == 0) return;
+        counts.fallbacks += build_queued_rays(packet, surface, options);
+        rtcIntersect16(packet.valid, rtc_scene, &context, &packet.rayhit);
+        counts.rays += static_cast<std::uint64_t>(packet.count);
+        for (int i = 0; i < packet.count; ++i) {
+          const std::size_t s = packet.sample[i];
+          const bool hit = packet.rayhit.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;
+          hits.triangle[s] = hit ? static_cast<std::int32_t>(packet.rayhit.hit.primID[i]) : -1;
+          if (!hit) continue;
+          ++counts.hits;
+          hits.bary[s] = glm::vec2(packet.rayhit.hit.u[i], packet.rayhit.hit.v[i]);
+          hits.distance[s] = options.front - packet.rayhit.ray.tfar[i];
+        }
+        packet.count = 0;
+      };
+      for (int by = y0; by < y1; by += kBlock) {
+        for (int bx = x0; bx < x1; bx += kBlock) {
+          for (int y = by; y < std::min(by + kBlock, y1); ++y) {
+            for (int x = bx; x < std::min(bx + kBlock, x1); ++x) {
+              const std::size_t first = (static_cast<std::size_t>(y) * samples.width + x) * spp;
+              for (std::size_t s = first; s < first + spp; ++s) {
+                const std::int32_t tri = samples.triangle[s];
+                if (tri < 0) {
+                  hits.triangle[s] = -1;
+                  continue;
+                }
+                ++counts.samples;
+                if (packet.count == kPacket) flush();
+                queue_sample(packet, s, tri, samples.bary[s]);
+              }
+            }
+          }
+        }
+      }
+      flush();
+      counts.misses = counts.samples - counts.hits;
+      return;
+    }
+
     // `nearest` keeps per sample the best of two rays; a packet holds both
     // rays of up to 8 samples, so the best is settled inside one flush.
-    const bool batched = batched_rays(options);
     auto flush = [&]() {
       if (packet.count == 0) return;
-      if (batched) counts.fallbacks += build_queued_rays(packet, surface, options);
       rtcIntersect16(packet.valid, rtc_scene, &context, &packet.rayhit);
       counts.rays += static_cast<std::uint64_t>(packet.count);
       for (int i = 0; i < packet.count; ++i) {
@@ -392,11 +445,6 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
               hits.triangle[s] = -1;
               if (tri < 0) continue;
               ++counts.samples;
-              if (batched) {
-                if (packet.count == kPacket) flush();
-                queue_sample(packet, s, tri, samples.bary[s]);
-                continue;
-              }
               bool fallback = false;
               const Ray ray = build_ray(surface, tri, samples.bary[s], options, fallback);
               counts.fallbacks += fallback ? 1 : 0;

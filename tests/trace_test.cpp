@@ -73,6 +73,80 @@ TEST(Trace, ZeroNormalUsesFaceNormal) {
   EXPECT_NEAR(r.direction.z, -1.0f, 1e-6f);
 }
 
+// trace() builds its rays 4 lanes at a time; every lane must be the ray
+// make_ray() gives for that sample, whatever its place in a packet (partial
+// packets and groups, empty samples between) and including fallback lanes.
+// Checked against an analytic plane: the hit distance and the hit point.
+TEST(Trace, PacketRaysAreMakeRayLaneByLane) {
+  LowSurface s = low_quad();
+  // Tilted, unequal corner normals on triangle 0: every sample's ray differs.
+  s.cage_normal[0] = {0.3f, 0.0f, 1.0f};
+  s.cage_normal[1] = {0.0f, -0.2f, 1.0f};
+  s.cage_normal[2] = {-0.1f, 0.15f, 0.9f};
+  // Triangle 1 has no usable averaged normal: its rays take the face normal.
+  for (int c = 3; c < 6; ++c) s.cage_normal[c] = glm::vec3(0.0f);
+  Mesh high;
+  const float h = -0.15f;
+  high.positions = {{-5, -5, h}, {6, -5, h}, {6, 6, h}, {-5, 6, h}};
+  high.indices = {0, 1, 2, 0, 2, 3};
+  pad_for_embree(high);
+  HighScene scene;
+  ASSERT_TRUE(HighScene::build(high, BuildQuality::medium, false, scene).is_ok());
+
+  TexelSamples t;
+  t.width = 23;  // a tile row of 16 texels and one of 7
+  t.height = 3;
+  t.samples = 4;
+  std::uint32_t state = 12345u;
+  const auto next = [&state] {
+    state = state * 1664525u + 1013904223u;
+    return static_cast<float>(state >> 8) / 16777216.0f;
+  };
+  std::size_t traced = 0, fallbacks = 0;
+  for (int i = 0; i < t.width * t.height * t.samples; ++i) {
+    const float r = next();
+    const std::int32_t tri = r < 0.15f ? -1 : r < 0.35f ? 1 : 0;
+    float b1 = next(), b2 = next();
+    if (b1 + b2 > 1.0f) b1 = 1.0f - b1, b2 = 1.0f - b2;
+    t.triangle.push_back(tri);
+    t.bary.push_back({b1, b2});
+    traced += tri >= 0;
+    fallbacks += tri == 1;
+  }
+  t.coverage.assign(static_cast<std::size_t>(t.width) * t.height, 1);
+  RayOptions o;
+  o.front = 0.4f;
+  o.back = 0.6f;
+
+  Hits hits;
+  TraceStats stats;
+  trace(scene, s, t, o, hits, stats);
+  EXPECT_EQ(stats.samples, traced);
+  EXPECT_EQ(stats.rays, traced);
+  EXPECT_EQ(stats.hits, traced);
+  EXPECT_EQ(stats.misses, 0u);
+  EXPECT_EQ(stats.ray_fallbacks, fallbacks);
+  for (std::size_t i = 0; i < t.triangle.size(); ++i) {
+    if (t.triangle[i] < 0) {
+      EXPECT_EQ(hits.triangle[i], -1) << "sample " << i;
+      continue;
+    }
+    bool fallback = false;
+    const Ray ray = make_ray(s, t.triangle[i], t.bary[i], o, fallback);
+    EXPECT_EQ(fallback, t.triangle[i] == 1);
+    const float t_hit = (ray.origin.z - h) / -ray.direction.z;
+    const glm::vec3 expected = ray.origin + t_hit * ray.direction;
+    ASSERT_GE(hits.triangle[i], 0) << "sample " << i;
+    const std::uint32_t* c = &high.indices[3 * static_cast<std::size_t>(hits.triangle[i])];
+    const glm::vec2 b = hits.bary[i];
+    const glm::vec3 got = high.positions[c[0]] * (1.0f - b.x - b.y) + high.positions[c[1]] * b.x +
+                          high.positions[c[2]] * b.y;
+    EXPECT_NEAR(got.x, expected.x, 1e-4f) << "sample " << i;
+    EXPECT_NEAR(got.y, expected.y, 1e-4f) << "sample " << i;
+    EXPECT_NEAR(hits.distance[i], ray.t_surface - t_hit, 1e-5f) << "sample " << i;
+  }
+}
+
 TEST(Trace, FirstAndNearestHits) {
   const LowSurface s = low_quad();
   Mesh high;

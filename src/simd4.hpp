@@ -1,0 +1,82 @@
+// Private to the library: four floats in SIMD lanes (GCC vector extensions;
+// SSE on x86-64) for the per-sample loops of trace and encode.
+//
+// Every helper does, per lane, exactly the IEEE operations of the scalar code
+// it stands for, in the same order (no fused multiply-adds: the baseline
+// x86-64 target has none), so lane results are bit-identical to the scalar
+// path and maps do not depend on which path a sample took.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
+
+static_assert(sizeof(glm::vec3) == 3 * sizeof(float), "glm::vec3 is three packed floats");
+
+namespace nmbake::detail {
+
+typedef float f4 __attribute__((vector_size(16)));
+typedef std::int32_t i4 __attribute__((vector_size(16)));
+
+inline f4 splat4(float v) { return f4{v, v, v, v}; }
+
+inline i4 finite4(f4 v) { return (v - v) == f4{0.0f, 0.0f, 0.0f, 0.0f}; }  // inf - inf and NaN are NaN
+
+inline f4 sqrt4(f4 v) {
+#if defined(__SSE__)
+  return reinterpret_cast<f4>(__builtin_ia32_sqrtps(reinterpret_cast<__v4sf>(v)));
+#else
+  f4 r;
+  for (int i = 0; i < 4; ++i) r[i] = std::sqrt(v[i]);
+  return r;
+#endif
+}
+
+// Four consecutive floats from / to memory, any alignment.
+inline f4 load4(const float* p) {
+  f4 v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+inline void store4(float* p, f4 v) { std::memcpy(p, &v, sizeof v); }
+
+inline f4 load4(const glm::vec3& v) { return f4{v.x, v.y, v.z, 0.0f}; }
+inline f4 load4(const glm::vec4& v) { return f4{v.x, v.y, v.z, v.w}; }
+
+// Three corners interpolated in array-of-structures form: the products and
+// sums of c0 * (1 - b.x - b.y) + c1 * b.x + c2 * b.y on glm vectors.
+template <class V>
+inline f4 corner_mix(const V& c0, const V& c1, const V& c2, glm::vec2 b) {
+  const float w0 = 1.0f - b.x - b.y;
+  return load4(c0) * w0 + load4(c1) * b.x + load4(c2) * b.y;
+}
+
+// The same for a triangle's three corners stored one after the other (9
+// floats): three overlapping 16-byte loads and one shuffle (SSE2 has no
+// two-source byte shift), never reading past the ninth float. The w lane
+// holds another corner's value and is not meaningful.
+inline f4 corner_mix(const glm::vec3* c, glm::vec2 b) {
+  const float* f = &c[0].x;
+  const f4 c0 = load4(f), c1 = load4(f + 3), last = load4(f + 5);
+  const f4 c2 = __builtin_shuffle(last, i4{1, 2, 3, 3});
+  const float w0 = 1.0f - b.x - b.y;
+  return c0 * w0 + c1 * b.x + c2 * b.y;
+}
+
+struct Axes {
+  f4 x, y, z, w;
+};
+
+// Four lanes of (x, y, z, w) to one vector per axis.
+inline Axes transpose(f4 r0, f4 r1, f4 r2, f4 r3) {
+  const f4 t0 = __builtin_shuffle(r0, r1, i4{0, 4, 1, 5}), t1 = __builtin_shuffle(r2, r3, i4{0, 4, 1, 5});
+  const f4 t2 = __builtin_shuffle(r0, r1, i4{2, 6, 3, 7}), t3 = __builtin_shuffle(r2, r3, i4{2, 6, 3, 7});
+  return {__builtin_shuffle(t0, t1, i4{0, 1, 4, 5}), __builtin_shuffle(t0, t1, i4{2, 3, 6, 7}),
+          __builtin_shuffle(t2, t3, i4{0, 1, 4, 5}), __builtin_shuffle(t2, t3, i4{2, 3, 6, 7})};
+}
+
+}  // namespace nmbake::detail
