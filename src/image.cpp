@@ -1,28 +1,17 @@
 // Stage "write": PNG through our own parallel encoder (image_png.cpp), TIFF
-// and OpenEXR through OpenImageIO 2.4; every image is read through OpenImageIO.
+// and OpenEXR through OpenImageIO 2.4; every image is read through
+// OpenImageIO. OpenImageIO lives in a module loaded on first use
+// (image_oiio.hpp): a PNG bake never pays its start-up cost.
 //
 // Standards: PNG (ISO/IEC 15948) — no gAMA/sRGB/iCCP/cHRM chunk is written, so
 // a normal map's bytes are shown and sampled as data; OpenEXR — lossless ZIP
 // (half) or PIZ (float) compression.
-//
-// OpenImageIO 2.4 behaviour this file relies on (checked by image_test.cpp;
-// the PNG points matter for reading, and for writing before image_png.cpp):
-//  * the PNG writer adds a gAMA chunk for "oiio:ColorSpace" = "Linear" (gamma
-//    1.0, which makes gamma-aware viewers brighten the image) and sRGB chunks
-//    for "sRGB"; with no "oiio:ColorSpace" attribute it writes neither, which
-//    is what we want, so we set none;
-//  * PNG and TIFF writers un-premultiply an alpha channel unless
-//    "oiio:UnassociatedAlpha" is 1, and the PNG reader premultiplies unless the
-//    same hint is given to open(): we set it both ways so values round-trip;
-//  * the TIFF and OpenEXR writers store the current time (TIFF DateTime, EXR
-//    capDate) unless "DateTime" is set; set to "" the TIFF tag is left out and
-//    the EXR attribute is empty, so files are byte-identical run to run;
-//  * integer quantisation is ours (round(clamp(v, 0, 1) * max)); OIIO gets
-//    data already in the file's type and converts nothing.
 #include "nmbake/image.hpp"
 
-#include <OpenImageIO/imageio.h>
+#include "image_oiio.hpp"
 #include "image_png.hpp"
+
+#include <dlfcn.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -32,6 +21,7 @@
 #include <cstddef>
 #include <filesystem>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -47,38 +37,6 @@ std::string lower_extension(const std::string& path) {
   std::transform(ext.begin(), ext.end(), ext.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return ext;
-}
-
-// OpenImageIO's per-thread or per-object error text, never empty.
-std::string oiio_error_text(std::string text) {
-  while (!text.empty() && (text.back() == '\n' || text.back() == ' ')) text.pop_back();
-  return text.empty() ? std::string("OpenImageIO gave no reason") : text;
-}
-
-struct FormatTraits {
-  const char* oiio_format;  // plugin name given to ImageOutput::create
-  OIIO::TypeDesc type;
-  const char* compression;  // nullptr: the plugin's own (PNG is always deflate)
-};
-
-FormatTraits traits_of(PixelFormat format) {
-  switch (format) {
-    case PixelFormat::png8:
-      return {"png", OIIO::TypeDesc::UINT8, nullptr};
-    case PixelFormat::png16:
-      return {"png", OIIO::TypeDesc::UINT16, nullptr};
-    case PixelFormat::tiff16:
-      return {"tiff", OIIO::TypeDesc::UINT16, "zip"};
-    case PixelFormat::exr_half:
-      return {"openexr", OIIO::TypeDesc::HALF, "zip"};
-    case PixelFormat::exr_float:
-      // PIZ, not ZIP: the low bits of float normals are noise to deflate; on
-      // the demo map PIZ wrote 31.6 MB in 0.54 s where ZIP wrote 39.6 MB in
-      // 0.72 s (both lossless; every OpenEXR reader has both).
-      return {"openexr", OIIO::TypeDesc::FLOAT, "piz"};
-  }
-  NMBAKE_CHECK(false, "unknown PixelFormat");
-  return {};
 }
 
 // A name in the target's folder that keeps the extension (OpenImageIO picks
@@ -103,63 +61,76 @@ fs::path temp_path_for(const fs::path& target) {
   }
 }
 
-template <typename T>
-std::vector<T> quantise(const std::vector<float>& pixels, float max_value) {
-  std::vector<T> out(pixels.size());
-  for (std::size_t i = 0; i < pixels.size(); ++i) {
-    const float v = std::clamp(pixels[i], 0.0f, 1.0f);
-    out[i] = static_cast<T>(std::lround(v * max_value));
-  }
-  return out;
+// The OpenImageIO module, loaded once: from $NMBAKE_MODULE_DIR when it is
+// set, else from beside the executable, its parent folder (tests/ of a build
+// tree) or ../lib/nmbake. Never unloaded.
+const oiio_module::Api* image_module(std::string& error) {
+  static std::once_flag once;
+  static const oiio_module::Api* api = nullptr;
+  static std::string failure;
+  std::call_once(once, [] {
+    std::vector<fs::path> folders;
+    std::error_code ec;
+    const char* dir = std::getenv("NMBAKE_MODULE_DIR");
+    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+    if (dir && *dir) {
+      folders.emplace_back(dir);
+    } else if (!ec) {
+      folders.push_back(exe.parent_path());
+      folders.push_back(exe.parent_path().parent_path());
+      folders.push_back(exe.parent_path().parent_path() / "lib" / "nmbake");
+    }
+    std::string looked;
+    for (const fs::path& folder : folders) {
+      const fs::path file = folder / oiio_module::kFileName;
+      if (!fs::is_regular_file(file, ec)) {
+        looked += (looked.empty() ? "" : ", ") + folder.string();
+        continue;
+      }
+      void* handle = dlopen(file.c_str(), RTLD_NOW | RTLD_LOCAL);
+      if (!handle) {
+        const char* why = dlerror();
+        failure = "cannot load the image module '" + file.string() + "': " + (why ? why : "unknown reason");
+        return;
+      }
+      using Entry = const oiio_module::Api* (*)();
+      const auto entry = reinterpret_cast<Entry>(dlsym(handle, oiio_module::kEntryPoint));
+      const oiio_module::Api* found = entry ? entry() : nullptr;
+      if (!found || found->abi_version != oiio_module::kAbiVersion) {
+        failure = "the image module '" + file.string() + "' is from another build of nmbake";
+        return;
+      }
+      api = found;
+      return;
+    }
+    failure = std::string("the image module ") + oiio_module::kFileName +
+              " (OpenImageIO: TIFF and EXR, and reading images) was not found in " + looked +
+              "; set NMBAKE_MODULE_DIR to its folder";
+  });
+  if (!api) error = failure;
+  return api;
 }
 
-// Writes the finished pixels to `temp` with OpenImageIO; the caller renames.
+Status module_status(oiio_module::Outcome outcome, const std::string& message) {
+  switch (outcome) {
+    case oiio_module::Outcome::ok:
+      return Status::ok();
+    case oiio_module::Outcome::bad_input:
+      return Status::bad_input(message);
+    case oiio_module::Outcome::io_error:
+      break;
+  }
+  return Status::io(message);
+}
+
+// Writes the finished pixels to `temp` through the module; the caller renames.
 Status write_with_oiio(const Image& image, const std::string& path, const fs::path& temp,
                        PixelFormat format) {
-  const FormatTraits traits = traits_of(format);
-  const std::string temp_name = temp.string();
-
-  std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create(traits.oiio_format);
-  if (!out) {
-    return Status::io("cannot write '" + path + "': no OpenImageIO writer for " + traits.oiio_format + ": " +
-                      oiio_error_text(OIIO::geterror()));
-  }
-
-  OIIO::ImageSpec spec(image.width, image.height, image.channels, traits.type);
-  if (traits.compression) spec.attribute("compression", traits.compression);
-  // Alpha (if any) is data like the rest: never (un)premultiplied.
-  spec.attribute("oiio:UnassociatedAlpha", 1);
-  // The TIFF and EXR writers stamp the current time unless told a date; an
-  // empty one writes none, so the same bake gives the same bytes.
-  spec.attribute("DateTime", "");
-  // zlib level 1: a 2048^2 16-bit normal map writes about 4x faster than at
-  // the default level 6, for files about 8% larger.
-  if (std::string(traits.oiio_format) == "png") spec.attribute("png:compressionLevel", 1);
-
-  if (!out->open(temp_name, spec)) {
-    return Status::io("cannot write '" + path + "': " + oiio_error_text(out->geterror()));
-  }
-
-  bool written = false;
-  if (traits.type == OIIO::TypeDesc::UINT8) {
-    const std::vector<std::uint8_t> data = quantise<std::uint8_t>(image.pixels, 255.0f);
-    written = out->write_image(OIIO::TypeDesc::UINT8, data.data());
-  } else if (traits.type == OIIO::TypeDesc::UINT16) {
-    const std::vector<std::uint16_t> data = quantise<std::uint16_t>(image.pixels, 65535.0f);
-    written = out->write_image(OIIO::TypeDesc::UINT16, data.data());
-  } else {
-    // Float in, half or float out: OpenImageIO (Imath) rounds to nearest half.
-    written = out->write_image(OIIO::TypeDesc::FLOAT, image.pixels.data());
-  }
-  if (!written) {
-    std::string reason = oiio_error_text(out->geterror());
-    out->close();
-    return Status::io("cannot write '" + path + "': " + reason);
-  }
-  if (!out->close()) {
-    return Status::io("cannot write '" + path + "': " + oiio_error_text(out->geterror()));
-  }
-  return Status::ok();
+  std::string reason;
+  const oiio_module::Api* api = image_module(reason);
+  if (!api) return Status::internal("cannot write '" + path + "': " + reason);
+  const oiio_module::Outcome outcome = api->write(image, temp.string(), format, reason);
+  return module_status(outcome, "cannot write '" + path + "': " + reason);
 }
 
 }  // namespace
@@ -277,40 +248,28 @@ Status write_image(const Image& image, const std::string& path, PixelFormat form
   return status;
 }
 
-Status read_image_info(const std::string& path, ImageFileInfo& out) {
-  std::unique_ptr<OIIO::ImageInput> in = OIIO::ImageInput::open(path);
-  if (!in) return Status::io("cannot read '" + path + "': " + oiio_error_text(OIIO::geterror()));
-  const OIIO::ImageSpec& spec = in->spec();
-  out.width = spec.width;
-  out.height = spec.height;
-  out.channels = spec.nchannels;
-  out.file_format = in->format_name();
-  out.data_type = spec.format.c_str();
-  out.compression = spec.get_string_attribute("compression");
-  if (!in->close()) return Status::io("cannot read '" + path + "': " + oiio_error_text(in->geterror()));
+Status check_image_writer(PixelFormat format) {
+  if (format == PixelFormat::png8 || format == PixelFormat::png16) return Status::ok();
+  std::string reason;
+  if (!image_module(reason)) return Status::internal(std::string("cannot write ") + to_string(format) + ": " + reason);
   return Status::ok();
 }
 
+Status read_image_info(const std::string& path, ImageFileInfo& out) {
+  std::string reason;
+  const oiio_module::Api* api = image_module(reason);
+  if (!api) return Status::internal("cannot read '" + path + "': " + reason);
+  const oiio_module::Outcome outcome = api->read_info(path, out, reason);
+  return module_status(outcome, "cannot read '" + path + "': " + reason);
+}
+
 Status read_image(const std::string& path, Image& out) {
-  OIIO::ImageSpec config;
-  config.attribute("oiio:UnassociatedAlpha", 1);
-  std::unique_ptr<OIIO::ImageInput> in = OIIO::ImageInput::open(path, &config);
-  if (!in) return Status::io("cannot read '" + path + "': " + oiio_error_text(OIIO::geterror()));
-  const OIIO::ImageSpec spec = in->spec();
-  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 || spec.depth > 1) {
-    return Status::bad_input("cannot read '" + path + "': not a 2D image (" + std::to_string(spec.width) +
-                             "x" + std::to_string(spec.height) + "x" + std::to_string(spec.depth) + ", " +
-                             std::to_string(spec.nchannels) + " channels)");
-  }
+  std::string reason;
+  const oiio_module::Api* api = image_module(reason);
+  if (!api) return Status::internal("cannot read '" + path + "': " + reason);
   Image image;
-  image.width = spec.width;
-  image.height = spec.height;
-  image.channels = spec.nchannels;
-  image.pixels.resize(static_cast<std::size_t>(spec.width) * spec.height * spec.nchannels);
-  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data())) {
-    return Status::io("cannot read '" + path + "': " + oiio_error_text(in->geterror()));
-  }
-  if (!in->close()) return Status::io("cannot read '" + path + "': " + oiio_error_text(in->geterror()));
+  const oiio_module::Outcome outcome = api->read(path, image, reason);
+  if (outcome != oiio_module::Outcome::ok) return module_status(outcome, "cannot read '" + path + "': " + reason);
   for (std::size_t i = 0; i < image.pixels.size(); ++i) {
     if (std::isnan(image.pixels[i])) {
       const std::size_t texel = i / image.channels;

@@ -173,6 +173,28 @@ TEST_F(CliBake, SameBytesWithOneAndTwoThreads) {
   EXPECT_GT(read_bytes(dir.file("a.png")).size(), 1000u);
 }
 
+// OpenImageIO is a module loaded only for TIFF, EXR and reading: a PNG bake
+// runs without it, and a bake asking for EXR without it fails before baking,
+// naming the module and where it was looked for.
+TEST_F(CliBake, PngNeedsNoImageModuleAndExrWithoutItFailsUpFront) {
+  const std::string empty = dir.file("no_modules");
+  std::filesystem::create_directory(empty);
+  const std::string env = "NMBAKE_MODULE_DIR=" + empty + " ";
+  const std::string common = " bake --low " + low() + " --high " + high() + " --size 32 --samples 1 -q -o ";
+  const auto png = test::run_command(env + test::cli_path() + common + dir.file("m.png"));
+  EXPECT_EQ(png.exit_code, 0) << png.output;
+  EXPECT_TRUE(std::filesystem::exists(dir.file("m.png")));
+  const auto exr = test::run_command(env + test::cli_path() + common + dir.file("m.exr"));
+  EXPECT_EQ(exr.exit_code, 3) << exr.output;
+  EXPECT_NE(exr.output.find("libnmbake_oiio.so"), std::string::npos) << exr.output;
+  EXPECT_NE(exr.output.find(empty), std::string::npos) << exr.output;
+  EXPECT_EQ(exr.output.find("baked"), std::string::npos) << exr.output;
+  EXPECT_FALSE(std::filesystem::exists(dir.file("m.exr")));
+  // Found beside the executable when the variable is not set.
+  const auto found = test::run_command(test::cli_path() + common + dir.file("m.exr"));
+  EXPECT_EQ(found.exit_code, 0) << found.output;
+}
+
 TEST_F(CliBake, PngAndExrAgreeTo16Bits) {
   const auto r = bake("--low " + low() + " --high " + high() + " --size 64 -q -o " + dir.file("m.png") + " -o " +
                       dir.file("m.exr") + " --report " + dir.file("r.json"));

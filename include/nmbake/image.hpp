@@ -1,7 +1,8 @@
-// A float RGB(A) image in memory, and the "write" stage: OpenImageIO writers
-// for 8/16-bit PNG, 16-bit TIFF, half/float EXR, written to a temporary file
-// in the target's folder and renamed, so a failed bake never leaves a
-// half-written map. OpenImageIO types stay in image.cpp.
+// A float RGB(A) image in memory, and the "write" stage: 8/16-bit PNG (our
+// own encoder), 16-bit TIFF and half/float EXR (OpenImageIO), written to a
+// temporary file in the target's folder and renamed, so a failed bake never
+// leaves a half-written map. OpenImageIO is a module loaded on first use
+// (src/image_oiio.hpp); its types never leave it.
 #pragma once
 
 #include <cstdint>
@@ -49,6 +50,11 @@ bool format_matches_extension(PixelFormat format, const std::string& path);
 // that does not match the extension; io for a missing folder or a failed
 // OpenImageIO call or rename. Messages name the path.
 Status write_image(const Image& image, const std::string& path, PixelFormat format);
+
+// Whether `format` can be written here: always for PNG; for TIFF and EXR,
+// whether the OpenImageIO module loads (internal error naming it and where
+// it was looked for if not). A bake checks before it starts.
+Status check_image_writer(PixelFormat format);
 
 // Reads any format OpenImageIO reads into float, 0..1 for integer formats,
 // with the file's channels (alpha is returned as stored, not premultiplied).

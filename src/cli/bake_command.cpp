@@ -133,7 +133,10 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
   // job file must not be found after an hour of baking.
   for (const BakeJob& job : jobs) {
     const Status s = validate_options(job.options);
-    if (!s) return fail(Status::bad_input(job.name + ": " + s.message()));
+    // An environment failure (the image module missing) stays internal.
+    if (!s) {
+      return fail(s.code() == StatusCode::internal ? s : Status::bad_input(job.name + ": " + s.message()));
+    }
   }
 
   int exit_code = kSuccess;
