@@ -84,6 +84,9 @@ struct SetupTriangle {
   double extent[3] = {};  // edge[i] at corner i (twice the area, up to rounding)
   double strict_threshold = 0.0;
   int x0 = 0, y0 = 0, x1 = -1, y1 = -1;  // inclusive texel bounding box, clamped to the image
+  // Per edge, the corner of a texel (offsets 0 or 1) where the edge function
+  // is highest, and the opposite one where it is lowest (texel_overlaps).
+  glm::dvec2 high_corner[3], low_corner[3];
 };
 
 EdgeFunction make_edge(glm::dvec2 a, glm::dvec2 b, glm::dvec2 opposite) {
@@ -115,6 +118,9 @@ bool setup_triangle(const glm::vec2* uv, int width, int height, SetupTriangle& t
     longest2 = std::max(longest2, d.x * d.x + d.y * d.y);
     t.edge[i] = make_edge(a, b, t.corner[i]);
     t.extent[i] = t.edge[i](t.corner[i]);
+    const double hx = t.edge[i].dx() > 0.0 ? 1.0 : 0.0, hy = t.edge[i].dy() > 0.0 ? 1.0 : 0.0;
+    t.high_corner[i] = {hx, hy};
+    t.low_corner[i] = {1.0 - hx, 1.0 - hy};
   }
   const double smallest = std::min({t.extent[0], t.extent[1], t.extent[2]});
   if (!(smallest > degenerate_epsilon * longest2)) return false;
@@ -148,6 +154,18 @@ bool box_overlaps(const SetupTriangle& t, double x, double y, double size) {
     if (highest <= 0.0) return false;
     const double lowest = e({gx ? x : x + size, gy ? y : y + size});
     if (lowest >= t.extent[i]) return false;
+  }
+  return true;
+}
+
+// box_overlaps() for the texel [x, x + 1] x [y, y + 1], with the corners
+// chosen at set-up: the same evaluations (x + 0 and x + 1 are exact), so the
+// same answers, inlined into the per-texel loops.
+[[gnu::always_inline]] inline bool texel_overlaps(const SetupTriangle& t, double x, double y) {
+  for (int i = 0; i < 3; ++i) {
+    const EdgeFunction& e = t.edge[i];
+    if (e({x + t.high_corner[i].x, y + t.high_corner[i].y}) <= 0.0) return false;
+    if (e({x + t.low_corner[i].x, y + t.low_corner[i].y}) >= t.extent[i]) return false;
   }
   return true;
 }
@@ -370,7 +388,7 @@ void rasterize(const LowSurface& surface, int width, int height, int samples, Te
             const int y_begin = std::max(tri.y0, ty0), y_end = std::min(tri.y1, ty1);
             for (int y = y_begin; y <= y_end; ++y) {
               for (int x = x_begin; x <= x_end; ++x) {
-                if (!box_overlaps(tri, x, y, 1.0)) continue;
+                if (!texel_overlaps(tri, x, y)) continue;
                 const std::size_t texel = local_texel(x, y);
                 covered[texel] = 1;
                 const std::size_t local0 = texel * sample_stride;
@@ -408,7 +426,7 @@ void rasterize(const LowSurface& surface, int width, int height, int samples, Te
             for (int y = y_begin; y <= y_end; ++y) {
               for (int x = x_begin; x <= x_end; ++x) {
                 const std::size_t texel = local_texel(x, y);
-                if (inside_count[texel] == samples || !box_overlaps(tri, x, y, 1.0)) continue;
+                if (inside_count[texel] == samples || !texel_overlaps(tri, x, y)) continue;
                 const std::size_t local0 = texel * sample_stride;
                 const std::size_t global0 = first_sample(x, y);
                 for (int s = 0; s < samples; ++s) {
