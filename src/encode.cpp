@@ -222,13 +222,19 @@ void encode_four(const LowSurface& surface, const TexelSamples& samples, const M
   const f4 lt2 = tx * tx + ty * ty + tz * tz;
   ok &= (lt2 > zero) & finite4(lt2);
   const f4 inv = one / sqrt4(lt2);
+  const f4 ox = tx * inv, oy = ty * inv, oz = tz * inv;
+  if (all4(ok)) {
+    store3x4(out, ox, oy, oz);
+    used[0] = used[1] = used[2] = used[3] = true;
+    return;
+  }
   for (int i = 0; i < 4; ++i) {
     if (!ok[i]) {
       used[i] = sample_contribution(surface, samples, high, hits, options, true, s0 + i, counts, out[i]);
       continue;
     }
     used[i] = true;
-    out[i] = glm::vec3(tx[i] * inv[i], ty[i] * inv[i], tz[i] * inv[i]);
+    out[i] = glm::vec3(ox[i], oy[i], oz[i]);
   }
 }
 

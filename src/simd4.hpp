@@ -36,6 +36,15 @@ inline f4 sqrt4(f4 v) {
 #endif
 }
 
+// Whether every lane of a comparison mask is set.
+inline bool all4(i4 mask) {
+#if defined(__SSE__)
+  return __builtin_ia32_movmskps(reinterpret_cast<__v4sf>(mask)) == 0xF;
+#else
+  return mask[0] && mask[1] && mask[2] && mask[3];
+#endif
+}
+
 // Four consecutive floats from / to memory, any alignment.
 inline f4 load4(const float* p) {
   f4 v;
@@ -44,7 +53,14 @@ inline f4 load4(const float* p) {
 }
 inline void store4(float* p, f4 v) { std::memcpy(p, &v, sizeof v); }
 
-inline f4 load4(const glm::vec3& v) { return f4{v.x, v.y, v.z, 0.0f}; }
+// (x, y, z, 0) from one 8-byte and one 4-byte load, never past z.
+inline f4 load4(const glm::vec3& v) {
+  typedef double d2 __attribute__((vector_size(16)));
+  double xy;
+  std::memcpy(&xy, &v.x, sizeof xy);
+  const f4 low = reinterpret_cast<f4>(d2{xy, 0.0});
+  return __builtin_shuffle(low, f4{v.z, 0.0f, 0.0f, 0.0f}, i4{0, 1, 4, 5});
+}
 inline f4 load4(const glm::vec4& v) { return f4{v.x, v.y, v.z, v.w}; }
 
 // Three corners interpolated in array-of-structures form: the products and
@@ -77,6 +93,19 @@ inline Axes transpose(f4 r0, f4 r1, f4 r2, f4 r3) {
   const f4 t2 = __builtin_shuffle(r0, r1, i4{2, 6, 3, 7}), t3 = __builtin_shuffle(r2, r3, i4{2, 6, 3, 7});
   return {__builtin_shuffle(t0, t1, i4{0, 1, 4, 5}), __builtin_shuffle(t0, t1, i4{2, 3, 6, 7}),
           __builtin_shuffle(t2, t3, i4{0, 1, 4, 5}), __builtin_shuffle(t2, t3, i4{2, 3, 6, 7})};
+}
+
+// One vector per axis back to four glm::vec3 at out[0..3]: three 16-byte
+// stores in order (each one's fourth float is overwritten by the next) and
+// an 8 + 4-byte store for the last, never past out[3].
+inline void store3x4(glm::vec3* out, f4 x, f4 y, f4 z) {
+  const Axes rows = transpose(x, y, z, f4{0.0f, 0.0f, 0.0f, 0.0f});
+  float* f = &out[0].x;
+  store4(f, rows.x);
+  store4(f + 3, rows.y);
+  store4(f + 6, rows.z);
+  std::memcpy(f + 9, &rows.w, 2 * sizeof(float));
+  f[11] = rows.w[2];
 }
 
 }  // namespace nmbake::detail

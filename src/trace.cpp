@@ -258,13 +258,29 @@ void queue_sample(Packet& p, std::size_t sample, std::int32_t tri, glm::vec2 b) 
   p.bary[i] = b;
 }
 
+// The fields of a queued packet that no ray changes and Embree never writes.
+void set_queued_constants(Packet& p, const RayOptions& options) {
+  RTCRay16& r = p.rayhit.ray;
+  for (int i = 0; i < kPacket; ++i) {
+    r.tnear[i] = 0.0f;
+    r.time[i] = 0.0f;
+    r.mask[i] = 0xffffffffu;
+    r.id[i] = static_cast<unsigned>(i);
+    r.flags[i] = 0;
+    p.t_surface[i] = options.front;
+    p.sign[i] = 1.0f;
+  }
+}
+
 // Builds the queued lanes' rays four at a time in SIMD lanes: per lane the
 // point and the cage normal are interpolated, then one vector per axis gives
 // the lengths, the unit normals and the origins. The operations are
 // build_ray()'s, in its order, so the rays are bit for bit the same; a lane
 // whose normal is zero or not finite takes build_ray() and its fallback.
-// The fields Embree does not write are filled for all 16 lanes (lanes past
-// the count are invalid). Returns the number of lanes that took the fallback.
+// Of the other fields only those Embree writes (tfar, geomID) and the valid
+// mask are set, for all 16 lanes (lanes past the count are invalid); the
+// rest are set once per packet by set_queued_constants(). Returns the number
+// of lanes that took the fallback.
 std::uint64_t build_queued_rays(Packet& p, const LowSurface& surface, const RayOptions& options) {
   using namespace detail;
   const std::vector<glm::vec3>& normals = options.cage == CageMode::interpolated ? surface.normal : surface.cage_normal;
@@ -292,6 +308,7 @@ std::uint64_t build_queued_rays(Packet& p, const LowSurface& surface, const RayO
     store4(r.dir_x + g, -ax);
     store4(r.dir_y + g, -ay);
     store4(r.dir_z + g, -az);
+    if (all4(ok)) continue;  // the common case
     for (int k = 0; k < 4 && g + k < n; ++k) {
       if (ok[k]) continue;
       const int i = g + k;
@@ -308,17 +325,9 @@ std::uint64_t build_queued_rays(Packet& p, const LowSurface& surface, const RayO
   }
   const float tfar = options.front + options.back;
   for (int i = 0; i < kPacket; ++i) {
-    r.tnear[i] = 0.0f;
-    r.time[i] = 0.0f;
     r.tfar[i] = tfar;
-    r.mask[i] = 0xffffffffu;
-    r.id[i] = static_cast<unsigned>(i);
-    r.flags[i] = 0;
     p.rayhit.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
-    p.rayhit.hit.primID[i] = RTC_INVALID_GEOMETRY_ID;
     p.valid[i] = i < n ? -1 : 0;
-    p.t_surface[i] = options.front;
-    p.sign[i] = 1.0f;
   }
   return fallbacks;
 }
@@ -367,6 +376,7 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
     context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
     Packet packet;
     reset_packet(packet);
+    if (batched_rays(options)) set_queued_constants(packet, options);
 
     // The common case (first hit, rays queued and built together): each
     // sample's result is written once, -1 for no sample or a miss, and the
@@ -624,6 +634,7 @@ RawTraceResult trace_raw(const HighScene& scene, const LowSurface& surface, cons
     const int x1 = std::min(x0 + kTile, samples.width), y1 = std::min(y0 + kTile, samples.height);
     packets.emplace_back();
     reset_packet(packets.back());
+    if (batched) set_queued_constants(packets.back(), options);
     for (int by = y0; by < y1; by += kBlock)
       for (int bx = x0; bx < x1; bx += kBlock)
         for (int y = by; y < std::min(by + kBlock, y1); ++y)
@@ -635,6 +646,7 @@ RawTraceResult trace_raw(const HighScene& scene, const LowSurface& surface, cons
                 finish_packet(packets.back());
                 packets.emplace_back();
                 reset_packet(packets.back());
+                if (batched) set_queued_constants(packets.back(), options);
               }
               if (batched) {
                 queue_sample(packets.back(), s, samples.triangle[s], samples.bary[s]);
