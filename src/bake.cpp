@@ -3,6 +3,8 @@
 // this file only wires them, times them and collects their counters.
 #include "nmbake/bake.hpp"
 
+#include "huge_pages.hpp"
+
 #include <charconv>
 #include <chrono>
 #include <cmath>
@@ -302,7 +304,8 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   image.width = o.width;
   image.height = o.height;
   image.channels = 3;
-  image.pixels.resize(static_cast<std::size_t>(o.width) * o.height * 3);
+  // Every texel is written by encode; huge pages make the first touch cheap.
+  detail::size_output(image.pixels, static_cast<std::size_t>(o.width) * o.height * 3);
   std::vector<std::uint8_t> coverage(static_cast<std::size_t>(o.width) * o.height, 0);
   std::unique_ptr<DebugImages> debug;
   if (!o.debug_dump_prefix.empty()) debug = std::make_unique<DebugImages>(o.width, o.height);
