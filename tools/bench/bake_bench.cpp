@@ -40,6 +40,7 @@ double stage(const nmbake::BakeReport& r, const char* name) {
 int main(int argc, char** argv) {
   std::string low, high, label, bvh = "auto", quality = "low";
   int size = 2048, samples = 4, threads = 0, repeat = 3;
+  std::size_t band_samples = 0;
   CLI::App app{"nmbake-bench: a whole bake beside raw Embree on the same rays"};
   app.add_option("--low", low)->required();
   app.add_option("--high", high)->required();
@@ -50,6 +51,8 @@ int main(int argc, char** argv) {
   app.add_option("--bvh", bvh, "auto | fast | compact")->capture_default_str();
   app.add_option("--build-quality", quality, "low | medium | high")->capture_default_str();
   app.add_option("--repeat", repeat)->capture_default_str()->check(CLI::Range(1, 50));
+  app.add_option("--band-samples", band_samples, "samples per band of rows (0: the library's default, 4M)")
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   if (label.empty()) label = std::filesystem::path(high).stem().string();
 
@@ -66,6 +69,7 @@ int main(int argc, char** argv) {
   o.high_path = high;
   o.width = o.height = size;
   o.samples = samples;
+  o.band_samples = band_samples;
   o.outputs = {{(dir / "map.png").string(), nmbake::PixelFormat::png16}};
   if (!nmbake::parse_build_quality(quality, o.build_quality)) {
     std::fprintf(stderr, "nmbake-bench: --build-quality %s: expected low, medium or high\n", quality.c_str());
@@ -114,7 +118,7 @@ int main(int argc, char** argv) {
     rays.back = report.back;
     // The bake's bands of rows: the prebuilt packets of a whole 4096^2 x16
     // map would not fit in memory. Only the Embree calls are timed.
-    const int rows = nmbake::band_rows(size, size, samples);
+    const int rows = nmbake::band_rows(size, size, samples, band_samples);
     nmbake::TexelSamples ts;
     for (int i = 0; i < repeat; ++i) {
       double seconds = 0.0;
