@@ -71,17 +71,26 @@ inline f4 corner_mix(const V& c0, const V& c1, const V& c2, glm::vec2 b) {
   return load4(c0) * w0 + load4(c1) * b.x + load4(c2) * b.y;
 }
 
-// The same for a triangle's three corners stored one after the other (9
-// floats): three overlapping 16-byte loads and one shuffle (SSE2 has no
-// two-source byte shift), never reading past the ninth float. The w lane
-// holds another corner's value and is not meaningful.
-inline f4 corner_mix(const glm::vec3* c, glm::vec2 b) {
+// A triangle's three corners stored one after the other (9 floats), as
+// three vectors: three overlapping 16-byte loads and one shuffle (SSE2 has no
+// two-source byte shift), never reading past the ninth float. The w lanes
+// hold other corners' values and are not meaningful.
+struct Corners {
+  f4 c0, c1, c2;
+};
+
+inline Corners load_corners(const glm::vec3* c) {
   const float* f = &c[0].x;
-  const f4 c0 = load4(f), c1 = load4(f + 3), last = load4(f + 5);
-  const f4 c2 = __builtin_shuffle(last, i4{1, 2, 3, 3});
-  const float w0 = 1.0f - b.x - b.y;
-  return c0 * w0 + c1 * b.x + c2 * b.y;
+  const f4 last = load4(f + 5);
+  return {load4(f), load4(f + 3), __builtin_shuffle(last, i4{1, 2, 3, 3})};
 }
+
+inline f4 corner_mix(const Corners& c, glm::vec2 b) {
+  const float w0 = 1.0f - b.x - b.y;
+  return c.c0 * w0 + c.c1 * b.x + c.c2 * b.y;
+}
+
+inline f4 corner_mix(const glm::vec3* c, glm::vec2 b) { return corner_mix(load_corners(c), b); }
 
 struct Axes {
   f4 x, y, z, w;

@@ -288,13 +288,22 @@ std::uint64_t build_queued_rays(Packet& p, const LowSurface& surface, const RayO
   const int n = p.count;
   const f4 front = splat4(options.front);
   std::uint64_t fallbacks = 0;
+  // The lanes of a packet mostly share a low triangle (at 16 spp a packet is
+  // one texel): its corners are loaded once for a run of such lanes.
+  std::int32_t loaded = -1;
+  Corners position, cage;
   for (int g = 0; g < n; g += 4) {
     f4 point[4], normal[4];
     for (int k = 0; k < 4; ++k) {
       const int i = std::min(g + k, n - 1);  // past the count: a copy of the last lane
-      const std::size_t base = 3 * static_cast<std::size_t>(p.triangle[i]);
-      point[k] = corner_mix(&surface.position[base], p.bary[i]);
-      normal[k] = corner_mix(&normals[base], p.bary[i]);
+      if (p.triangle[i] != loaded) {
+        loaded = p.triangle[i];
+        const std::size_t base = 3 * static_cast<std::size_t>(loaded);
+        position = load_corners(&surface.position[base]);
+        cage = load_corners(&normals[base]);
+      }
+      point[k] = corner_mix(position, p.bary[i]);
+      normal[k] = corner_mix(cage, p.bary[i]);
     }
     const Axes P = transpose(point[0], point[1], point[2], point[3]);
     const Axes a = transpose(normal[0], normal[1], normal[2], normal[3]);
