@@ -8,9 +8,10 @@
 //  * the TIFF and OpenEXR writers store the current time (TIFF DateTime, EXR
 //    capDate) unless "DateTime" is set; set to "" the TIFF tag is left out and
 //    the EXR attribute is empty, so files are byte-identical run to run;
-//  * integer quantisation is ours (round(clamp(v, 0, 1) * max)); OIIO gets
+//  * integer quantisation is ours (quantise.hpp, shared with PNG); OIIO gets
 //    data already in the file's type and converts nothing.
 #include "image_oiio.hpp"
+#include "quantise.hpp"
 
 #include <OpenImageIO/imageio.h>
 
@@ -83,7 +84,7 @@ Outcome write(const Image& image, const std::string& file, PixelFormat format, s
   if (traits.type == OIIO::TypeDesc::UINT16) {
     std::vector<std::uint16_t> data(image.pixels.size());
     for (std::size_t i = 0; i < data.size(); ++i) {
-      data[i] = static_cast<std::uint16_t>(std::lround(std::clamp(image.pixels[i], 0.0f, 1.0f) * 65535.0f));
+      data[i] = static_cast<std::uint16_t>(detail::quantise(image.pixels[i], 65535.0f));
     }
     written = out->write_image(OIIO::TypeDesc::UINT16, data.data());
   } else {

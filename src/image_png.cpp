@@ -26,6 +26,7 @@
 #include "image_png.hpp"
 
 #include "deflate_huffman.hpp"
+#include "quantise.hpp"
 
 #include <zlib.h>
 
@@ -60,19 +61,12 @@ void put_chunk(std::vector<std::uint8_t>& out, const char (&type)[5], const std:
 
 // One row quantised to big-endian samples of `bytes_per_sample` bytes.
 void quantise_row(const float* values, std::size_t count, int bits, std::uint8_t* out) {
-  // round(p) for p >= 0, without a libm call: p + 0.5 is exact in double,
-  // and truncation is floor, so this is lround(p) bit for bit.
-  const auto round_up_half = [](float p) { return static_cast<std::uint32_t>(static_cast<double>(p) + 0.5); };
   if (bits == 8) {
-    for (std::size_t i = 0; i < count; ++i) {
-      const float v = std::clamp(values[i], 0.0f, 1.0f);
-      out[i] = static_cast<std::uint8_t>(round_up_half(v * 255.0f));
-    }
+    for (std::size_t i = 0; i < count; ++i) out[i] = static_cast<std::uint8_t>(detail::quantise(values[i], 255.0f));
     return;
   }
   for (std::size_t i = 0; i < count; ++i) {
-    const float v = std::clamp(values[i], 0.0f, 1.0f);
-    const auto q = static_cast<std::uint16_t>(round_up_half(v * 65535.0f));
+    const auto q = static_cast<std::uint16_t>(detail::quantise(values[i], 65535.0f));
     out[2 * i] = static_cast<std::uint8_t>(q >> 8);
     out[2 * i + 1] = static_cast<std::uint8_t>(q);
   }

@@ -85,7 +85,7 @@ struct SetupTriangle {
   double strict_threshold = 0.0;
   int x0 = 0, y0 = 0, x1 = -1, y1 = -1;  // inclusive texel bounding box, clamped to the image
   // Per edge, the corner of a texel (offsets 0 or 1) where the edge function
-  // is highest, and the opposite one where it is lowest (texel_overlaps).
+  // is highest, and the opposite one where it is lowest (box_overlaps).
   glm::dvec2 high_corner[3], low_corner[3];
 };
 
@@ -144,28 +144,14 @@ bool setup_triangle(const glm::vec2* uv, int width, int height, SetupTriangle& t
 
 // Edge-normal axes of the separating axis test for the box [x, x + size] x
 // [y, y + size]; the box axes are handled by the bounding box. On each edge
-// axis the triangle projects to [0, extent].
-bool box_overlaps(const SetupTriangle& t, double x, double y, double size) {
+// axis the triangle projects to [0, extent]. Each edge's highest and lowest
+// box corners were chosen at set-up (offsets 0 or 1 times size, exact), so
+// the per-texel loops pay for the evaluations only.
+[[gnu::always_inline]] inline bool box_overlaps(const SetupTriangle& t, double x, double y, double size) {
   for (int i = 0; i < 3; ++i) {
     const EdgeFunction& e = t.edge[i];
-    const bool gx = e.dx() > 0.0;
-    const bool gy = e.dy() > 0.0;
-    const double highest = e({gx ? x + size : x, gy ? y + size : y});
-    if (highest <= 0.0) return false;
-    const double lowest = e({gx ? x : x + size, gy ? y : y + size});
-    if (lowest >= t.extent[i]) return false;
-  }
-  return true;
-}
-
-// box_overlaps() for the texel [x, x + 1] x [y, y + 1], with the corners
-// chosen at set-up: the same evaluations (x + 0 and x + 1 are exact), so the
-// same answers, inlined into the per-texel loops.
-[[gnu::always_inline]] inline bool texel_overlaps(const SetupTriangle& t, double x, double y) {
-  for (int i = 0; i < 3; ++i) {
-    const EdgeFunction& e = t.edge[i];
-    if (e({x + t.high_corner[i].x, y + t.high_corner[i].y}) <= 0.0) return false;
-    if (e({x + t.low_corner[i].x, y + t.low_corner[i].y}) >= t.extent[i]) return false;
+    if (e({x + t.high_corner[i].x * size, y + t.high_corner[i].y * size}) <= 0.0) return false;
+    if (e({x + t.low_corner[i].x * size, y + t.low_corner[i].y * size}) >= t.extent[i]) return false;
   }
   return true;
 }
@@ -388,7 +374,7 @@ void rasterize(const LowSurface& surface, int width, int height, int samples, Te
             const int y_begin = std::max(tri.y0, ty0), y_end = std::min(tri.y1, ty1);
             for (int y = y_begin; y <= y_end; ++y) {
               for (int x = x_begin; x <= x_end; ++x) {
-                if (!texel_overlaps(tri, x, y)) continue;
+                if (!box_overlaps(tri, x, y, 1.0)) continue;
                 const std::size_t texel = local_texel(x, y);
                 covered[texel] = 1;
                 const std::size_t local0 = texel * sample_stride;
@@ -426,7 +412,7 @@ void rasterize(const LowSurface& surface, int width, int height, int samples, Te
             for (int y = y_begin; y <= y_end; ++y) {
               for (int x = x_begin; x <= x_end; ++x) {
                 const std::size_t texel = local_texel(x, y);
-                if (inside_count[texel] == samples || !texel_overlaps(tri, x, y)) continue;
+                if (inside_count[texel] == samples || !box_overlaps(tri, x, y, 1.0)) continue;
                 const std::size_t local0 = texel * sample_stride;
                 const std::size_t global0 = first_sample(x, y);
                 for (int s = 0; s < samples; ++s) {

@@ -258,8 +258,12 @@ void queue_sample(Packet& p, std::size_t sample, std::int32_t tri, glm::vec2 b) 
   p.bary[i] = b;
 }
 
-// The fields of a queued packet that no ray changes and Embree never writes.
-void set_queued_constants(Packet& p, const RayOptions& options) {
+// An empty packet. A queued one (batched_rays) also gets the ray fields that
+// no ray changes and Embree never writes, once: build_queued_rays() sets
+// only the rest. (Its hits are read with options.front, not t_surface/sign.)
+void start_packet(Packet& p, bool queued) {
+  reset_packet(p);
+  if (!queued) return;
   RTCRay16& r = p.rayhit.ray;
   for (int i = 0; i < kPacket; ++i) {
     r.tnear[i] = 0.0f;
@@ -267,8 +271,35 @@ void set_queued_constants(Packet& p, const RayOptions& options) {
     r.mask[i] = 0xffffffffu;
     r.id[i] = static_cast<unsigned>(i);
     r.flags[i] = 0;
-    p.t_surface[i] = options.front;
-    p.sign[i] = 1.0f;
+  }
+}
+
+// The texels of one tile and the order their samples are traced in: 4 x 4
+// texel blocks, texels row-major inside a block, samples in pattern order.
+// trace() and trace_raw() both walk it, so the raw baseline fires the bake's
+// packets.
+struct TileRect {
+  int x0, y0, x1, y1;  // texels [x0, x1) x [y0, y1)
+};
+
+TileRect tile_rect(const TexelSamples& samples, int tile, int tiles_x) {
+  const int x0 = (tile % tiles_x) * kTile, y0 = (tile / tiles_x) * kTile;
+  return {x0, y0, std::min(x0 + kTile, samples.width), std::min(y0 + kTile, samples.height)};
+}
+
+template <class F>
+[[gnu::always_inline]] inline void for_each_sample_in_trace_order(const TexelSamples& samples, const TileRect& t,
+                                                                  F&& f) {
+  const std::size_t spp = static_cast<std::size_t>(samples.samples);
+  for (int by = t.y0; by < t.y1; by += kBlock) {
+    for (int bx = t.x0; bx < t.x1; bx += kBlock) {
+      for (int y = by; y < std::min(by + kBlock, t.y1); ++y) {
+        for (int x = bx; x < std::min(bx + kBlock, t.x1); ++x) {
+          const std::size_t first = (static_cast<std::size_t>(y) * samples.width + x) * spp;
+          for (std::size_t s = first; s < first + spp; ++s) f(s);
+        }
+      }
+    }
   }
 }
 
@@ -279,7 +310,7 @@ void set_queued_constants(Packet& p, const RayOptions& options) {
 // whose normal is zero or not finite takes build_ray() and its fallback.
 // Of the other fields only those Embree writes (tfar, geomID) and the valid
 // mask are set, for all 16 lanes (lanes past the count are invalid); the
-// rest are set once per packet by set_queued_constants(). Returns the number
+// rest are set once per packet by start_packet(). Returns the number
 // of lanes that took the fallback.
 std::uint64_t build_queued_rays(Packet& p, const LowSurface& surface, const RayOptions& options) {
   using namespace detail;
@@ -356,7 +387,7 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
   NMBAKE_CHECK(scene.impl() != nullptr, "scene built");
   const std::size_t sample_count = samples.sample_count();
   // Kept from the previous band: every sample's triangle is written below
-  // (-1 before its rays are traced), and bary and distance are read only
+  // (-1 for no sample or a miss), and bary and distance are read only
   // where a triangle was hit, so the arrays are not refilled each band.
   detail::size_output(hits.triangle, sample_count);
   detail::size_output(hits.bary, sample_count);
@@ -375,22 +406,19 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
 
   auto trace_tile = [&](int tile) {
     TileCounts& counts = tile_counts[tile];
-    const int x0 = (tile % tiles_x) * kTile;
-    const int y0 = (tile / tiles_x) * kTile;
-    const int x1 = std::min(x0 + kTile, samples.width);
-    const int y1 = std::min(y0 + kTile, samples.height);
+    const TileRect rect = tile_rect(samples, tile, tiles_x);
 
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
     Packet packet;
-    reset_packet(packet);
-    if (batched_rays(options)) set_queued_constants(packet, options);
+    const bool queued = batched_rays(options);
+    start_packet(packet, queued);
 
     // The common case (first hit, rays queued and built together): each
     // sample's result is written once, -1 for no sample or a miss, and the
     // hits are counted as the packets come back.
-    if (batched_rays(options)) {
+    if (queued) {
       auto flush = [&]() {
         if (packet.count == 0) return;
         counts.fallbacks += build_queued_rays(packet, surface, options);
@@ -407,25 +435,16 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
         }
         packet.count = 0;
       };
-      for (int by = y0; by < y1; by += kBlock) {
-        for (int bx = x0; bx < x1; bx += kBlock) {
-          for (int y = by; y < std::min(by + kBlock, y1); ++y) {
-            for (int x = bx; x < std::min(bx + kBlock, x1); ++x) {
-              const std::size_t first = (static_cast<std::size_t>(y) * samples.width + x) * spp;
-              for (std::size_t s = first; s < first + spp; ++s) {
-                const std::int32_t tri = samples.triangle[s];
-                if (tri < 0) {
-                  hits.triangle[s] = -1;
-                  continue;
-                }
-                ++counts.samples;
-                if (packet.count == kPacket) flush();
-                queue_sample(packet, s, tri, samples.bary[s]);
-              }
-            }
-          }
+      for_each_sample_in_trace_order(samples, rect, [&](std::size_t s) {
+        const std::int32_t tri = samples.triangle[s];
+        if (tri < 0) {
+          hits.triangle[s] = -1;
+          return;
         }
-      }
+        ++counts.samples;
+        if (packet.count == kPacket) flush();
+        queue_sample(packet, s, tri, samples.bary[s]);
+      });
       flush();
       counts.misses = counts.samples - counts.hits;
       return;
@@ -453,37 +472,27 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
       reset_packet(packet);
     };
 
-    for (int by = y0; by < y1; by += kBlock) {
-      for (int bx = x0; bx < x1; bx += kBlock) {
-        for (int y = by; y < std::min(by + kBlock, y1); ++y) {
-          for (int x = bx; x < std::min(bx + kBlock, x1); ++x) {
-            const std::size_t first = (static_cast<std::size_t>(y) * samples.width + x) * spp;
-            for (int k = 0; k < spp; ++k) {
-              const std::size_t s = first + k;
-              const std::int32_t tri = samples.triangle[s];
-              hits.triangle[s] = -1;
-              if (tri < 0) continue;
-              ++counts.samples;
-              bool fallback = false;
-              const Ray ray = build_ray(surface, tri, samples.bary[s], options, fallback);
-              counts.fallbacks += fallback ? 1 : 0;
-              if (options.hit == HitRule::first) {
-                if (packet.count == kPacket) flush();
-                add_ray(packet, s, ray.origin, ray.direction, ray.tfar, ray.t_surface, 1.0f);
-              } else {
-                if (packet.count > kPacket - 2) flush();
-                // Outwards from P up to the cage, and inwards up to `back`.
-                add_ray(packet, s, ray.surface_point, -ray.direction, ray.t_surface, 0.0f, -1.0f);
-                add_ray(packet, s, ray.surface_point, ray.direction, ray.tfar - ray.t_surface, 0.0f, 1.0f);
-              }
-            }
-          }
-        }
+    for_each_sample_in_trace_order(samples, rect, [&](std::size_t s) {
+      const std::int32_t tri = samples.triangle[s];
+      hits.triangle[s] = -1;
+      if (tri < 0) return;
+      ++counts.samples;
+      bool fallback = false;
+      const Ray ray = build_ray(surface, tri, samples.bary[s], options, fallback);
+      counts.fallbacks += fallback ? 1 : 0;
+      if (options.hit == HitRule::first) {
+        if (packet.count == kPacket) flush();
+        add_ray(packet, s, ray.origin, ray.direction, ray.tfar, ray.t_surface, 1.0f);
+      } else {
+        if (packet.count > kPacket - 2) flush();
+        // Outwards from P up to the cage, and inwards up to `back`.
+        add_ray(packet, s, ray.surface_point, -ray.direction, ray.t_surface, 0.0f, -1.0f);
+        add_ray(packet, s, ray.surface_point, ray.direction, ray.tfar - ray.t_surface, 0.0f, 1.0f);
       }
-    }
+    });
     flush();
-    for (int y = y0; y < y1; ++y) {
-      for (int x = x0; x < x1; ++x) {
+    for (int y = rect.y0; y < rect.y1; ++y) {
+      for (int x = rect.x0; x < rect.x1; ++x) {
         const std::size_t first = (static_cast<std::size_t>(y) * samples.width + x) * spp;
         for (int k = 0; k < spp; ++k) {
           const std::size_t s = first + k;
@@ -624,12 +633,11 @@ RawTraceResult trace_raw(const HighScene& scene, const LowSurface& surface, cons
                          const RayOptions& options) {
   NMBAKE_CHECK(scene.impl() != nullptr, "scene built");
   NMBAKE_CHECK(options.hit == HitRule::first, "the raw baseline measures first-hit rays");
-  // The same rays in the same packets as trace(): tiles of 16 x 16 texels,
-  // 4 x 4 blocks, texels row-major, samples in order. They are built before
+  // The same rays in the same packets as trace(): the same tiles, walked in
+  // the same order (for_each_sample_in_trace_order). They are built before
   // the clock starts, so only Embree is timed.
   const int tiles_x = (samples.width + kTile - 1) / kTile;
   const int tiles_y = (samples.height + kTile - 1) / kTile;
-  const int spp = samples.samples;
   // Built by the bake's own code: queued and built together where trace()
   // does so, one by one where it does not.
   const bool batched = batched_rays(options);
@@ -639,32 +647,23 @@ RawTraceResult trace_raw(const HighScene& scene, const LowSurface& surface, cons
   std::vector<std::vector<Packet>> tile_packets(static_cast<std::size_t>(tiles_x) * tiles_y);
   tbb::parallel_for(0, tiles_x * tiles_y, [&](int tile) {
     std::vector<Packet>& packets = tile_packets[static_cast<std::size_t>(tile)];
-    const int x0 = (tile % tiles_x) * kTile, y0 = (tile / tiles_x) * kTile;
-    const int x1 = std::min(x0 + kTile, samples.width), y1 = std::min(y0 + kTile, samples.height);
     packets.emplace_back();
-    reset_packet(packets.back());
-    if (batched) set_queued_constants(packets.back(), options);
-    for (int by = y0; by < y1; by += kBlock)
-      for (int bx = x0; bx < x1; bx += kBlock)
-        for (int y = by; y < std::min(by + kBlock, y1); ++y)
-          for (int x = bx; x < std::min(bx + kBlock, x1); ++x)
-            for (int k = 0; k < spp; ++k) {
-              const std::size_t s = (static_cast<std::size_t>(y) * samples.width + x) * spp + k;
-              if (samples.triangle[s] < 0) continue;
-              if (packets.back().count == kPacket) {
-                finish_packet(packets.back());
-                packets.emplace_back();
-                reset_packet(packets.back());
-                if (batched) set_queued_constants(packets.back(), options);
-              }
-              if (batched) {
-                queue_sample(packets.back(), s, samples.triangle[s], samples.bary[s]);
-                continue;
-              }
-              bool fallback = false;
-              const Ray ray = build_ray(surface, samples.triangle[s], samples.bary[s], options, fallback);
-              add_ray(packets.back(), s, ray.origin, ray.direction, ray.tfar, ray.t_surface, 1.0f);
-            }
+    start_packet(packets.back(), batched);
+    for_each_sample_in_trace_order(samples, tile_rect(samples, tile, tiles_x), [&](std::size_t s) {
+      if (samples.triangle[s] < 0) return;
+      if (packets.back().count == kPacket) {
+        finish_packet(packets.back());
+        packets.emplace_back();
+        start_packet(packets.back(), batched);
+      }
+      if (batched) {
+        queue_sample(packets.back(), s, samples.triangle[s], samples.bary[s]);
+        return;
+      }
+      bool fallback = false;
+      const Ray ray = build_ray(surface, samples.triangle[s], samples.bary[s], options, fallback);
+      add_ray(packets.back(), s, ray.origin, ray.direction, ray.tfar, ray.t_surface, 1.0f);
+    });
     finish_packet(packets.back());
   });
   RTCScene rtc_scene = scene.impl()->scene;
