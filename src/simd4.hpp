@@ -45,13 +45,35 @@ inline bool all4(i4 mask) {
 #endif
 }
 
-// Four consecutive floats from / to memory, any alignment.
+// The number of set lanes of a comparison mask.
+inline int count4(i4 mask) {
+#if defined(__SSE__)
+  return __builtin_popcount(static_cast<unsigned>(__builtin_ia32_movmskps(reinterpret_cast<__v4sf>(mask))));
+#else
+  return (mask[0] != 0) + (mask[1] != 0) + (mask[2] != 0) + (mask[3] != 0);
+#endif
+}
+
+inline i4 splat4i(std::int32_t v) { return i4{v, v, v, v}; }
+
+// v where the mask is set, +0.0 elsewhere.
+inline f4 select4(i4 mask, f4 v) { return reinterpret_cast<f4>(reinterpret_cast<i4>(v) & mask); }
+
+// Four consecutive floats or 32-bit integers from / to memory, any alignment.
 inline f4 load4(const float* p) {
   f4 v;
   std::memcpy(&v, p, sizeof v);
   return v;
 }
 inline void store4(float* p, f4 v) { std::memcpy(p, &v, sizeof v); }
+template <class T>
+inline i4 load4i(const T* p) {
+  static_assert(sizeof(T) == 4, "32-bit lanes");
+  i4 v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+inline void store4i(std::int32_t* p, i4 v) { std::memcpy(p, &v, sizeof v); }
 
 // (x, y, z, 0) from one 8-byte and one 4-byte load, never past z.
 inline f4 load4(const glm::vec3& v) {

@@ -211,10 +211,12 @@ struct alignas(64) Packet {
   float t_surface[kPacket];
   float sign[kPacket];  // +1: distance = t_surface - t; used to turn t into a signed surface distance
   int count = 0;
+  bool contiguous = true;  // queued lanes hold samples sample[0], sample[0] + 1, ... (store_first_hits)
 };
 
 void reset_packet(Packet& p) {
   p.count = 0;
+  p.contiguous = true;
   for (int i = 0; i < kPacket; ++i) p.valid[i] = 0;
 }
 
@@ -253,9 +255,56 @@ bool batched_rays(const RayOptions& options) {
 
 void queue_sample(Packet& p, std::size_t sample, std::int32_t tri, glm::vec2 b) {
   const int i = p.count++;
+  p.contiguous = p.contiguous && (i == 0 || p.sample[i - 1] + 1 == sample);
   p.sample[i] = sample;
   p.triangle[i] = tri;
   p.bary[i] = b;
+}
+
+// Queues samples first .. first + m - 1 (m <= free lanes), all with a
+// triangle: the arrays are copied in one go.
+[[gnu::always_inline]] inline void queue_run(Packet& p, std::size_t first, const std::int32_t* tri,
+                                             const glm::vec2* bary, int m) {
+  const int c = p.count;
+  p.contiguous = p.contiguous && (c == 0 || p.sample[c - 1] + 1 == first);
+  std::memcpy(p.triangle + c, tri, static_cast<std::size_t>(m) * sizeof *tri);
+  std::memcpy(p.bary + c, bary, static_cast<std::size_t>(m) * sizeof *bary);
+  for (int k = 0; k < m; ++k) p.sample[c + k] = first + static_cast<std::size_t>(k);
+  p.count = c + m;
+}
+
+// Queues the samples of the texel whose first sample is `first` that have a
+// triangle, in pattern order, one at a time as queue_sample() would: `full`
+// gets the packet whenever it is full before a sample goes in (it must
+// empty it), `empty` each sample without a triangle. A stretch of samples
+// that all have one and fit in the packet is queued by queue_run(); at 4 or
+// 16 samples a texel that is nearly every texel. trace() and trace_raw()
+// both queue through it, so their packets are the same.
+template <class Full, class Empty>
+[[gnu::always_inline]] inline void queue_texel(Packet& p, const TexelSamples& samples, std::size_t first, Full&& full,
+                                               Empty&& empty) {
+  const int spp = samples.samples;
+  const std::int32_t* tri = samples.triangle.data() + first;
+  const glm::vec2* bary = samples.bary.data() + first;
+  int k = 0;
+  while (k < spp) {
+    if (p.count == kPacket) full();
+    const int m = std::min(kPacket - p.count, spp - k);
+    std::int32_t any_negative = 0;
+    for (int j = 0; j < m; ++j) any_negative |= tri[k + j];
+    if (any_negative >= 0) {
+      queue_run(p, first + static_cast<std::size_t>(k), tri + k, bary + k, m);
+      k += m;
+      continue;
+    }
+    for (const int end = k + m; k < end; ++k) {
+      if (tri[k] < 0) {
+        empty(first + static_cast<std::size_t>(k));
+      } else {
+        queue_sample(p, first + static_cast<std::size_t>(k), tri[k], bary[k]);
+      }
+    }
+  }
 }
 
 // An empty packet. A queued one (batched_rays) also gets the ray fields that
@@ -287,27 +336,49 @@ TileRect tile_rect(const TexelSamples& samples, int tile, int tiles_x) {
   return {x0, y0, std::min(x0 + kTile, samples.width), std::min(y0 + kTile, samples.height)};
 }
 
+// f(first sample of the texel), texel by texel.
 template <class F>
-[[gnu::always_inline]] inline void for_each_sample_in_trace_order(const TexelSamples& samples, const TileRect& t,
-                                                                  F&& f) {
+[[gnu::always_inline]] inline void for_each_texel_in_trace_order(const TexelSamples& samples, const TileRect& t,
+                                                                 F&& f) {
   const std::size_t spp = static_cast<std::size_t>(samples.samples);
   for (int by = t.y0; by < t.y1; by += kBlock) {
     for (int bx = t.x0; bx < t.x1; bx += kBlock) {
       for (int y = by; y < std::min(by + kBlock, t.y1); ++y) {
         for (int x = bx; x < std::min(bx + kBlock, t.x1); ++x) {
-          const std::size_t first = (static_cast<std::size_t>(y) * samples.width + x) * spp;
-          for (std::size_t s = first; s < first + spp; ++s) f(s);
+          f((static_cast<std::size_t>(y) * samples.width + x) * spp);
         }
       }
     }
   }
 }
 
-// Builds the queued lanes' rays four at a time in SIMD lanes: per lane the
-// point and the cage normal are interpolated, then one vector per axis gives
-// the lengths, the unit normals and the origins. The operations are
-// build_ray()'s, in its order, so the rays are bit for bit the same; a lane
-// whose normal is zero or not finite takes build_ray() and its fallback.
+// f(sample), sample by sample.
+template <class F>
+[[gnu::always_inline]] inline void for_each_sample_in_trace_order(const TexelSamples& samples, const TileRect& t,
+                                                                  F&& f) {
+  const std::size_t spp = static_cast<std::size_t>(samples.samples);
+  for_each_texel_in_trace_order(samples, t, [&](std::size_t first) {
+    for (std::size_t s = first; s < first + spp; ++s) f(s);
+  });
+}
+
+// One attribute of a triangle's three corners interpolated for four lanes at
+// once, one vector per axis: the products and sums of interpolate() (c0 * w0
+// + c1 * b.x + c2 * b.y, w0 = 1 - b.x - b.y), in its order.
+[[gnu::always_inline]] inline detail::Axes mix_axes(const glm::vec3* c, detail::f4 w0, detail::f4 bx, detail::f4 by) {
+  using detail::splat4;
+  return {splat4(c[0].x) * w0 + splat4(c[1].x) * bx + splat4(c[2].x) * by,
+          splat4(c[0].y) * w0 + splat4(c[1].y) * bx + splat4(c[2].y) * by,
+          splat4(c[0].z) * w0 + splat4(c[1].z) * bx + splat4(c[2].z) * by, detail::f4{}};
+}
+
+// Builds the queued lanes' rays four at a time in SIMD lanes, one vector per
+// axis: the point and the cage normal are interpolated, then come the
+// lengths, the unit normals and the origins. Four lanes on one low triangle
+// (nearly all of them: at 16 spp a packet is one texel) are interpolated
+// across the lanes; otherwise lane by lane, then transposed. The operations
+// are build_ray()'s, in its order, so the rays are bit for bit the same; a
+// lane whose normal is zero or not finite takes build_ray() and its fallback.
 // Of the other fields only those Embree writes (tfar, geomID) and the valid
 // mask are set, for all 16 lanes (lanes past the count are invalid); the
 // rest are set once per packet by start_packet(). Returns the number
@@ -319,25 +390,41 @@ std::uint64_t build_queued_rays(Packet& p, const LowSurface& surface, const RayO
   const int n = p.count;
   const f4 front = splat4(options.front);
   std::uint64_t fallbacks = 0;
-  // The lanes of a packet mostly share a low triangle (at 16 spp a packet is
-  // one texel): its corners are loaded once for a run of such lanes.
+  // Lanes past the count up to a multiple of four copy the last lane, so
+  // every group of four is whole (their rays are built and not traced).
+  for (int i = n; i < ((n + 3) & ~3); ++i) {
+    p.triangle[i] = p.triangle[n - 1];
+    p.bary[i] = p.bary[n - 1];
+  }
+  // A lane-by-lane run of lanes on one triangle loads its corners once.
   std::int32_t loaded = -1;
   Corners position, cage;
   for (int g = 0; g < n; g += 4) {
-    f4 point[4], normal[4];
-    for (int k = 0; k < 4; ++k) {
-      const int i = std::min(g + k, n - 1);  // past the count: a copy of the last lane
-      if (p.triangle[i] != loaded) {
-        loaded = p.triangle[i];
-        const std::size_t base = 3 * static_cast<std::size_t>(loaded);
-        position = load_corners(&surface.position[base]);
-        cage = load_corners(&normals[base]);
+    Axes P, a;
+    const i4 tri = load4i(p.triangle + g);
+    if (all4(tri == splat4i(tri[0]))) {
+      const std::size_t base = 3 * static_cast<std::size_t>(tri[0]);
+      const f4 b01 = load4(&p.bary[g].x), b23 = load4(&p.bary[g + 2].x);
+      const f4 bx = __builtin_shuffle(b01, b23, i4{0, 2, 4, 6}), by = __builtin_shuffle(b01, b23, i4{1, 3, 5, 7});
+      const f4 w0 = splat4(1.0f) - bx - by;
+      P = mix_axes(&surface.position[base], w0, bx, by);
+      a = mix_axes(&normals[base], w0, bx, by);
+    } else {
+      f4 point[4], normal[4];
+      for (int k = 0; k < 4; ++k) {
+        const int i = g + k;
+        if (p.triangle[i] != loaded) {
+          loaded = p.triangle[i];
+          const std::size_t base = 3 * static_cast<std::size_t>(loaded);
+          position = load_corners(&surface.position[base]);
+          cage = load_corners(&normals[base]);
+        }
+        point[k] = corner_mix(position, p.bary[i]);
+        normal[k] = corner_mix(cage, p.bary[i]);
       }
-      point[k] = corner_mix(position, p.bary[i]);
-      normal[k] = corner_mix(cage, p.bary[i]);
+      P = transpose(point[0], point[1], point[2], point[3]);
+      a = transpose(normal[0], normal[1], normal[2], normal[3]);
     }
-    const Axes P = transpose(point[0], point[1], point[2], point[3]);
-    const Axes a = transpose(normal[0], normal[1], normal[2], normal[3]);
     const f4 length = sqrt4(a.x * a.x + a.y * a.y + a.z * a.z);
     const i4 ok = (length > splat4(1e-12f)) & finite4(length);
     const f4 inv = splat4(1.0f) / length;
@@ -370,6 +457,42 @@ std::uint64_t build_queued_rays(Packet& p, const LowSurface& surface, const RayO
     p.valid[i] = i < n ? -1 : 0;
   }
   return fallbacks;
+}
+
+// Writes a traced queued packet's first hits to the sample arrays (-1 for a
+// miss, whose bary and distance are left 0) and returns the number of hits.
+// Lanes holding consecutive samples, as they mostly do, are written four at a
+// time.
+std::uint64_t store_first_hits(const Packet& p, float front, Hits& hits) {
+  using namespace detail;
+  const RTCHit16& h = p.rayhit.hit;
+  const int n = p.count;
+  std::uint64_t hit_count = 0;
+  int i = 0;
+  if (p.contiguous) {
+    const std::size_t s0 = p.sample[0];
+    std::int32_t* triangle = hits.triangle.data() + s0;
+    float* bary = &hits.bary[s0].x;
+    float* distance = hits.distance.data() + s0;
+    for (; i + 4 <= n; i += 4) {
+      const i4 hit = load4i(h.geomID + i) != splat4i(static_cast<std::int32_t>(RTC_INVALID_GEOMETRY_ID));
+      store4i(triangle + i, load4i(h.primID + i) | ~hit);  // a miss: all bits set, -1
+      const f4 u = select4(hit, load4(h.u + i)), v = select4(hit, load4(h.v + i));
+      store4(bary + 2 * i, __builtin_shuffle(u, v, i4{0, 4, 1, 5}));
+      store4(bary + 2 * i + 4, __builtin_shuffle(u, v, i4{2, 6, 3, 7}));
+      store4(distance + i, select4(hit, splat4(front) - load4(p.rayhit.ray.tfar + i)));
+      hit_count += static_cast<std::uint64_t>(count4(hit));
+    }
+  }
+  for (; i < n; ++i) {
+    const std::size_t s = p.sample[i];
+    const bool hit = h.geomID[i] != RTC_INVALID_GEOMETRY_ID;
+    hits.triangle[s] = hit ? static_cast<std::int32_t>(h.primID[i]) : -1;
+    hits.bary[s] = hit ? glm::vec2(h.u[i], h.v[i]) : glm::vec2(0.0f);
+    hits.distance[s] = hit ? front - p.rayhit.ray.tfar[i] : 0.0f;
+    hit_count += hit ? 1 : 0;
+  }
+  return hit_count;
 }
 
 // A candidate hit per sample while a tile is traced (nearest needs two rays).
@@ -424,28 +547,15 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
         counts.fallbacks += build_queued_rays(packet, surface, options);
         rtcIntersect16(packet.valid, rtc_scene, &context, &packet.rayhit);
         counts.rays += static_cast<std::uint64_t>(packet.count);
-        for (int i = 0; i < packet.count; ++i) {
-          const std::size_t s = packet.sample[i];
-          const bool hit = packet.rayhit.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;
-          hits.triangle[s] = hit ? static_cast<std::int32_t>(packet.rayhit.hit.primID[i]) : -1;
-          if (!hit) continue;
-          ++counts.hits;
-          hits.bary[s] = glm::vec2(packet.rayhit.hit.u[i], packet.rayhit.hit.v[i]);
-          hits.distance[s] = options.front - packet.rayhit.ray.tfar[i];
-        }
+        counts.hits += store_first_hits(packet, options.front, hits);
         packet.count = 0;
+        packet.contiguous = true;
       };
-      for_each_sample_in_trace_order(samples, rect, [&](std::size_t s) {
-        const std::int32_t tri = samples.triangle[s];
-        if (tri < 0) {
-          hits.triangle[s] = -1;
-          return;
-        }
-        ++counts.samples;
-        if (packet.count == kPacket) flush();
-        queue_sample(packet, s, tri, samples.bary[s]);
+      for_each_texel_in_trace_order(samples, rect, [&](std::size_t first) {
+        queue_texel(packet, samples, first, flush, [&](std::size_t s) { hits.triangle[s] = -1; });
       });
       flush();
+      counts.samples = counts.rays;
       counts.misses = counts.samples - counts.hits;
       return;
     }
@@ -629,42 +739,52 @@ DistanceEstimate estimate_distances(const HighScene& scene, const LowSurface& su
 
 namespace nmbake {
 
+namespace {
+
+// A tile's packets as trace() fires them, rays built: queued and built
+// together where trace() does so, one by one where it does not.
+void build_tile_packets(const LowSurface& surface, const TexelSamples& samples, const RayOptions& options,
+                        const TileRect& rect, std::vector<Packet>& packets) {
+  const bool batched = batched_rays(options);
+  Packet current;
+  start_packet(current, batched);
+  const auto keep = [&]() {
+    if (batched) build_queued_rays(current, surface, options);
+    packets.push_back(current);
+    start_packet(current, batched);
+  };
+  if (batched) {
+    for_each_texel_in_trace_order(samples, rect, [&](std::size_t first) {
+      queue_texel(current, samples, first, keep, [](std::size_t) {});
+    });
+  } else {
+    for_each_sample_in_trace_order(samples, rect, [&](std::size_t s) {
+      if (samples.triangle[s] < 0) return;
+      if (current.count == kPacket) keep();
+      bool fallback = false;
+      const Ray ray = build_ray(surface, samples.triangle[s], samples.bary[s], options, fallback);
+      add_ray(current, s, ray.origin, ray.direction, ray.tfar, ray.t_surface, 1.0f);
+    });
+  }
+  if (current.count > 0) keep();
+}
+
+}  // namespace
+
 RawTraceResult trace_raw(const HighScene& scene, const LowSurface& surface, const TexelSamples& samples,
                          const RayOptions& options) {
   NMBAKE_CHECK(scene.impl() != nullptr, "scene built");
   NMBAKE_CHECK(options.hit == HitRule::first, "the raw baseline measures first-hit rays");
   // The same rays in the same packets as trace(): the same tiles, walked in
-  // the same order (for_each_sample_in_trace_order). They are built before
-  // the clock starts, so only Embree is timed.
+  // the same order and queued by the same code (for_each_texel_in_trace_order,
+  // queue_texel). They are built before the clock starts, so only Embree is
+  // timed.
   const int tiles_x = (samples.width + kTile - 1) / kTile;
   const int tiles_y = (samples.height + kTile - 1) / kTile;
-  // Built by the bake's own code: queued and built together where trace()
-  // does so, one by one where it does not.
-  const bool batched = batched_rays(options);
-  const auto finish_packet = [&](Packet& p) {
-    if (batched) build_queued_rays(p, surface, options);
-  };
   std::vector<std::vector<Packet>> tile_packets(static_cast<std::size_t>(tiles_x) * tiles_y);
   tbb::parallel_for(0, tiles_x * tiles_y, [&](int tile) {
-    std::vector<Packet>& packets = tile_packets[static_cast<std::size_t>(tile)];
-    packets.emplace_back();
-    start_packet(packets.back(), batched);
-    for_each_sample_in_trace_order(samples, tile_rect(samples, tile, tiles_x), [&](std::size_t s) {
-      if (samples.triangle[s] < 0) return;
-      if (packets.back().count == kPacket) {
-        finish_packet(packets.back());
-        packets.emplace_back();
-        start_packet(packets.back(), batched);
-      }
-      if (batched) {
-        queue_sample(packets.back(), s, samples.triangle[s], samples.bary[s]);
-        return;
-      }
-      bool fallback = false;
-      const Ray ray = build_ray(surface, samples.triangle[s], samples.bary[s], options, fallback);
-      add_ray(packets.back(), s, ray.origin, ray.direction, ray.tfar, ray.t_surface, 1.0f);
-    });
-    finish_packet(packets.back());
+    build_tile_packets(surface, samples, options, tile_rect(samples, tile, tiles_x),
+                       tile_packets[static_cast<std::size_t>(tile)]);
   });
   RTCScene rtc_scene = scene.impl()->scene;
   std::vector<std::uint64_t> tile_rays(tile_packets.size(), 0), tile_hits(tile_packets.size(), 0);
@@ -687,6 +807,31 @@ RawTraceResult trace_raw(const HighScene& scene, const LowSurface& surface, cons
     result.hits += tile_hits[t];
   }
   return result;
+}
+
+std::vector<PacketRay> packet_rays(const LowSurface& surface, const TexelSamples& samples,
+                                   const RayOptions& options) {
+  NMBAKE_CHECK(options.hit == HitRule::first, "first-hit rays");
+  std::vector<PacketRay> rays(samples.sample_count());
+  const int tiles_x = (samples.width + kTile - 1) / kTile;
+  const int tiles_y = (samples.height + kTile - 1) / kTile;
+  std::vector<Packet> packets;
+  for (int tile = 0; tile < tiles_x * tiles_y; ++tile) {
+    packets.clear();
+    build_tile_packets(surface, samples, options, tile_rect(samples, tile, tiles_x), packets);
+    for (const Packet& p : packets) {
+      const RTCRay16& r = p.rayhit.ray;
+      for (int i = 0; i < p.count; ++i) {
+        PacketRay& out = rays[p.sample[i]];
+        out.traced = p.valid[i] == -1;
+        out.origin = glm::vec3(r.org_x[i], r.org_y[i], r.org_z[i]);
+        out.direction = glm::vec3(r.dir_x[i], r.dir_y[i], r.dir_z[i]);
+        out.tnear = r.tnear[i];
+        out.tfar = r.tfar[i];
+      }
+    }
+  }
+  return rays;
 }
 
 }  // namespace nmbake

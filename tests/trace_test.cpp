@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <glm/geometric.hpp>
 
+#include "nmbake/raster.hpp"
 #include "nmbake/trace.hpp"
 
 namespace nmbake {
@@ -77,7 +78,13 @@ TEST(Trace, ZeroNormalUsesFaceNormal) {
 // make_ray() gives for that sample, whatever its place in a packet (partial
 // packets and groups, empty samples between) and including fallback lanes.
 // Checked against an analytic plane: the hit distance and the hit point.
-TEST(Trace, PacketRaysAreMakeRayLaneByLane) {
+// trace() against make_ray() sample by sample, on a plane z = h that ends at
+// x = edge (rays past it miss): hit points, distances, misses and counts.
+// Random empty samples (15%) and fallback lanes (triangle 1, 20%) break up
+// the texels, so packets mix whole texels, partial ones and runs that are
+// not consecutive samples.
+void check_packets_against_make_ray(int samples_per_texel, int width, int height) {
+  SCOPED_TRACE(testing::Message() << samples_per_texel << " spp, " << width << " x " << height);
   LowSurface s = low_quad();
   // Tilted, unequal corner normals on triangle 0: every sample's ray differs.
   s.cage_normal[0] = {0.3f, 0.0f, 1.0f};
@@ -86,17 +93,17 @@ TEST(Trace, PacketRaysAreMakeRayLaneByLane) {
   // Triangle 1 has no usable averaged normal: its rays take the face normal.
   for (int c = 3; c < 6; ++c) s.cage_normal[c] = glm::vec3(0.0f);
   Mesh high;
-  const float h = -0.15f;
-  high.positions = {{-5, -5, h}, {6, -5, h}, {6, 6, h}, {-5, 6, h}};
+  const float h = -0.15f, edge = 0.55f;
+  high.positions = {{-5, -5, h}, {edge, -5, h}, {edge, 6, h}, {-5, 6, h}};
   high.indices = {0, 1, 2, 0, 2, 3};
   pad_for_embree(high);
   HighScene scene;
   ASSERT_TRUE(HighScene::build(high, BuildQuality::medium, false, scene).is_ok());
 
   TexelSamples t;
-  t.width = 23;  // a tile row of 16 texels and one of 7
-  t.height = 3;
-  t.samples = 4;
+  t.width = width;
+  t.height = height;
+  t.samples = samples_per_texel;
   std::uint32_t state = 12345u;
   const auto next = [&state] {
     state = state * 1664525u + 1013904223u;
@@ -123,19 +130,26 @@ TEST(Trace, PacketRaysAreMakeRayLaneByLane) {
   trace(scene, s, t, o, hits, stats);
   EXPECT_EQ(stats.samples, traced);
   EXPECT_EQ(stats.rays, traced);
-  EXPECT_EQ(stats.hits, traced);
-  EXPECT_EQ(stats.misses, 0u);
+  EXPECT_EQ(stats.hits + stats.misses, traced);
   EXPECT_EQ(stats.ray_fallbacks, fallbacks);
+  std::size_t hit_count = 0, expected_misses = 0;
   for (std::size_t i = 0; i < t.triangle.size(); ++i) {
     if (t.triangle[i] < 0) {
       EXPECT_EQ(hits.triangle[i], -1) << "sample " << i;
       continue;
     }
+    hit_count += hits.triangle[i] >= 0;
     bool fallback = false;
     const Ray ray = make_ray(s, t.triangle[i], t.bary[i], o, fallback);
     EXPECT_EQ(fallback, t.triangle[i] == 1);
     const float t_hit = (ray.origin.z - h) / -ray.direction.z;
     const glm::vec3 expected = ray.origin + t_hit * ray.direction;
+    if (expected.x > edge + 1e-4f) {
+      ++expected_misses;
+      EXPECT_EQ(hits.triangle[i], -1) << "sample " << i;
+      continue;
+    }
+    if (expected.x > edge - 1e-4f) continue;  // on the edge: either
     ASSERT_GE(hits.triangle[i], 0) << "sample " << i;
     const std::uint32_t* c = &high.indices[3 * static_cast<std::size_t>(hits.triangle[i])];
     const glm::vec2 b = hits.bary[i];
@@ -144,6 +158,74 @@ TEST(Trace, PacketRaysAreMakeRayLaneByLane) {
     EXPECT_NEAR(got.x, expected.x, 1e-4f) << "sample " << i;
     EXPECT_NEAR(got.y, expected.y, 1e-4f) << "sample " << i;
     EXPECT_NEAR(hits.distance[i], ray.t_surface - t_hit, 1e-5f) << "sample " << i;
+  }
+  EXPECT_EQ(stats.hits, hit_count);
+  EXPECT_GT(expected_misses, traced / 5);  // the edge is in the middle of the map
+  EXPECT_LT(expected_misses, traced * 4 / 5);
+}
+
+TEST(Trace, PacketRaysAreMakeRayLaneByLane) {
+  check_packets_against_make_ray(4, 23, 3);  // a tile row of 16 texels and one of 7
+  check_packets_against_make_ray(1, 37, 19);
+  check_packets_against_make_ray(16, 21, 5);
+  check_packets_against_make_ray(64, 6, 5);
+}
+
+// The rays trace() builds in SIMD lanes are make_ray()'s bit for bit, for
+// both cages and every sample count, on a low mesh of many small triangles
+// (packets mix lanes on one triangle and lanes on several).
+TEST(Trace, PacketRaysEqualMakeRayBitForBit) {
+  // A bumpy 8 x 8 grid of quads, with normals that differ per corner.
+  LowSurface s;
+  const auto height = [](float x, float y) { return 0.1f * std::sin(7.0f * x) * std::cos(5.0f * y); };
+  const auto normal = [](float x, float y) {
+    return glm::normalize(glm::vec3(-0.7f * std::cos(7.0f * x) * std::cos(5.0f * y),
+                                    0.5f * std::sin(7.0f * x) * std::sin(5.0f * y), 1.0f));
+  };
+  const int n = 8;
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const glm::vec2 q[4] = {{i, j}, {i + 1, j}, {i + 1, j + 1}, {i, j + 1}};
+      for (int c : {0, 1, 2, 0, 2, 3}) {
+        const glm::vec2 uv = q[c] / static_cast<float>(n);
+        s.position.push_back({uv.x, uv.y, height(uv.x, uv.y)});
+        s.uv.push_back(uv);
+        s.normal.push_back(normal(uv.x, uv.y));
+        s.cage_normal.push_back(normal(uv.x + 0.01f, uv.y - 0.02f) * 1.3f);
+        s.tangent.push_back({1, 0, 0, 1});
+      }
+    }
+  }
+  s.cage_normal[7] = glm::vec3(0.0f);  // a fallback corner
+  for (int spp : {1, 4, 16, 64}) {
+    TexelSamples t;
+    RasterStats raster_stats;
+    rasterize(s, 37, 21, spp, t, raster_stats);
+    for (std::size_t i = 0; i < t.triangle.size(); i += 11) t.triangle[i] = -1;  // holes
+    for (CageMode cage : {CageMode::averaged, CageMode::interpolated}) {
+      SCOPED_TRACE(testing::Message() << spp << " spp, cage " << static_cast<int>(cage));
+      RayOptions o;
+      o.cage = cage;
+      o.front = 0.3f;
+      o.back = 0.45f;
+      const std::vector<PacketRay> rays = packet_rays(s, t, o);
+      ASSERT_EQ(rays.size(), t.triangle.size());
+      std::size_t compared = 0;
+      for (std::size_t i = 0; i < rays.size(); ++i) {
+        ASSERT_EQ(rays[i].traced, t.triangle[i] >= 0) << "sample " << i;
+        if (!rays[i].traced) continue;
+        bool fallback = false;
+        const Ray ray = make_ray(s, t.triangle[i], t.bary[i], o, fallback);
+        for (int k = 0; k < 3; ++k) {
+          ASSERT_EQ(rays[i].origin[k], ray.origin[k]) << "sample " << i;
+          ASSERT_EQ(rays[i].direction[k], ray.direction[k]) << "sample " << i;
+        }
+        ASSERT_EQ(rays[i].tnear, 0.0f);
+        ASSERT_EQ(rays[i].tfar, ray.tfar);
+        ++compared;
+      }
+      EXPECT_GT(compared, t.triangle.size() / 2);
+    }
   }
 }
 

@@ -120,6 +120,19 @@ struct RawTraceResult {
 RawTraceResult trace_raw(const HighScene& scene, const LowSurface& surface, const TexelSamples& samples,
                          const RayOptions& options);
 
+// The rays trace() gives Embree for first-hit rays, per sample (same
+// indexing as TexelSamples; `traced` is false for samples without a
+// triangle): built by trace()'s own packet code, so tests can hold them to
+// make_ray() bit for bit.
+struct PacketRay {
+  bool traced = false;
+  glm::vec3 origin{0.0f};
+  glm::vec3 direction{0.0f};
+  float tnear = 0.0f;
+  float tfar = 0.0f;
+};
+std::vector<PacketRay> packet_rays(const LowSurface& surface, const TexelSamples& samples, const RayOptions& options);
+
 // Ray distances found by probing: rays from fixed points of every low
 // triangle, outwards and inwards along the averaged normal, find how far the
 // high surface lies outside (front) and inside (back) the low one.
