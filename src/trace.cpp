@@ -211,12 +211,10 @@ struct alignas(64) Packet {
   float t_surface[kPacket];
   float sign[kPacket];  // +1: distance = t_surface - t; used to turn t into a signed surface distance
   int count = 0;
-  bool contiguous = true;  // queued lanes hold samples sample[0], sample[0] + 1, ... (store_first_hits)
 };
 
 void reset_packet(Packet& p) {
   p.count = 0;
-  p.contiguous = true;
   for (int i = 0; i < kPacket; ++i) p.valid[i] = 0;
 }
 
@@ -255,31 +253,31 @@ bool batched_rays(const RayOptions& options) {
 
 void queue_sample(Packet& p, std::size_t sample, std::int32_t tri, glm::vec2 b) {
   const int i = p.count++;
-  p.contiguous = p.contiguous && (i == 0 || p.sample[i - 1] + 1 == sample);
   p.sample[i] = sample;
   p.triangle[i] = tri;
   p.bary[i] = b;
 }
 
-// Queues samples first .. first + m - 1 (m <= free lanes), all with a
+// Queues samples first .. first + M - 1 (M <= free lanes), all with a
 // triangle: the arrays are copied in one go.
+template <int M>
 [[gnu::always_inline]] inline void queue_run(Packet& p, std::size_t first, const std::int32_t* tri,
-                                             const glm::vec2* bary, int m) {
+                                             const glm::vec2* bary) {
   const int c = p.count;
-  p.contiguous = p.contiguous && (c == 0 || p.sample[c - 1] + 1 == first);
-  std::memcpy(p.triangle + c, tri, static_cast<std::size_t>(m) * sizeof *tri);
-  std::memcpy(p.bary + c, bary, static_cast<std::size_t>(m) * sizeof *bary);
-  for (int k = 0; k < m; ++k) p.sample[c + k] = first + static_cast<std::size_t>(k);
-  p.count = c + m;
+  std::memcpy(p.triangle + c, tri, M * sizeof *tri);
+  std::memcpy(p.bary + c, bary, M * sizeof *bary);
+  for (int k = 0; k < M; ++k) p.sample[c + k] = first + static_cast<std::size_t>(k);
+  p.count = c + M;
 }
 
 // Queues the samples of the texel whose first sample is `first` that have a
 // triangle, in pattern order, one at a time as queue_sample() would: `full`
 // gets the packet whenever it is full before a sample goes in (it must
-// empty it), `empty` each sample without a triangle. A stretch of samples
-// that all have one and fit in the packet is queued by queue_run(); at 4 or
-// 16 samples a texel that is nearly every texel. trace() and trace_raw()
-// both queue through it, so their packets are the same.
+// empty it), `empty` each sample without a triangle. A whole texel (or, at
+// 64 spp, a packet's worth of one) whose samples all have a triangle is
+// copied in one go by queue_run(): every texel but those on chart borders.
+// trace() and trace_raw() both queue through it, so their packets are the
+// same.
 template <class Full, class Empty>
 [[gnu::always_inline]] inline void queue_texel(Packet& p, const TexelSamples& samples, std::size_t first, Full&& full,
                                                Empty&& empty) {
@@ -292,8 +290,11 @@ template <class Full, class Empty>
     const int m = std::min(kPacket - p.count, spp - k);
     std::int32_t any_negative = 0;
     for (int j = 0; j < m; ++j) any_negative |= tri[k + j];
-    if (any_negative >= 0) {
-      queue_run(p, first + static_cast<std::size_t>(k), tri + k, bary + k, m);
+    if (any_negative >= 0 && (m == 1 || m == 4 || m == 16)) {  // whole texels of 1, 4 or 16 samples
+      const std::size_t s = first + static_cast<std::size_t>(k);
+      if (m == 1) queue_run<1>(p, s, tri + k, bary + k);
+      if (m == 4) queue_run<4>(p, s, tri + k, bary + k);
+      if (m == 16) queue_run<16>(p, s, tri + k, bary + k);
       k += m;
       continue;
     }
@@ -461,37 +462,38 @@ std::uint64_t build_queued_rays(Packet& p, const LowSurface& surface, const RayO
 
 // Writes a traced queued packet's first hits to the sample arrays (-1 for a
 // miss, whose bary and distance are left 0) and returns the number of hits.
-// Lanes holding consecutive samples, as they mostly do, are written four at a
-// time.
+// Four lanes that hold consecutive samples, as they mostly do (a texel's
+// samples, or a row of a 4 x 4 texel block at 1 spp), are written at once.
 std::uint64_t store_first_hits(const Packet& p, float front, Hits& hits) {
   using namespace detail;
   const RTCHit16& h = p.rayhit.hit;
   const int n = p.count;
   std::uint64_t hit_count = 0;
-  int i = 0;
-  if (p.contiguous) {
-    const std::size_t s0 = p.sample[0];
-    std::int32_t* triangle = hits.triangle.data() + s0;
-    float* bary = &hits.bary[s0].x;
-    float* distance = hits.distance.data() + s0;
-    for (; i + 4 <= n; i += 4) {
-      const i4 hit = load4i(h.geomID + i) != splat4i(static_cast<std::int32_t>(RTC_INVALID_GEOMETRY_ID));
-      store4i(triangle + i, load4i(h.primID + i) | ~hit);  // a miss: all bits set, -1
-      const f4 u = select4(hit, load4(h.u + i)), v = select4(hit, load4(h.v + i));
-      store4(bary + 2 * i, __builtin_shuffle(u, v, i4{0, 4, 1, 5}));
-      store4(bary + 2 * i + 4, __builtin_shuffle(u, v, i4{2, 6, 3, 7}));
-      store4(distance + i, select4(hit, splat4(front) - load4(p.rayhit.ray.tfar + i)));
-      hit_count += static_cast<std::uint64_t>(count4(hit));
-    }
-  }
-  for (; i < n; ++i) {
+  const auto store_one = [&](int i) {
     const std::size_t s = p.sample[i];
     const bool hit = h.geomID[i] != RTC_INVALID_GEOMETRY_ID;
     hits.triangle[s] = hit ? static_cast<std::int32_t>(h.primID[i]) : -1;
     hits.bary[s] = hit ? glm::vec2(h.u[i], h.v[i]) : glm::vec2(0.0f);
     hits.distance[s] = hit ? front - p.rayhit.ray.tfar[i] : 0.0f;
     hit_count += hit ? 1 : 0;
+  };
+  int i = 0;
+  for (; i + 4 <= n; i += 4) {
+    const std::size_t s = p.sample[i];
+    if (p.sample[i + 1] != s + 1 || p.sample[i + 2] != s + 2 || p.sample[i + 3] != s + 3) {
+      for (int k = i; k < i + 4; ++k) store_one(k);
+      continue;
+    }
+    const i4 hit = load4i(h.geomID + i) != splat4i(static_cast<std::int32_t>(RTC_INVALID_GEOMETRY_ID));
+    store4i(hits.triangle.data() + s, load4i(h.primID + i) | ~hit);  // a miss: all bits set, -1
+    const f4 u = select4(hit, load4(h.u + i)), v = select4(hit, load4(h.v + i));
+    float* bary = &hits.bary[s].x;
+    store4(bary, __builtin_shuffle(u, v, i4{0, 4, 1, 5}));
+    store4(bary + 4, __builtin_shuffle(u, v, i4{2, 6, 3, 7}));
+    store4(hits.distance.data() + s, select4(hit, splat4(front) - load4(p.rayhit.ray.tfar + i)));
+    hit_count += static_cast<std::uint64_t>(count4(hit));
   }
+  for (; i < n; ++i) store_one(i);
   return hit_count;
 }
 
@@ -549,7 +551,6 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
         counts.rays += static_cast<std::uint64_t>(packet.count);
         counts.hits += store_first_hits(packet, options.front, hits);
         packet.count = 0;
-        packet.contiguous = true;
       };
       for_each_texel_in_trace_order(samples, rect, [&](std::size_t first) {
         queue_texel(packet, samples, first, flush, [&](std::size_t s) { hits.triangle[s] = -1; });
