@@ -326,9 +326,13 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
     timer.stop(false);
 
     timer.start_quietly("trace");
-    trace(scene, surface, samples, rays, hits, r.trace, [&](double f) {
-      if (progress) progress("trace", (row + f * (row_end - row)) / o.height);
-    });
+    // Without a listener trace() gets none: it then runs each band as one
+    // parallel loop instead of 100 batches with a barrier each.
+    std::function<void(double)> trace_progress;
+    if (progress) {
+      trace_progress = [&](double f) { progress("trace", (row + f * (row_end - row)) / o.height); };
+    }
+    trace(scene, surface, samples, rays, hits, r.trace, trace_progress);
     timer.stop(false);
 
     timer.start_quietly("encode");
