@@ -497,14 +497,6 @@ std::uint64_t store_first_hits(const Packet& p, float front, Hits& hits) {
   return hit_count;
 }
 
-// A candidate hit per sample while a tile is traced (nearest needs two rays).
-struct Candidate {
-  std::int32_t triangle = -1;
-  glm::vec2 bary{0.0f};
-  float distance = 0.0f;  // signed, outward positive
-  float abs_distance = 0.0f;
-};
-
 }  // namespace
 
 void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples& samples,
