@@ -83,4 +83,12 @@ struct RasterStats {
 void rasterize(const LowSurface& surface, int width, int height, int samples, TexelSamples& out,
                RasterStats& stats, int row_begin = 0, int row_end = -1);
 
+namespace detail {
+// The reference for tests: rasterize() with every sample tested on its own.
+// rasterize() tests the samples of a texel four at a time (4, 16 and 64
+// samples) with the same arithmetic, and must give the same bytes.
+void rasterize_per_sample(const LowSurface& surface, int width, int height, int samples, TexelSamples& out,
+                          RasterStats& stats, int row_begin = 0, int row_end = -1);
+}  // namespace detail
+
 }  // namespace nmbake
