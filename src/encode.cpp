@@ -190,20 +190,35 @@ void encode_four(const LowSurface& surface, const TexelSamples& samples, const M
       used[i] = sample_contribution(surface, samples, high, hits, options, true, s0 + i, counts, out[i]);
     return;
   }
-  f4 low_n[4], low_t[4], high_n[4];
+  f4 high_n[4];
   for (int i = 0; i < 4; ++i) {
-    const std::size_t s = s0 + i;
-    const std::size_t base = 3 * static_cast<std::size_t>(samples.triangle[s]);
-    const std::uint32_t* h = &high.indices[3 * static_cast<std::size_t>(hits.triangle[s])];
-    const glm::vec2 b = samples.bary[s], hb = hits.bary[s];
-    low_n[i] = corner_mix(&surface.normal[base], b);
-    low_t[i] = corner_mix(surface.tangent[base], surface.tangent[base + 1], surface.tangent[base + 2], b);
-    high_n[i] = corner_mix(high.normals[h[0]], high.normals[h[1]], high.normals[h[2]], hb);
+    const std::uint32_t* h = &high.indices[3 * static_cast<std::size_t>(hits.triangle[s0 + i])];
+    high_n[i] = corner_mix(high.normals[h[0]], high.normals[h[1]], high.normals[h[2]], hits.bary[s0 + i]);
+  }
+  const Axes n = transpose(high_n[0], high_n[1], high_n[2], high_n[3]);
+  // The low frame: four samples on one low triangle (nearly all groups) are
+  // interpolated across the lanes, others lane by lane; the same operations.
+  Axes N, T;
+  const i4 low = load4i(&samples.triangle[s0]);
+  if (all4(low == splat4i(low[0]))) {
+    const std::size_t base = 3 * static_cast<std::size_t>(low[0]);
+    f4 bx, by;
+    load_bary4(&samples.bary[s0], bx, by);
+    const f4 w0 = splat4(1.0f) - bx - by;
+    N = mix_axes(&surface.normal[base], w0, bx, by);
+    T = mix_axes(&surface.tangent[base], w0, bx, by);
+  } else {
+    f4 low_n[4], low_t[4];
+    for (int i = 0; i < 4; ++i) {
+      const std::size_t base = 3 * static_cast<std::size_t>(samples.triangle[s0 + i]);
+      const glm::vec2 b = samples.bary[s0 + i];
+      low_n[i] = corner_mix(&surface.normal[base], b);
+      low_t[i] = corner_mix(surface.tangent[base], surface.tangent[base + 1], surface.tangent[base + 2], b);
+    }
+    N = transpose(low_n[0], low_n[1], low_n[2], low_n[3]);
+    T = transpose(low_t[0], low_t[1], low_t[2], low_t[3]);
   }
   const f4 one = {1.0f, 1.0f, 1.0f, 1.0f}, zero = {0.0f, 0.0f, 0.0f, 0.0f};
-  const Axes N = transpose(low_n[0], low_n[1], low_n[2], low_n[3]);
-  const Axes T = transpose(low_t[0], low_t[1], low_t[2], low_t[3]);
-  const Axes n = transpose(high_n[0], high_n[1], high_n[2], high_n[3]);
   const f4 l2 = n.x * n.x + n.y * n.y + n.z * n.z;
   i4 ok = (l2 > f4{1e-24f, 1e-24f, 1e-24f, 1e-24f}) & finite4(l2);
   // inverse_tangent(): c = N x T, bn = sign (c x N), tb = sign (T x c).
@@ -240,14 +255,17 @@ void encode_four(const LowSurface& surface, const TexelSamples& samples, const M
 
 }  // namespace
 
-void encode(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
-            const EncodeOptions& options, Image& out, EncodeStats& stats) {
+namespace {
+
+void encode_impl(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
+                 const EncodeOptions& options, Image& out, EncodeStats& stats, bool per_sample) {
   const int width = samples.width;
   const int height = samples.height;
   const int spp = samples.samples;
   const bool tangent_space = options.space == NormalSpace::tangent;
   const bool smooth = options.high_normals == HighNormals::smooth && high.has_normals();
-  const bool four_at_a_time = tangent_space && smooth && options.tangent_encode == TangentEncode::inverse;
+  const bool four_at_a_time =
+      !per_sample && tangent_space && smooth && options.tangent_encode == TangentEncode::inverse;
   // A band of rows lands at its place in `out`, which grows to hold it.
   const int row_begin = samples.row_begin;
   if (out.width != width || out.channels != 3 || out.height < row_begin + height) {
@@ -322,5 +340,21 @@ void encode(const LowSurface& surface, const TexelSamples& samples, const Mesh& 
     stats.zero_results += c.zero_result;
   }
 }
+
+}  // namespace
+
+void encode(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
+            const EncodeOptions& options, Image& out, EncodeStats& stats) {
+  encode_impl(surface, samples, high, hits, options, out, stats, false);
+}
+
+namespace detail {
+
+void encode_per_sample(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
+                       const EncodeOptions& options, Image& out, EncodeStats& stats) {
+  encode_impl(surface, samples, high, hits, options, out, stats, true);
+}
+
+}  // namespace detail
 
 }  // namespace nmbake

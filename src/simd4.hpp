@@ -118,6 +118,28 @@ struct Axes {
   f4 x, y, z, w;
 };
 
+// Three corners of one triangle interpolated across four lanes (structure of
+// arrays, the corners splatted): per lane the products and sums of
+// corner_mix(), in its order. w is +0.0 for vec3 corners.
+[[gnu::always_inline]] inline Axes mix_axes(const glm::vec3* c, f4 w0, f4 bx, f4 by) {
+  return {splat4(c[0].x) * w0 + splat4(c[1].x) * bx + splat4(c[2].x) * by,
+          splat4(c[0].y) * w0 + splat4(c[1].y) * bx + splat4(c[2].y) * by,
+          splat4(c[0].z) * w0 + splat4(c[1].z) * bx + splat4(c[2].z) * by, f4{}};
+}
+[[gnu::always_inline]] inline Axes mix_axes(const glm::vec4* c, f4 w0, f4 bx, f4 by) {
+  return {splat4(c[0].x) * w0 + splat4(c[1].x) * bx + splat4(c[2].x) * by,
+          splat4(c[0].y) * w0 + splat4(c[1].y) * bx + splat4(c[2].y) * by,
+          splat4(c[0].z) * w0 + splat4(c[1].z) * bx + splat4(c[2].z) * by,
+          splat4(c[0].w) * w0 + splat4(c[1].w) * bx + splat4(c[2].w) * by};
+}
+
+// Four consecutive barycentric pairs as one vector per weight.
+inline void load_bary4(const glm::vec2* b, f4& bx, f4& by) {
+  const f4 b01 = load4(&b[0].x), b23 = load4(&b[2].x);
+  bx = __builtin_shuffle(b01, b23, i4{0, 2, 4, 6});
+  by = __builtin_shuffle(b01, b23, i4{1, 3, 5, 7});
+}
+
 // Four lanes of (x, y, z, w) to one vector per axis.
 inline Axes transpose(f4 r0, f4 r1, f4 r2, f4 r3) {
   const f4 t0 = __builtin_shuffle(r0, r1, i4{0, 4, 1, 5}), t1 = __builtin_shuffle(r2, r3, i4{0, 4, 1, 5});

@@ -363,16 +363,6 @@ template <class F>
   });
 }
 
-// One attribute of a triangle's three corners interpolated for four lanes at
-// once, one vector per axis: the products and sums of interpolate() (c0 * w0
-// + c1 * b.x + c2 * b.y, w0 = 1 - b.x - b.y), in its order.
-[[gnu::always_inline]] inline detail::Axes mix_axes(const glm::vec3* c, detail::f4 w0, detail::f4 bx, detail::f4 by) {
-  using detail::splat4;
-  return {splat4(c[0].x) * w0 + splat4(c[1].x) * bx + splat4(c[2].x) * by,
-          splat4(c[0].y) * w0 + splat4(c[1].y) * bx + splat4(c[2].y) * by,
-          splat4(c[0].z) * w0 + splat4(c[1].z) * bx + splat4(c[2].z) * by, detail::f4{}};
-}
-
 // Builds the queued lanes' rays four at a time in SIMD lanes, one vector per
 // axis: the point and the cage normal are interpolated, then come the
 // lengths, the unit normals and the origins. Four lanes on one low triangle
@@ -405,8 +395,8 @@ std::uint64_t build_queued_rays(Packet& p, const LowSurface& surface, const RayO
     const i4 tri = load4i(p.triangle + g);
     if (all4(tri == splat4i(tri[0]))) {
       const std::size_t base = 3 * static_cast<std::size_t>(tri[0]);
-      const f4 b01 = load4(&p.bary[g].x), b23 = load4(&p.bary[g + 2].x);
-      const f4 bx = __builtin_shuffle(b01, b23, i4{0, 2, 4, 6}), by = __builtin_shuffle(b01, b23, i4{1, 3, 5, 7});
+      f4 bx, by;
+      load_bary4(&p.bary[g], bx, by);
       const f4 w0 = splat4(1.0f) - bx - by;
       P = mix_axes(&surface.position[base], w0, bx, by);
       a = mix_axes(&normals[base], w0, bx, by);

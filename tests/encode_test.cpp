@@ -2,6 +2,8 @@
 #include <cmath>
 
 #include <gtest/gtest.h>
+
+#include <cstring>
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
 
@@ -186,7 +188,7 @@ TEST(Encode, FourLanePathMatchesThePerSampleReference) {
   high.normals[4] = -high.normals[5];  // triangle 1 (vertices 3, 4, 5): zero normal halfway from 4 to 5
   for (std::uint32_t t = 0; t < 10; ++t) high.indices.insert(high.indices.end(), {3 * t, 3 * t + 1, 3 * t + 2});
 
-  for (int spp : {1, 4}) {
+  for (int spp : {1, 4, 16}) {
     SCOPED_TRACE("spp " + std::to_string(spp));
     TexelSamples samples;
     samples.width = 37;
@@ -196,7 +198,12 @@ TEST(Encode, FourLanePathMatchesThePerSampleReference) {
     const std::size_t count = static_cast<std::size_t>(samples.width) * samples.height * spp;
     for (std::size_t s = 0; s < count; ++s) {
       const float r = rnd();
-      samples.triangle.push_back(r < 0.05f ? -1 : static_cast<std::int32_t>(rnd() * low_triangles) % low_triangles);
+      const bool same_as_last = s % spp != 0 && samples.triangle.back() >= 0 && rnd() < 0.8f;  // as rasters do
+      if (same_as_last) {
+        samples.triangle.push_back(samples.triangle.back());
+      } else {
+        samples.triangle.push_back(r < 0.05f ? -1 : static_cast<std::int32_t>(rnd() * low_triangles) % low_triangles);
+      }
       const float bu = rnd(), bv = rnd() * (1.0f - bu);
       samples.bary.push_back({bu, bv});
       const float m = rnd();
@@ -212,6 +219,17 @@ TEST(Encode, FourLanePathMatchesThePerSampleReference) {
     Image image;
     EncodeStats stats;
     encode(surface, samples, high, hits, EncodeOptions{}, image, stats);
+    {
+      // Bit for bit the per-sample path, both for groups of four on one low
+      // triangle (interpolated across the lanes) and for mixed groups.
+      Image reference;
+      EncodeStats reference_stats;
+      detail::encode_per_sample(surface, samples, high, hits, EncodeOptions{}, reference, reference_stats);
+      ASSERT_EQ(image.pixels.size(), reference.pixels.size());
+      EXPECT_EQ(0, std::memcmp(image.pixels.data(), reference.pixels.data(), image.pixels.size() * sizeof(float)));
+      EXPECT_EQ(stats.singular_frames, reference_stats.singular_frames);
+      EXPECT_EQ(stats.zero_high_normals, reference_stats.zero_high_normals);
+    }
 
     std::uint64_t singular = 0, zero_high = 0;
     auto lerp = [](const auto& c0, const auto& c1, const auto& c2, glm::vec2 b) {

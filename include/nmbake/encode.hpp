@@ -54,4 +54,12 @@ bool world_to_tangent(const glm::vec3& n, const glm::vec3& T, const glm::vec3& N
 // The MikkTSpace decode a renderer does.
 glm::vec3 tangent_to_world(const glm::vec3& t, const glm::vec3& T, const glm::vec3& N, float sign);
 
+namespace detail {
+// The reference for tests: encode() with every sample taken on its own.
+// encode() takes the default mode's samples four at a time with the same
+// arithmetic, and must give the same bytes.
+void encode_per_sample(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
+                       const EncodeOptions& options, Image& out, EncodeStats& stats);
+}  // namespace detail
+
 }  // namespace nmbake
