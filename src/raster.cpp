@@ -155,6 +155,25 @@ bool setup_triangle(const glm::vec2* uv, int width, int height, SetupTriangle& t
   return true;
 }
 
+// The texels of row y in [x_begin, x_end] that box_overlaps() passes: false
+// when none, else [span_begin, span_end], every texel of which passes. They
+// are one run: along a row each of box_overlaps()'s six tests compares
+// d.x * (py - lo.y) - d.y * (px - lo.x) with a constant, px = x or x + 1,
+// and that value is monotone in x even in floating point (a subtraction of
+// a constant and a multiplication by one are monotone under rounding), so
+// each test holds on a half-line of x and all six on an interval. Only the
+// failing texels at either end and the two ends themselves are tested.
+inline bool overlap_span(const SetupTriangle& t, int y, int x_begin, int x_end, int& span_begin, int& span_end) {
+  int lo = x_begin;
+  while (lo <= x_end && !box_overlaps(t, lo, y, 1.0)) ++lo;
+  if (lo > x_end) return false;
+  int hi = x_end;
+  while (hi > lo && !box_overlaps(t, hi, y, 1.0)) --hi;
+  span_begin = lo;
+  span_end = hi;
+  return true;
+}
+
 // Nearest point of the triangle to p (p outside it): squared distance and the
 // weights of corners 1 and 2. Edges in order 0, 1, 2; a later edge wins only
 // when strictly nearer.
@@ -496,8 +515,9 @@ void rasterize_impl(const LowSurface& surface, int width, int height, int sample
             const int x_begin = std::max(tri.x0, tx0), x_end = std::min(tri.x1, tx1);
             const int y_begin = std::max(tri.y0, ty0), y_end = std::min(tri.y1, ty1);
             for (int y = y_begin; y <= y_end; ++y) {
-              for (int x = x_begin; x <= x_end; ++x) {
-                if (!box_overlaps(tri, x, y, 1.0)) continue;
+              int span_begin, span_end;
+              if (!overlap_span(tri, y, x_begin, x_end, span_begin, span_end)) continue;
+              for (int x = span_begin; x <= span_end; ++x) {
                 const std::size_t texel = local_texel(x, y);
                 covered[texel] = 1;
                 const std::size_t local0 = texel * sample_stride;
@@ -563,26 +583,33 @@ void rasterize_impl(const LowSurface& surface, int width, int height, int sample
             }
           }
 
-          TileCounts& counts = tile_counts[tile];
+          std::uint64_t covered_texels = 0;
           for (int y = ty0; y <= ty1; ++y) {
             for (int x = tx0; x <= tx1; ++x) {
               const std::size_t texel = local_texel(x, y);
-              out.coverage[static_cast<std::size_t>(y - row_begin) * width + x] = scratch.covered[texel];
-              if (!scratch.covered[texel]) {
+              out.coverage[static_cast<std::size_t>(y - row_begin) * width + x] = covered[texel];
+              if (!covered[texel]) {
                 // Every sample of a covered texel was written by pass 1 or 2.
                 const std::size_t first = first_sample(x, y);
-                std::fill_n(out.triangle.begin() + first, samples, -1);
-                std::fill_n(out.bary.begin() + first, samples, glm::vec2(0.0f));
+                std::fill_n(out_triangle + first, samples, -1);
+                std::fill_n(out_bary + first, samples, glm::vec2(0.0f));
                 continue;
               }
-              ++counts.covered_texels;
-              for (int s = 0; s < samples; ++s) {
-                const std::size_t local = texel * sample_stride + s;
-                if (!scratch.inside[local]) ++counts.border_samples;
-                if (scratch.strict_count[local] >= 2) ++counts.overlapping_samples;
-              }
+              ++covered_texels;
             }
           }
+          // Samples are inside a triangle (or strictly inside one) only in
+          // covered texels, and the scratch is zero elsewhere: the counts
+          // are sums over the whole tile. strict_count is 0, 1 or 2.
+          std::uint32_t inside_samples = 0, overlapping = 0;
+          for (std::size_t i = 0; i < tile_samples; ++i) {
+            inside_samples += inside[i];
+            overlapping += strict_count[i] >> 1;
+          }
+          TileCounts& counts = tile_counts[tile];
+          counts.covered_texels = covered_texels;
+          counts.border_samples = covered_texels * sample_stride - inside_samples;
+          counts.overlapping_samples = overlapping;
         }
       });
 
