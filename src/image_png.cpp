@@ -36,7 +36,10 @@
 #include <cstdlib>
 #include <cstring>
 
-#include <tbb/parallel_for.h>
+#include <memory>
+
+#include <tbb/parallel_pipeline.h>
+#include <tbb/task_arena.h>
 
 namespace nmbake::image_detail {
 
@@ -93,6 +96,7 @@ void filter_row(const std::uint8_t* row, const std::uint8_t* above, std::size_t 
 }
 
 struct Group {
+  std::size_t index = 0;
   std::vector<std::uint8_t> deflated;
   uLong adler = 1;
   std::size_t raw_bytes = 0;
@@ -106,7 +110,15 @@ uLong idat_crc(const std::vector<std::uint8_t>& data) {
 
 }  // namespace
 
-std::vector<std::uint8_t> encode_png(const Image& image, int bits) {
+namespace {
+
+// The PNG file in order, piece by piece, to `put(data, size)`: signature and
+// IHDR, then one IDAT per group as the groups come out of a pipeline that
+// quantises, filters and deflates them in parallel (a bounded number in
+// flight), then IEND. Writing a group overlaps the deflating of the next
+// ones, and no copy of the whole file is made.
+template <class Put>
+void stream_png(const Image& image, int bits, Put&& put) {
   NMBAKE_CHECK(bits == 8 || bits == 16, "PNG bit depth is 8 or 16");
   NMBAKE_CHECK(image.channels >= 1 && image.channels <= 4, "PNG has 1 to 4 channels");
   const std::size_t width = static_cast<std::size_t>(image.width);
@@ -117,8 +129,23 @@ std::vector<std::uint8_t> encode_png(const Image& image, int bits) {
   const std::size_t rows_per_group = std::max<std::size_t>(1, kPngGroupBytes / (row_bytes + 1));
   const std::size_t group_count = (height + rows_per_group - 1) / rows_per_group;
 
-  std::vector<Group> groups(group_count);
-  tbb::parallel_for(std::size_t{0}, group_count, [&](std::size_t g) {
+  std::vector<std::uint8_t> head = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  static constexpr std::uint8_t kColourType[5] = {0, 0, 4, 2, 6};  // grey, grey+alpha, RGB, RGBA
+  std::vector<std::uint8_t> header;
+  put_u32(header, static_cast<std::uint32_t>(width));
+  put_u32(header, static_cast<std::uint32_t>(height));
+  header.push_back(static_cast<std::uint8_t>(bits));
+  header.push_back(kColourType[image.channels]);
+  header.push_back(0);  // deflate
+  header.push_back(0);  // adaptive filtering (one filter byte per row)
+  header.push_back(0);  // not interlaced
+  put_chunk(head, "IHDR", header.data(), header.size());
+  put(head.data(), head.size());
+
+  // One IDAT per group: the zlib header opens the first, the Adler-32 of
+  // all filtered rows (combined in order, zlib's adler32_combine) closes the last.
+  const auto deflate_group = [&](std::size_t g) {
+    auto group = std::make_unique<Group>();
     const std::size_t y0 = g * rows_per_group;
     const std::size_t y1 = std::min(height, y0 + rows_per_group);
     // The row above the group is quantised again here, so groups share nothing.
@@ -130,49 +157,60 @@ std::vector<std::uint8_t> encode_png(const Image& image, int bits) {
       filter_row(row.data(), above.data(), row_bytes, bpp, filtered.data() + (y - y0) * (row_bytes + 1));
       std::swap(row, above);
     }
-
-    Group& group = groups[g];
-    group.raw_bytes = filtered.size();
-    group.adler = adler32(adler32(0L, Z_NULL, 0), filtered.data(), static_cast<uInt>(filtered.size()));
+    group->raw_bytes = filtered.size();
+    group->adler = adler32(adler32(0L, Z_NULL, 0), filtered.data(), static_cast<uInt>(filtered.size()));
     const bool last = g + 1 == group_count;
-    if (g == 0) group.deflated = {0x78, 0x01};  // zlib header: deflate, 32K window, "fastest"
-    deflate_huffman(filtered.data(), filtered.size(), last, group.deflated);
-    if (!last) group.idat_crc = idat_crc(group.deflated);
-  });
-
-  std::vector<std::uint8_t> file = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
-  std::size_t total = 64;
-  for (const Group& g : groups) total += g.deflated.size() + 12;
-  file.reserve(total);
-
-  static constexpr std::uint8_t kColourType[5] = {0, 0, 4, 2, 6};  // grey, grey+alpha, RGB, RGBA
-  std::vector<std::uint8_t> header;
-  put_u32(header, static_cast<std::uint32_t>(width));
-  put_u32(header, static_cast<std::uint32_t>(height));
-  header.push_back(static_cast<std::uint8_t>(bits));
-  header.push_back(kColourType[image.channels]);
-  header.push_back(0);  // deflate
-  header.push_back(0);  // adaptive filtering (one filter byte per row)
-  header.push_back(0);  // not interlaced
-  put_chunk(file, "IHDR", header.data(), header.size());
-
-  // One IDAT per group: the zlib header opens the first, the Adler-32 of
-  // all filtered rows closes the last.
-  uLong adler = groups.front().adler;
-  for (std::size_t g = 1; g < group_count; ++g) {
-    adler = adler32_combine(adler, groups[g].adler, static_cast<z_off_t>(groups[g].raw_bytes));
-  }
-  put_u32(groups.back().deflated, static_cast<std::uint32_t>(adler));
-  groups.back().idat_crc = idat_crc(groups.back().deflated);
-  for (Group& group : groups) {
+    if (g == 0) group->deflated = {0x78, 0x01};  // zlib header: deflate, 32K window, "fastest"
+    deflate_huffman(filtered.data(), filtered.size(), last, group->deflated);
+    if (!last) group->idat_crc = idat_crc(group->deflated);
+    group->index = g;
+    return group;
+  };
+  uLong adler = 1;
+  const auto write_group = [&](std::unique_ptr<Group> group) {
+    adler = group->index == 0 ? group->adler
+                              : adler32_combine(adler, group->adler, static_cast<z_off_t>(group->raw_bytes));
+    if (group->index + 1 == group_count) {
+      put_u32(group->deflated, static_cast<std::uint32_t>(adler));
+      group->idat_crc = idat_crc(group->deflated);
+    }
     // The chunk by hand: its CRC was computed with the group, in parallel.
-    put_u32(file, static_cast<std::uint32_t>(group.deflated.size()));
-    file.insert(file.end(), {'I', 'D', 'A', 'T'});
-    file.insert(file.end(), group.deflated.begin(), group.deflated.end());
-    put_u32(file, static_cast<std::uint32_t>(group.idat_crc));
-    std::vector<std::uint8_t>().swap(group.deflated);
-  }
-  put_chunk(file, "IEND", nullptr, 0);
+    std::vector<std::uint8_t> length_and_type;
+    put_u32(length_and_type, static_cast<std::uint32_t>(group->deflated.size()));
+    length_and_type.insert(length_and_type.end(), {'I', 'D', 'A', 'T'});
+    put(length_and_type.data(), length_and_type.size());
+    put(group->deflated.data(), group->deflated.size());
+    std::vector<std::uint8_t> crc;
+    put_u32(crc, static_cast<std::uint32_t>(group->idat_crc));
+    put(crc.data(), crc.size());
+  };
+
+  std::size_t next = 0;
+  const std::size_t in_flight = 4 * static_cast<std::size_t>(std::max(1, tbb::this_task_arena::max_concurrency()));
+  tbb::parallel_pipeline(
+      in_flight,
+      tbb::make_filter<void, std::size_t>(tbb::filter_mode::serial_in_order,
+                                          [&](tbb::flow_control& fc) -> std::size_t {
+                                            if (next == group_count) {
+                                              fc.stop();
+                                              return 0;
+                                            }
+                                            return next++;
+                                          }) &
+          tbb::make_filter<std::size_t, std::unique_ptr<Group>>(tbb::filter_mode::parallel, deflate_group) &
+          tbb::make_filter<std::unique_ptr<Group>, void>(tbb::filter_mode::serial_in_order,
+                                                         [&](std::unique_ptr<Group> g) { write_group(std::move(g)); }));
+
+  std::vector<std::uint8_t> tail;
+  put_chunk(tail, "IEND", nullptr, 0);
+  put(tail.data(), tail.size());
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> encode_png(const Image& image, int bits) {
+  std::vector<std::uint8_t> file;
+  stream_png(image, bits, [&](const std::uint8_t* data, std::size_t size) { file.insert(file.end(), data, data + size); });
   return file;
 }
 
@@ -181,16 +219,19 @@ Status write_png(const Image& image, int bits, const std::string& path, const st
     return Status::io("cannot write '" + display_path + "': PNG holds 1 to 4 channels, not " +
                       std::to_string(image.channels));
   }
-  const std::vector<std::uint8_t> bytes = encode_png(image, bits);
   std::FILE* f = std::fopen(path.c_str(), "wb");
   if (f == nullptr) {
     return Status::io("cannot write '" + display_path + "': " + std::strerror(errno));
   }
-  const std::size_t written = std::fwrite(bytes.data(), 1, bytes.size(), f);
-  const int write_errno = errno;
+  // The file is written as the groups are deflated; after a failed write
+  // the rest is still deflated (the pipeline runs to its end) but not written.
+  int write_errno = 0;
+  stream_png(image, bits, [&](const std::uint8_t* data, std::size_t size) {
+    if (write_errno == 0 && std::fwrite(data, 1, size, f) != size) write_errno = errno != 0 ? errno : EIO;
+  });
   const bool closed = std::fclose(f) == 0;
-  if (written != bytes.size() || !closed) {
-    return Status::io("cannot write '" + display_path + "': " + std::strerror(written != bytes.size() ? write_errno : errno));
+  if (write_errno != 0 || !closed) {
+    return Status::io("cannot write '" + display_path + "': " + std::strerror(write_errno != 0 ? write_errno : errno));
   }
   return Status::ok();
 }
