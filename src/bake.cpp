@@ -195,10 +195,14 @@ struct DebugImages {
 
 }  // namespace
 
-// About 4M samples a band, so the per-sample arrays (28 bytes a sample) stay
-// near 110 MB whatever the map size.
+// About 1M samples a band, so the per-sample arrays (28 bytes a sample, ~28
+// MB) stay in the last-level cache between raster, trace and encode, and a
+// bake first-touches little fresh memory (slow on these virtual machines,
+// BENCHMARKS.md). With the trace no longer split into progress batches
+// without a listener, a band costs little: at 2048^2 16 spp, 64 bands of 1M
+// bake as fast as 16 of 4M, with 84 MB less peak memory.
 int band_rows(int width, int height, int samples, std::size_t band_samples) {
-  if (band_samples == 0) band_samples = std::size_t{1} << 22;
+  if (band_samples == 0) band_samples = std::size_t{1} << 20;
   const std::size_t per_row = static_cast<std::size_t>(width) * static_cast<std::size_t>(samples);
   std::size_t rows = std::max<std::size_t>(1, band_samples / per_row);
   rows = std::max<std::size_t>(kRasterTileSize, rows / kRasterTileSize * kRasterTileSize);

@@ -66,7 +66,7 @@ struct BakeOptions {
   int unwrap_gutter = 4;
   std::string debug_dump_prefix;  // non-empty: also write coverage / miss / distance images
   // Samples per band of rows (raster, trace and encode run band by band);
-  // 0 = about 4M. Changes memory use only, never the result (tested).
+  // 0 = about 1M. Changes memory use only, never the result (tested).
   std::size_t band_samples = 0;
 };
 
@@ -114,7 +114,7 @@ struct BakeReport {
 using ProgressFn = std::function<void(const char* stage, double fraction)>;
 
 // Rows per band of a width x height map at `samples` per texel: about
-// `band_samples` samples (0: 4M), a multiple of kRasterTileSize so bands
+// `band_samples` samples (0: 1M), a multiple of kRasterTileSize so bands
 // start on tile rows, at most `height`.
 int band_rows(int width, int height, int samples, std::size_t band_samples = 0);
 

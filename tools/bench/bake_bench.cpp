@@ -53,7 +53,7 @@ int main(int argc, char** argv) {
   app.add_option("--bvh", bvh, "auto | fast | compact")->capture_default_str();
   app.add_option("--build-quality", quality, "low | medium | high")->capture_default_str();
   app.add_option("--repeat", repeat)->capture_default_str()->check(CLI::Range(1, 50));
-  app.add_option("--band-samples", band_samples, "samples per band of rows (0: the library's default, 4M)")
+  app.add_option("--band-samples", band_samples, "samples per band of rows (0: the library's default, 1M)")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   if (label.empty()) label = std::filesystem::path(high).stem().string();
