@@ -174,31 +174,33 @@ bool sample_contribution(const LowSurface& surface, const TexelSamples& samples,
   return true;
 }
 
-// Four consecutive samples in SIMD lanes (GCC vector extensions; SSE on
-// x86-64), for the default mode: tangent space, smooth high normals, the
-// exact inverse. Each lane does exactly the operations of
-// sample_contribution(), in the same order and without fused multiply-adds,
-// so results are bit-identical to it. A lane that is not the plain case (no
-// sample, a miss, a zero high normal, a singular frame) is redone by
-// sample_contribution(), which also counts it.
-void encode_four(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
-                 const EncodeOptions& options, std::size_t s0, Counts& counts, glm::vec3* out, bool* used) {
+// The default mode (tangent space, smooth high normals, the exact inverse)
+// takes four or eight consecutive samples in SIMD lanes (GCC vector
+// extensions: SSE for four, AVX2 for eight where the CPU has it, chosen at
+// run time). Each lane does exactly the operations of sample_contribution(),
+// in the same order and without fused multiply-adds (neither target enables
+// FMA), so results are bit-identical to it whatever the width. A lane that is
+// not the plain case (no sample, a miss, a zero high normal, a singular
+// frame) is redone by sample_contribution(), which also counts it.
+
+bool plain_samples(const TexelSamples& samples, const Hits& hits, std::size_t s0, int count) {
   bool plain = true;
-  for (int i = 0; i < 4; ++i) plain = plain && samples.triangle[s0 + i] >= 0 && hits.triangle[s0 + i] >= 0;
-  if (!plain) {
-    for (int i = 0; i < 4; ++i)
-      used[i] = sample_contribution(surface, samples, high, hits, options, true, s0 + i, counts, out[i]);
-    return;
-  }
+  for (int i = 0; i < count; ++i) plain = plain && samples.triangle[s0 + i] >= 0 && hits.triangle[s0 + i] >= 0;
+  return plain;
+}
+
+// The high normal and the low frame (N, T) of four plain samples, one vector
+// per axis. Four samples on one low triangle (nearly all groups) have their
+// frame interpolated across the lanes, others lane by lane; the same operations.
+[[gnu::always_inline]] inline void gather_four(const LowSurface& surface, const TexelSamples& samples,
+                                               const Mesh& high, const Hits& hits, std::size_t s0, Axes& n, Axes& N,
+                                               Axes& T) {
   f4 high_n[4];
   for (int i = 0; i < 4; ++i) {
     const std::uint32_t* h = &high.indices[3 * static_cast<std::size_t>(hits.triangle[s0 + i])];
     high_n[i] = corner_mix(high.normals[h[0]], high.normals[h[1]], high.normals[h[2]], hits.bary[s0 + i]);
   }
-  const Axes n = transpose(high_n[0], high_n[1], high_n[2], high_n[3]);
-  // The low frame: four samples on one low triangle (nearly all groups) are
-  // interpolated across the lanes, others lane by lane; the same operations.
-  Axes N, T;
+  n = transpose(high_n[0], high_n[1], high_n[2], high_n[3]);
   const i4 low = load4i(&samples.triangle[s0]);
   if (all4(low == splat4i(low[0]))) {
     const std::size_t base = 3 * static_cast<std::size_t>(low[0]);
@@ -207,43 +209,55 @@ void encode_four(const LowSurface& surface, const TexelSamples& samples, const M
     const f4 w0 = splat4(1.0f) - bx - by;
     N = mix_axes(&surface.normal[base], w0, bx, by);
     T = mix_axes(&surface.tangent[base], w0, bx, by);
-  } else {
-    f4 low_n[4], low_t[4];
-    for (int i = 0; i < 4; ++i) {
-      const std::size_t base = 3 * static_cast<std::size_t>(samples.triangle[s0 + i]);
-      const glm::vec2 b = samples.bary[s0 + i];
-      low_n[i] = corner_mix(&surface.normal[base], b);
-      low_t[i] = corner_mix(surface.tangent[base], surface.tangent[base + 1], surface.tangent[base + 2], b);
-    }
-    N = transpose(low_n[0], low_n[1], low_n[2], low_n[3]);
-    T = transpose(low_t[0], low_t[1], low_t[2], low_t[3]);
-  }
-  const f4 one = {1.0f, 1.0f, 1.0f, 1.0f}, zero = {0.0f, 0.0f, 0.0f, 0.0f};
-  const f4 l2 = n.x * n.x + n.y * n.y + n.z * n.z;
-  i4 ok = (l2 > f4{1e-24f, 1e-24f, 1e-24f, 1e-24f}) & finite4(l2);
-  // inverse_tangent(): c = N x T, bn = sign (c x N), tb = sign (T x c).
-  const f4 sign = T.w < zero ? -one : one;
-  const f4 cx = N.y * T.z - T.y * N.z, cy = N.z * T.x - T.z * N.x, cz = N.x * T.y - T.x * N.y;
-  const f4 bnx = sign * (cy * N.z - N.y * cz), bny = sign * (cz * N.x - N.z * cx), bnz = sign * (cx * N.y - N.x * cy);
-  const f4 tbx = sign * (T.y * cz - cy * T.z), tby = sign * (T.z * cx - cz * T.x), tbz = sign * (T.x * cy - cx * T.y);
-  const f4 det = T.x * bnx + T.y * bny + T.z * bnz;
-  const f4 scale2 = (T.x * T.x + T.y * T.y + T.z * T.z) * (cx * cx + cy * cy + cz * cz) * (N.x * N.x + N.y * N.y + N.z * N.z);
-  const f4 eps = {1e-12f, 1e-12f, 1e-12f, 1e-12f};
-  ok &= (det * det > eps * scale2) & (scale2 > zero) & finite4(det) & finite4(scale2);
-  const f4 flip = det < zero ? -one : one;
-  f4 tx = n.x * bnx + n.y * bny + n.z * bnz, ty = n.x * cx + n.y * cy + n.z * cz, tz = n.x * tbx + n.y * tby + n.z * tbz;
-  // t = -t as a multiplication by -1 is exact, as is by +1.
-  tx *= flip, ty *= flip, tz *= flip;
-  const f4 lt2 = tx * tx + ty * ty + tz * tz;
-  ok &= (lt2 > zero) & finite4(lt2);
-  const f4 inv = one / sqrt4(lt2);
-  const f4 ox = tx * inv, oy = ty * inv, oz = tz * inv;
-  if (all4(ok)) {
-    store3x4(out, ox, oy, oz);
-    used[0] = used[1] = used[2] = used[3] = true;
     return;
   }
+  f4 low_n[4], low_t[4];
   for (int i = 0; i < 4; ++i) {
+    const std::size_t base = 3 * static_cast<std::size_t>(samples.triangle[s0 + i]);
+    const glm::vec2 b = samples.bary[s0 + i];
+    low_n[i] = corner_mix(&surface.normal[base], b);
+    low_t[i] = corner_mix(surface.tangent[base], surface.tangent[base + 1], surface.tangent[base + 2], b);
+  }
+  N = transpose(low_n[0], low_n[1], low_n[2], low_n[3]);
+  T = transpose(low_t[0], low_t[1], low_t[2], low_t[3]);
+}
+
+// inverse_tangent() and the normalisation of sample_contribution() in lanes
+// of any width V (f4 or f8), up to the square root, which the caller takes
+// with its target's instruction: t (flipped to det > 0), |t|^2 and `ok`, the
+// mask of the lanes that are the plain case.
+template <class V, class M>
+[[gnu::always_inline]] inline void inverse_lanes(V nx, V ny, V nz, V Nx, V Ny, V Nz, V Tx, V Ty, V Tz, V Tw, V& tx,
+                                                 V& ty, V& tz, V& lt2, M& ok) {
+  const V zero = V{} + 0.0f, one = zero + 1.0f;
+  const V l2 = nx * nx + ny * ny + nz * nz;
+  // finite: v - v is 0 (inf - inf and NaN are NaN)
+  ok = (l2 > zero + 1e-24f) & ((l2 - l2) == zero);
+  // c = N x T, bn = sign (c x N), tb = sign (T x c).
+  const V sign = Tw < zero ? -one : one;
+  const V cx = Ny * Tz - Ty * Nz, cy = Nz * Tx - Tz * Nx, cz = Nx * Ty - Tx * Ny;
+  const V bnx = sign * (cy * Nz - Ny * cz), bny = sign * (cz * Nx - Nz * cx), bnz = sign * (cx * Ny - Nx * cy);
+  const V tbx = sign * (Ty * cz - cy * Tz), tby = sign * (Tz * cx - cz * Tx), tbz = sign * (Tx * cy - cx * Ty);
+  const V det = Tx * bnx + Ty * bny + Tz * bnz;
+  const V scale2 = (Tx * Tx + Ty * Ty + Tz * Tz) * (cx * cx + cy * cy + cz * cz) * (Nx * Nx + Ny * Ny + Nz * Nz);
+  ok &= (det * det > (zero + 1e-12f) * scale2) & (scale2 > zero) & ((det - det) == zero) & ((scale2 - scale2) == zero);
+  const V flip = det < zero ? -one : one;
+  tx = nx * bnx + ny * bny + nz * bnz;
+  ty = nx * cx + ny * cy + nz * cz;
+  tz = nx * tbx + ny * tby + nz * tbz;
+  // t = -t as a multiplication by -1 is exact, as is by +1.
+  tx *= flip, ty *= flip, tz *= flip;
+  lt2 = tx * tx + ty * ty + tz * tz;
+  ok &= (lt2 > zero) & ((lt2 - lt2) == zero);
+}
+
+// The lanes that are not plain, one by one; the plain ones stored as they are.
+template <class V, class M>
+void finish_lanes(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
+                  const EncodeOptions& options, std::size_t s0, const M& ok, const V& ox, const V& oy, const V& oz,
+                  Counts& counts, glm::vec3* out, bool* used) {
+  constexpr int width = sizeof(V) / sizeof(float);
+  for (int i = 0; i < width; ++i) {
     if (!ok[i]) {
       used[i] = sample_contribution(surface, samples, high, hits, options, true, s0 + i, counts, out[i]);
       continue;
@@ -253,19 +267,90 @@ void encode_four(const LowSurface& surface, const TexelSamples& samples, const M
   }
 }
 
+void encode_four(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
+                 const EncodeOptions& options, std::size_t s0, Counts& counts, glm::vec3* out, bool* used) {
+  if (!plain_samples(samples, hits, s0, 4)) {
+    for (int i = 0; i < 4; ++i)
+      used[i] = sample_contribution(surface, samples, high, hits, options, true, s0 + i, counts, out[i]);
+    return;
+  }
+  Axes n, N, T;
+  gather_four(surface, samples, high, hits, s0, n, N, T);
+  f4 tx, ty, tz, lt2;
+  i4 ok;
+  inverse_lanes(n.x, n.y, n.z, N.x, N.y, N.z, T.x, T.y, T.z, T.w, tx, ty, tz, lt2, ok);
+  const f4 inv = splat4(1.0f) / sqrt4(lt2);
+  const f4 ox = tx * inv, oy = ty * inv, oz = tz * inv;
+  if (all4(ok)) {
+    store3x4(out, ox, oy, oz);
+    used[0] = used[1] = used[2] = used[3] = true;
+    return;
+  }
+  finish_lanes(surface, samples, high, hits, options, s0, ok, ox, oy, oz, counts, out, used);
+}
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#define NMBAKE_ENCODE_EIGHT 1
+typedef float f8 __attribute__((vector_size(32)));
+typedef std::int32_t i8 __attribute__((vector_size(32)));
+
+[[gnu::target("avx2"), gnu::always_inline]] inline f8 join(f4 lo, f4 hi) {
+  return __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7);
+}
+[[gnu::target("avx2"), gnu::always_inline]] inline f4 low_half(f8 v) { return __builtin_shufflevector(v, v, 0, 1, 2, 3); }
+[[gnu::target("avx2"), gnu::always_inline]] inline f4 high_half(f8 v) { return __builtin_shufflevector(v, v, 4, 5, 6, 7); }
+
+// Eight samples: two groups of four gathered as encode_four() does, joined
+// into eight-lane vectors for the arithmetic.
+[[gnu::target("avx2")]] void encode_eight(const LowSurface& surface, const TexelSamples& samples, const Mesh& high,
+                                          const Hits& hits, const EncodeOptions& options, std::size_t s0,
+                                          Counts& counts, glm::vec3* out, bool* used) {
+  if (!plain_samples(samples, hits, s0, 8)) {
+    encode_four(surface, samples, high, hits, options, s0, counts, out, used);
+    encode_four(surface, samples, high, hits, options, s0 + 4, counts, out + 4, used + 4);
+    return;
+  }
+  Axes n0, N0, T0, n1, N1, T1;
+  gather_four(surface, samples, high, hits, s0, n0, N0, T0);
+  gather_four(surface, samples, high, hits, s0 + 4, n1, N1, T1);
+  f8 tx, ty, tz, lt2;
+  i8 ok;
+  inverse_lanes(join(n0.x, n1.x), join(n0.y, n1.y), join(n0.z, n1.z), join(N0.x, N1.x), join(N0.y, N1.y),
+                join(N0.z, N1.z), join(T0.x, T1.x), join(T0.y, T1.y), join(T0.z, T1.z), join(T0.w, T1.w), tx, ty, tz,
+                lt2, ok);
+  const f8 inv = (f8{} + 1.0f) / __builtin_ia32_sqrtps256(lt2);
+  const f8 ox = tx * inv, oy = ty * inv, oz = tz * inv;
+  if (__builtin_ia32_movmskps256(reinterpret_cast<f8>(ok)) == 0xFF) {
+    store3x4(out, low_half(ox), low_half(oy), low_half(oz));
+    store3x4(out + 4, high_half(ox), high_half(oy), high_half(oz));
+    for (int i = 0; i < 8; ++i) used[i] = true;
+    return;
+  }
+  finish_lanes(surface, samples, high, hits, options, s0, ok, ox, oy, oz, counts, out, used);
+}
+
+bool cpu_has_avx2() {
+  static const bool has = __builtin_cpu_supports("avx2");
+  return has;
+}
+#endif
+
 }  // namespace
 
 namespace {
 
+// lanes: 1 (every sample on its own), 4, or 8 (falls back to 4 without AVX2).
 void encode_impl(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
-                 const EncodeOptions& options, Image& out, EncodeStats& stats, bool per_sample) {
+                 const EncodeOptions& options, Image& out, EncodeStats& stats, int lanes) {
   const int width = samples.width;
   const int height = samples.height;
   const int spp = samples.samples;
   const bool tangent_space = options.space == NormalSpace::tangent;
   const bool smooth = options.high_normals == HighNormals::smooth && high.has_normals();
-  const bool four_at_a_time =
-      !per_sample && tangent_space && smooth && options.tangent_encode == TangentEncode::inverse;
+  const bool in_lanes = lanes > 1 && tangent_space && smooth && options.tangent_encode == TangentEncode::inverse;
+#if NMBAKE_ENCODE_EIGHT
+  const bool eight = in_lanes && lanes >= 8 && cpu_has_avx2();
+#endif
   // A band of rows lands at its place in `out`, which grows to hold it.
   const int row_begin = samples.row_begin;
   if (out.width != width || out.channels != 3 || out.height < row_begin + height) {
@@ -288,7 +373,14 @@ void encode_impl(const LowSurface& surface, const TexelSamples& samples, const M
       Counts& counts = row_counts[y];
       const std::size_t first = static_cast<std::size_t>(y) * row_samples;
       std::size_t k = 0;
-      if (four_at_a_time) {
+      if (in_lanes) {
+#if NMBAKE_ENCODE_EIGHT
+        if (eight) {
+          for (; k + 8 <= row_samples; k += 8) {
+            encode_eight(surface, samples, high, hits, options, first + k, counts, &contribution[k], &used[k]);
+          }
+        }
+#endif
         for (; k + 4 <= row_samples; k += 4) {
           encode_four(surface, samples, high, hits, options, first + k, counts, &contribution[k], &used[k]);
         }
@@ -345,14 +437,22 @@ void encode_impl(const LowSurface& surface, const TexelSamples& samples, const M
 
 void encode(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
             const EncodeOptions& options, Image& out, EncodeStats& stats) {
-  encode_impl(surface, samples, high, hits, options, out, stats, false);
+  encode_impl(surface, samples, high, hits, options, out, stats, 8);
 }
 
 namespace detail {
 
-void encode_per_sample(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
-                       const EncodeOptions& options, Image& out, EncodeStats& stats) {
-  encode_impl(surface, samples, high, hits, options, out, stats, true);
+void encode_in_lanes(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
+                     const EncodeOptions& options, Image& out, EncodeStats& stats, int lanes) {
+  encode_impl(surface, samples, high, hits, options, out, stats, lanes);
+}
+
+bool encode_has_eight_lanes() {
+#if NMBAKE_ENCODE_EIGHT
+  return cpu_has_avx2();
+#else
+  return false;
+#endif
 }
 
 }  // namespace detail

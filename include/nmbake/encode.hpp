@@ -55,11 +55,12 @@ bool world_to_tangent(const glm::vec3& n, const glm::vec3& T, const glm::vec3& N
 glm::vec3 tangent_to_world(const glm::vec3& t, const glm::vec3& T, const glm::vec3& N, float sign);
 
 namespace detail {
-// The reference for tests: encode() with every sample taken on its own.
-// encode() takes the default mode's samples four at a time with the same
-// arithmetic, and must give the same bytes.
-void encode_per_sample(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
-                       const EncodeOptions& options, Image& out, EncodeStats& stats);
+// For tests: encode() with `lanes` samples at a time: 1 (every sample on its
+// own, the reference), 4 (SSE) or 8 (AVX2, where encode_has_eight_lanes();
+// else 4). encode() takes 8 where it can; every width gives the same bytes.
+void encode_in_lanes(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
+                     const EncodeOptions& options, Image& out, EncodeStats& stats, int lanes);
+bool encode_has_eight_lanes();
 }  // namespace detail
 
 }  // namespace nmbake
