@@ -78,7 +78,7 @@ Status validate_options(const BakeOptions& o) {
     if (!std::filesystem::is_directory(folder, ec)) {
       return Status::bad_input(out.path + ": the output folder " + folder.string() + " does not exist");
     }
-    // TIFF and EXR need the OpenImageIO module: known before the bake, not after.
+    // TIFF needs the OpenImageIO module: known before the bake, not after.
     if (const Status writer = check_image_writer(out.format); !writer) {
       return Status::internal(out.path + ": " + writer.message());  // names the output once
     }

@@ -1,14 +1,15 @@
-// Stage "write": PNG through our own parallel encoder (image_png.cpp), TIFF
-// and OpenEXR through OpenImageIO 2.4; every image is read through
-// OpenImageIO. OpenImageIO lives in a module loaded on first use
-// (image_oiio.hpp): a PNG bake never pays its start-up cost.
+// Stage "write": PNG and OpenEXR through our own parallel encoders
+// (image_png.cpp, image_exr.cpp), TIFF through OpenImageIO 2.4; every image
+// is read through OpenImageIO. OpenImageIO lives in a module loaded on first
+// use (image_oiio.hpp): a PNG or EXR bake never pays its start-up cost.
 //
 // Standards: PNG (ISO/IEC 15948) — no gAMA/sRGB/iCCP/cHRM chunk is written, so
 // a normal map's bytes are shown and sampled as data; OpenEXR — lossless ZIP
-// (half) or PIZ (float) compression.
+// compression, half or float samples.
 #include "nmbake/image.hpp"
 
 #include "image_oiio.hpp"
+#include "image_exr.hpp"
 #include "image_png.hpp"
 
 #include <dlfcn.h>
@@ -104,7 +105,7 @@ const oiio_module::Api* image_module(std::string& error) {
       return;
     }
     failure = std::string("the image module ") + oiio_module::kFileName +
-              " (OpenImageIO: TIFF and EXR, and reading images) was not found in " + looked +
+              " (OpenImageIO: TIFF, and reading images) was not found in " + looked +
               "; set NMBAKE_MODULE_DIR to its folder";
   });
   if (!api) error = failure;
@@ -232,9 +233,20 @@ Status write_image(const Image& image, const std::string& path, PixelFormat form
   }
 
   const fs::path temp = temp_path_for(target.parent_path().empty() ? fs::path(".") / target : target);
-  Status status = format == PixelFormat::png8 || format == PixelFormat::png16
-                      ? image_detail::write_png(image, format == PixelFormat::png8 ? 8 : 16, temp.string(), path)
-                      : write_with_oiio(image, path, temp, format);
+  Status status;
+  switch (format) {
+    case PixelFormat::png8:
+    case PixelFormat::png16:
+      status = image_detail::write_png(image, format == PixelFormat::png8 ? 8 : 16, temp.string(), path);
+      break;
+    case PixelFormat::exr_half:
+    case PixelFormat::exr_float:
+      status = image_detail::write_exr(image, format == PixelFormat::exr_half, temp.string(), path);
+      break;
+    case PixelFormat::tiff16:
+      status = write_with_oiio(image, path, temp, format);
+      break;
+  }
   if (status.is_ok()) {
     fs::rename(temp, target, ec);
     if (ec)
@@ -249,7 +261,7 @@ Status write_image(const Image& image, const std::string& path, PixelFormat form
 }
 
 Status check_image_writer(PixelFormat format) {
-  if (format == PixelFormat::png8 || format == PixelFormat::png16) return Status::ok();
+  if (format != PixelFormat::tiff16) return Status::ok();  // PNG and EXR are ours; TIFF needs the module
   std::string reason;
   if (!image_module(reason)) return Status::internal(std::string("cannot write ") + to_string(format) + ": " + reason);
   return Status::ok();

@@ -3,9 +3,9 @@
 // OpenImageIO links about 260 shared libraries (codecs, DICOM, video, ...),
 // and resolving them costs ~0.2 s at every process start, more than the
 // encode and write stages of a 2048^2 bake together. So the code that needs
-// it (TIFF and EXR writers, every reader) is built as a separate module that
-// image.cpp loads with dlopen() on first use; a bake that writes PNG, the
-// default, never loads it. The module is built by the same build as the
+// it (the TIFF writer, every reader) is built as a separate module that
+// image.cpp loads with dlopen() on first use; a bake that writes PNG (the
+// default) or EXR never loads it. The module is built by the same build as the
 // library, so C++ types cross the boundary; kAbiVersion guards a stale file.
 #pragma once
 

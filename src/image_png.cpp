@@ -26,6 +26,7 @@
 #include "image_png.hpp"
 
 #include "deflate_huffman.hpp"
+#include "stream_file.hpp"
 #include "quantise.hpp"
 
 #include <zlib.h>
@@ -38,8 +39,7 @@
 
 #include <memory>
 
-#include <tbb/parallel_pipeline.h>
-#include <tbb/task_arena.h>
+
 
 namespace nmbake::image_detail {
 
@@ -185,21 +185,7 @@ void stream_png(const Image& image, int bits, Put&& put) {
     put(crc.data(), crc.size());
   };
 
-  std::size_t next = 0;
-  const std::size_t in_flight = 4 * static_cast<std::size_t>(std::max(1, tbb::this_task_arena::max_concurrency()));
-  tbb::parallel_pipeline(
-      in_flight,
-      tbb::make_filter<void, std::size_t>(tbb::filter_mode::serial_in_order,
-                                          [&](tbb::flow_control& fc) -> std::size_t {
-                                            if (next == group_count) {
-                                              fc.stop();
-                                              return 0;
-                                            }
-                                            return next++;
-                                          }) &
-          tbb::make_filter<std::size_t, std::unique_ptr<Group>>(tbb::filter_mode::parallel, deflate_group) &
-          tbb::make_filter<std::unique_ptr<Group>, void>(tbb::filter_mode::serial_in_order,
-                                                         [&](std::unique_ptr<Group> g) { write_group(std::move(g)); }));
+  ordered_pieces<Group>(group_count, deflate_group, write_group);
 
   std::vector<std::uint8_t> tail;
   put_chunk(tail, "IEND", nullptr, 0);
@@ -219,21 +205,10 @@ Status write_png(const Image& image, int bits, const std::string& path, const st
     return Status::io("cannot write '" + display_path + "': PNG holds 1 to 4 channels, not " +
                       std::to_string(image.channels));
   }
-  std::FILE* f = std::fopen(path.c_str(), "wb");
-  if (f == nullptr) {
-    return Status::io("cannot write '" + display_path + "': " + std::strerror(errno));
-  }
-  // The file is written as the groups are deflated; after a failed write
-  // the rest is still deflated (the pipeline runs to its end) but not written.
-  int write_errno = 0;
-  stream_png(image, bits, [&](const std::uint8_t* data, std::size_t size) {
-    if (write_errno == 0 && std::fwrite(data, 1, size, f) != size) write_errno = errno != 0 ? errno : EIO;
-  });
-  const bool closed = std::fclose(f) == 0;
-  if (write_errno != 0 || !closed) {
-    return Status::io("cannot write '" + display_path + "': " + std::strerror(write_errno != 0 ? write_errno : errno));
-  }
-  return Status::ok();
+  StreamFile file(path, display_path);
+  if (!file.is_open()) return file.open_status();
+  stream_png(image, bits, [&](const std::uint8_t* data, std::size_t size) { file.put(data, size); });
+  return file.close();
 }
 
 }  // namespace nmbake::image_detail

@@ -173,25 +173,27 @@ TEST_F(CliBake, SameBytesWithOneAndTwoThreads) {
   EXPECT_GT(read_bytes(dir.file("a.png")).size(), 1000u);
 }
 
-// OpenImageIO is a module loaded only for TIFF, EXR and reading: a PNG bake
-// runs without it, and a bake asking for EXR without it fails before baking,
-// naming the module and where it was looked for.
-TEST_F(CliBake, PngNeedsNoImageModuleAndExrWithoutItFailsUpFront) {
+// OpenImageIO is a module loaded only for TIFF and reading: PNG and EXR
+// bakes run without it, and a bake asking for TIFF without it fails before
+// baking, naming the module and where it was looked for.
+TEST_F(CliBake, PngAndExrNeedNoImageModuleAndTiffWithoutItFailsUpFront) {
   const std::string empty = dir.file("no_modules");
   std::filesystem::create_directory(empty);
   const std::string env = "NMBAKE_MODULE_DIR=" + empty + " ";
   const std::string common = " bake --low " + low() + " --high " + high() + " --size 32 --samples 1 -q -o ";
-  const auto png = test::run_command(env + test::cli_path() + common + dir.file("m.png"));
-  EXPECT_EQ(png.exit_code, 0) << png.output;
-  EXPECT_TRUE(std::filesystem::exists(dir.file("m.png")));
-  const auto exr = test::run_command(env + test::cli_path() + common + dir.file("m.exr"));
-  EXPECT_EQ(exr.exit_code, 3) << exr.output;
-  EXPECT_NE(exr.output.find("libnmbake_oiio.so"), std::string::npos) << exr.output;
-  EXPECT_NE(exr.output.find(empty), std::string::npos) << exr.output;
-  EXPECT_EQ(exr.output.find("baked"), std::string::npos) << exr.output;
-  EXPECT_FALSE(std::filesystem::exists(dir.file("m.exr")));
+  for (const char* name : {"m.png", "m.exr"}) {
+    const auto r = test::run_command(env + test::cli_path() + common + dir.file(name));
+    EXPECT_EQ(r.exit_code, 0) << name << ": " << r.output;
+    EXPECT_TRUE(std::filesystem::exists(dir.file(name))) << name;
+  }
+  const auto tiff = test::run_command(env + test::cli_path() + common + dir.file("m.tif"));
+  EXPECT_EQ(tiff.exit_code, 3) << tiff.output;
+  EXPECT_NE(tiff.output.find("libnmbake_oiio.so"), std::string::npos) << tiff.output;
+  EXPECT_NE(tiff.output.find(empty), std::string::npos) << tiff.output;
+  EXPECT_EQ(tiff.output.find("baked"), std::string::npos) << tiff.output;
+  EXPECT_FALSE(std::filesystem::exists(dir.file("m.tif")));
   // Found beside the executable when the variable is not set.
-  const auto found = test::run_command(test::cli_path() + common + dir.file("m.exr"));
+  const auto found = test::run_command(test::cli_path() + common + dir.file("m.tif"));
   EXPECT_EQ(found.exit_code, 0) << found.output;
 }
 

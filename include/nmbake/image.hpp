@@ -1,5 +1,5 @@
-// A float RGB(A) image in memory, and the "write" stage: 8/16-bit PNG (our
-// own encoder), 16-bit TIFF and half/float EXR (OpenImageIO), written to a
+// A float RGB(A) image in memory, and the "write" stage: 8/16-bit PNG and
+// half/float EXR (our own encoders), 16-bit TIFF (OpenImageIO), written to a
 // temporary file in the target's folder and renamed, so a failed bake never
 // leaves a half-written map. OpenImageIO is a module loaded on first use
 // (src/image_oiio.hpp); its types never leave it.
@@ -40,7 +40,8 @@ bool format_matches_extension(PixelFormat format, const std::string& path);
 //
 // Details (image.cpp): PNG files carry no gAMA/sRGB/iCCP/cHRM chunk, so
 // viewers show the stored values unconverted; a 4th channel is written as
-// unassociated alpha, unchanged; TIFF and EXR use lossless zip compression;
+// unassociated alpha, unchanged; TIFF and EXR use lossless zip compression
+// (EXR: Huffman-coded deflate streams, which every zlib inflates);
 // no file carries a timestamp, so the same image always gives the same bytes.
 // The file is written to ".<stem>.nmbake-tmp-<pid>-<n><ext>" in the target's
 // folder and renamed over the target; on failure the temp file is removed
@@ -51,7 +52,7 @@ bool format_matches_extension(PixelFormat format, const std::string& path);
 // OpenImageIO call or rename. Messages name the path.
 Status write_image(const Image& image, const std::string& path, PixelFormat format);
 
-// Whether `format` can be written here: always for PNG; for TIFF and EXR,
+// Whether `format` can be written here: always for PNG and EXR; for TIFF,
 // whether the OpenImageIO module loads (internal error naming it and where
 // it was looked for if not). A bake checks before it starts.
 Status check_image_writer(PixelFormat format);
