@@ -268,8 +268,10 @@ inline void inside_bary2(d2 e0, d2 e1, d2 e2, d2& b1, d2& b2) {
   b2 = clamp01(e2 * inverse_sum);
   const d2 total = b1 + b2;
   const l2 over = total > splat(1.0);
-  b1 = over ? b1 / total : b1;
-  b2 = over ? b2 / total : b2;
+  if (lane_bits(over) != 0) {  // rare (rounding past 1): the divisions only then
+    b1 = over ? b1 / total : b1;
+    b2 = over ? b2 / total : b2;
+  }
 }
 
 inline f4 to_floats(d2 lo, d2 hi) {
