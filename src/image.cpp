@@ -105,7 +105,7 @@ const oiio_module::Api* image_module(std::string& error) {
       return;
     }
     failure = std::string("the image module ") + oiio_module::kFileName +
-              " (OpenImageIO: TIFF, and reading images) was not found in " + looked +
+              " (OpenImageIO: TIFF, PIZ EXR, and reading images) was not found in " + looked +
               "; set NMBAKE_MODULE_DIR to its folder";
   });
   if (!api) error = failure;
@@ -148,13 +148,15 @@ const char* to_string(PixelFormat format) {
       return "exr-half";
     case PixelFormat::exr_float:
       return "exr-float";
+    case PixelFormat::exr_float_piz:
+      return "exr-float-piz";
   }
   return "unknown";
 }
 
 bool parse_pixel_format(const std::string& text, PixelFormat& out) {
   for (PixelFormat format : {PixelFormat::png8, PixelFormat::png16, PixelFormat::tiff16,
-                             PixelFormat::exr_half, PixelFormat::exr_float}) {
+                             PixelFormat::exr_half, PixelFormat::exr_float, PixelFormat::exr_float_piz}) {
     if (text == to_string(format)) {
       out = format;
       return true;
@@ -187,6 +189,7 @@ bool format_matches_extension(PixelFormat format, const std::string& path) {
       return ext == ".tif" || ext == ".tiff";
     case PixelFormat::exr_half:
     case PixelFormat::exr_float:
+    case PixelFormat::exr_float_piz:
       return ext == ".exr";
   }
   return false;
@@ -244,6 +247,7 @@ Status write_image(const Image& image, const std::string& path, PixelFormat form
       status = image_detail::write_exr(image, format == PixelFormat::exr_half, temp.string(), path);
       break;
     case PixelFormat::tiff16:
+    case PixelFormat::exr_float_piz:
       status = write_with_oiio(image, path, temp, format);
       break;
   }
@@ -261,7 +265,8 @@ Status write_image(const Image& image, const std::string& path, PixelFormat form
 }
 
 Status check_image_writer(PixelFormat format) {
-  if (format != PixelFormat::tiff16) return Status::ok();  // PNG and EXR are ours; TIFF needs the module
+  // PNG and ZIP EXR are ours; TIFF and PIZ EXR need the module.
+  if (format != PixelFormat::tiff16 && format != PixelFormat::exr_float_piz) return Status::ok();
   std::string reason;
   if (!image_module(reason)) return Status::internal(std::string("cannot write ") + to_string(format) + ": " + reason);
   return Status::ok();

@@ -3,7 +3,7 @@
 // OpenImageIO links about 260 shared libraries (codecs, DICOM, video, ...),
 // and resolving them costs ~0.2 s at every process start, more than the
 // encode and write stages of a 2048^2 bake together. So the code that needs
-// it (the TIFF writer, every reader) is built as a separate module that
+// it (the TIFF and PIZ EXR writers, every reader) is built as a separate module that
 // image.cpp loads with dlopen() on first use; a bake that writes PNG (the
 // default) or EXR never loads it. The module is built by the same build as the
 // library, so C++ types cross the boundary; kAbiVersion guards a stale file.
@@ -25,7 +25,7 @@ struct Api {
   int abi_version;
   const char* oiio_version;
   // Writes `image` (already checked: sized, finite) to `file` in `format`
-  // (tiff16, exr_half, exr_float), the same bytes for the same pixels.
+  // (tiff16, exr_float_piz), the same bytes for the same pixels.
   Outcome (*write)(const Image& image, const std::string& file, PixelFormat format, std::string& reason);
   Outcome (*read_info)(const std::string& path, ImageFileInfo& out, std::string& reason);
   // Float pixels, 0..1 for integer formats, alpha as stored.

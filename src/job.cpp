@@ -164,7 +164,7 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
       if (!ok) {
         return Status::bad_input(where(file, item) + ": outputs: " +
                                  (format.empty() ? "unknown image extension of " + path + " (use .png, .tif, .tiff, .exr)"
-                                                 : "unknown format \"" + format + "\" (png8, png16, tiff16, exr-half, exr-float)"));
+                                                 : "unknown format \"" + format + "\" (png8, png16, tiff16, exr-half, exr-float, exr-float-piz)"));
       }
       o.outputs.push_back(out);
     }

@@ -173,9 +173,9 @@ TEST_F(CliBake, SameBytesWithOneAndTwoThreads) {
   EXPECT_GT(read_bytes(dir.file("a.png")).size(), 1000u);
 }
 
-// OpenImageIO is a module loaded only for TIFF and reading: PNG and EXR
-// bakes run without it, and a bake asking for TIFF without it fails before
-// baking, naming the module and where it was looked for.
+// OpenImageIO is a module loaded only for TIFF, PIZ EXR and reading: PNG
+// and (ZIP) EXR bakes run without it, and a bake asking for TIFF or PIZ EXR
+// without it fails before baking, naming the module and where it was looked for.
 TEST_F(CliBake, PngAndExrNeedNoImageModuleAndTiffWithoutItFailsUpFront) {
   const std::string empty = dir.file("no_modules");
   std::filesystem::create_directory(empty);
@@ -186,15 +186,24 @@ TEST_F(CliBake, PngAndExrNeedNoImageModuleAndTiffWithoutItFailsUpFront) {
     EXPECT_EQ(r.exit_code, 0) << name << ": " << r.output;
     EXPECT_TRUE(std::filesystem::exists(dir.file(name))) << name;
   }
-  const auto tiff = test::run_command(env + test::cli_path() + common + dir.file("m.tif"));
-  EXPECT_EQ(tiff.exit_code, 3) << tiff.output;
-  EXPECT_NE(tiff.output.find("libnmbake_oiio.so"), std::string::npos) << tiff.output;
-  EXPECT_NE(tiff.output.find(empty), std::string::npos) << tiff.output;
-  EXPECT_EQ(tiff.output.find("baked"), std::string::npos) << tiff.output;
-  EXPECT_FALSE(std::filesystem::exists(dir.file("m.tif")));
-  // Found beside the executable when the variable is not set.
-  const auto found = test::run_command(test::cli_path() + common + dir.file("m.tif"));
-  EXPECT_EQ(found.exit_code, 0) << found.output;
+  const std::string tif = dir.file("m.tif"), piz = dir.file("piz.exr");
+  for (const std::string& target : {tif, piz}) {
+    const std::string output_args = target == piz ? piz + " --format exr-float-piz" : tif;
+    const auto missing = test::run_command(env + test::cli_path() + common + output_args);
+    EXPECT_EQ(missing.exit_code, 3) << missing.output;
+    EXPECT_NE(missing.output.find("libnmbake_oiio.so"), std::string::npos) << missing.output;
+    EXPECT_NE(missing.output.find(empty), std::string::npos) << missing.output;
+    EXPECT_EQ(missing.output.find("baked"), std::string::npos) << missing.output;
+    EXPECT_FALSE(std::filesystem::exists(target));
+    // Found beside the executable when the variable is not set.
+    const auto found = test::run_command(test::cli_path() + common + output_args);
+    EXPECT_EQ(found.exit_code, 0) << found.output;
+    EXPECT_TRUE(std::filesystem::exists(target));
+  }
+  ImageFileInfo info;
+  ASSERT_TRUE(read_image_info(dir.file("piz.exr"), info).is_ok());
+  EXPECT_EQ(info.compression, "piz");
+  EXPECT_EQ(info.data_type, "float");
 }
 
 TEST_F(CliBake, PngAndExrAgreeTo16Bits) {

@@ -90,7 +90,7 @@ std::vector<PngChunk> png_chunks(const std::string& path) {
 }
 
 const PixelFormat all_formats[] = {PixelFormat::png8, PixelFormat::png16, PixelFormat::tiff16,
-                                   PixelFormat::exr_half, PixelFormat::exr_float};
+                                   PixelFormat::exr_half, PixelFormat::exr_float, PixelFormat::exr_float_piz};
 
 const char* extension_of(PixelFormat format) {
   switch (format) {
@@ -128,6 +128,7 @@ const char* extension_of(PixelFormat format) {
         return ::testing::AssertionSuccess();
       return ::testing::AssertionFailure() << "wrote " << written << ", read " << read << " (half)";
     case PixelFormat::exr_float:
+    case PixelFormat::exr_float_piz:
       if (read == written) return ::testing::AssertionSuccess();
       return ::testing::AssertionFailure() << "wrote " << written << ", read " << read << " (float)";
   }
@@ -210,7 +211,7 @@ TEST(ImageWrite, FilesHoldTheRequestedType) {
   } cases[] = {
       {PixelFormat::png8, "png", "uint8", nullptr},        {PixelFormat::png16, "png", "uint16", nullptr},
       {PixelFormat::tiff16, "tiff", "uint16", "zip"},      {PixelFormat::exr_half, "openexr", "half", "zip"},
-      {PixelFormat::exr_float, "openexr", "float", "zip"},
+      {PixelFormat::exr_float, "openexr", "float", "zip"},  {PixelFormat::exr_float_piz, "openexr", "float", "piz"},
   };
   for (const auto& c : cases) {
     SCOPED_TRACE(to_string(c.format));

@@ -83,7 +83,7 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
     out.path = path;
     if (!f.format.empty()) {
       if (!parse_pixel_format(f.format, out.format)) {
-        return Status::bad_input("--format " + f.format + ": expected png8, png16, tiff16, exr-half or exr-float");
+        return Status::bad_input("--format " + f.format + ": expected png8, png16, tiff16, exr-half, exr-float or exr-float-piz");
       }
     } else if (!pixel_format_from_path(path, out.format)) {
       return Status::bad_input(path + ": unknown image extension (use .png, .tif, .tiff or .exr)");
@@ -213,7 +213,7 @@ Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_flag("--ignore-backfaces", flags->ignore_backfaces, "skip high triangles that face away from the ray");
   cmd->add_option("--high-normals", flags->high_normals, "smooth (interpolated vertex normals) | face")->default_val("smooth");
   cmd->add_option("--padding", flags->padding, "texels of dilation around charts")->default_val(16);
-  cmd->add_option("--format", flags->format, "png8 | png16 | tiff16 | exr-half | exr-float (default: from the extension)");
+  cmd->add_option("--format", flags->format, "png8 | png16 | tiff16 | exr-half | exr-float | exr-float-piz (default: from the extension)");
   cmd->add_option("--report", flags->report, "write the bake report (JSON) here");
   cmd->add_option("--max-miss-rate", flags->max_miss_rate, "exit 1 when more than this share of rays miss (0..1)")->check(CLI::Range(0.0, 1.0));
   cmd->add_option("--build-quality", flags->build_quality, "BVH build quality: low | medium | high")->default_val("low");

@@ -126,7 +126,7 @@ Runner add_height2normal_command(CLI::App& app, const GlobalOptions& global) {
   CLI::App* cmd = app.add_subcommand("height2normal", "turn a height map (or a cube sphere's faces) into a normal map");
   cmd->add_option("heights", flags->inputs, "height map (first channel); with --cube-sphere a 3x2 atlas or six faces")->required();
   cmd->add_option("-o,--output", flags->output, "normal map: .png (16-bit), .tif, .exr")->required();
-  cmd->add_option("--format", flags->format, "png8 | png16 | tiff16 | exr-half | exr-float (default: from the extension)");
+  cmd->add_option("--format", flags->format, "png8 | png16 | tiff16 | exr-half | exr-float | exr-float-piz (default: from the extension)");
   cmd->add_option("--strength", flags->strength, "S: slope = S * height difference per texel; cube sphere: radius = R (1 + S h)")->default_val(1.0f);
   cmd->add_option("--border", flags->border, "clamp (one-sided differences at the edges) | wrap (tiling)")->default_val("clamp");
   cmd->add_option("--green", flags->green, "up (OpenGL) | down (DirectX)")->default_val("up");
