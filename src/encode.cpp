@@ -204,11 +204,9 @@ bool plain_samples(const TexelSamples& samples, const Hits& hits, std::size_t s0
   const i4 low = load4i(&samples.triangle[s0]);
   if (all4(low == splat4i(low[0]))) {
     const std::size_t base = 3 * static_cast<std::size_t>(low[0]);
-    f4 bx, by;
-    load_bary4(&samples.bary[s0], bx, by);
-    const f4 w0 = splat4(1.0f) - bx - by;
-    N = mix_axes(&surface.normal[base], w0, bx, by);
-    T = mix_axes(&surface.tangent[base], w0, bx, by);
+    const Weights w = lane_weights(&samples.bary[s0]);
+    N = mix_axes(&surface.normal[base], w);
+    T = mix_axes(&surface.tangent[base], w);
     return;
   }
   f4 low_n[4], low_t[4];

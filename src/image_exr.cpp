@@ -140,7 +140,8 @@ std::vector<std::uint8_t> exr_header(const Image& image, bool half) {
 
 struct Chunk {
   std::size_t index = 0;
-  std::vector<std::uint8_t> bytes;  // y, size, data: ready to write
+  std::vector<std::uint8_t> header;  // y, data size
+  std::vector<std::uint8_t> data;    // compressed, or raw
 };
 
 // Chunk `c` (scanlines 16 c to 16 c + 15), compressed, or raw if deflate
@@ -191,14 +192,11 @@ std::unique_ptr<Chunk> make_chunk(const Image& image, bool half, std::size_t c) 
   deflate_huffman(prepared.data(), prepared.size(), true, packed);
   const uLong adler = adler32(adler32(0L, Z_NULL, 0), prepared.data(), static_cast<uInt>(prepared.size()));
   for (int i = 3; i >= 0; --i) packed.push_back(static_cast<std::uint8_t>(adler >> (8 * i)));
-  const std::vector<std::uint8_t>& data = packed.size() < raw_size ? packed : raw;
-
   auto chunk = std::make_unique<Chunk>();
   chunk->index = c;
-  chunk->bytes.reserve(8 + data.size());
-  put_i32(chunk->bytes, static_cast<std::int32_t>(y0));
-  put_i32(chunk->bytes, static_cast<std::int32_t>(data.size()));
-  chunk->bytes.insert(chunk->bytes.end(), data.begin(), data.end());
+  chunk->data = packed.size() < raw_size ? std::move(packed) : std::move(raw);
+  put_i32(chunk->header, static_cast<std::int32_t>(y0));
+  put_i32(chunk->header, static_cast<std::int32_t>(chunk->data.size()));
   return chunk;
 }
 
@@ -220,8 +218,9 @@ std::vector<std::uint8_t> stream_exr(const Image& image, bool half, Put&& put, s
       chunk_count, [&](std::size_t c) { return make_chunk(image, half, c); },
       [&](std::unique_ptr<Chunk> chunk) {
         for (int i = 0; i < 8; ++i) table[8 * chunk->index + i] = static_cast<std::uint8_t>(offset >> (8 * i));
-        put(chunk->bytes.data(), chunk->bytes.size());
-        offset += chunk->bytes.size();
+        put(chunk->header.data(), chunk->header.size());
+        put(chunk->data.data(), chunk->data.size());
+        offset += chunk->header.size() + chunk->data.size();
       });
   return table;
 }

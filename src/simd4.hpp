@@ -121,26 +121,31 @@ struct Axes {
   f4 x, y, z, w;
 };
 
+// The corner weights of four consecutive barycentric pairs, one vector per
+// corner: w0 = 1 - b.x - b.y as corner_mix() computes it, then b.x and b.y.
+struct Weights {
+  f4 w0, bx, by;
+};
+
+inline Weights lane_weights(const glm::vec2* b) {
+  const f4 b01 = load4(&b[0].x), b23 = load4(&b[2].x);
+  const f4 bx = __builtin_shuffle(b01, b23, i4{0, 2, 4, 6}), by = __builtin_shuffle(b01, b23, i4{1, 3, 5, 7});
+  return {splat4(1.0f) - bx - by, bx, by};
+}
+
 // Three corners of one triangle interpolated across four lanes (structure of
 // arrays, the corners splatted): per lane the products and sums of
 // corner_mix(), in its order. w is +0.0 for vec3 corners.
-[[gnu::always_inline]] inline Axes mix_axes(const glm::vec3* c, f4 w0, f4 bx, f4 by) {
-  return {splat4(c[0].x) * w0 + splat4(c[1].x) * bx + splat4(c[2].x) * by,
-          splat4(c[0].y) * w0 + splat4(c[1].y) * bx + splat4(c[2].y) * by,
-          splat4(c[0].z) * w0 + splat4(c[1].z) * bx + splat4(c[2].z) * by, f4{}};
+[[gnu::always_inline]] inline Axes mix_axes(const glm::vec3* c, const Weights& w) {
+  return {splat4(c[0].x) * w.w0 + splat4(c[1].x) * w.bx + splat4(c[2].x) * w.by,
+          splat4(c[0].y) * w.w0 + splat4(c[1].y) * w.bx + splat4(c[2].y) * w.by,
+          splat4(c[0].z) * w.w0 + splat4(c[1].z) * w.bx + splat4(c[2].z) * w.by, f4{}};
 }
-[[gnu::always_inline]] inline Axes mix_axes(const glm::vec4* c, f4 w0, f4 bx, f4 by) {
-  return {splat4(c[0].x) * w0 + splat4(c[1].x) * bx + splat4(c[2].x) * by,
-          splat4(c[0].y) * w0 + splat4(c[1].y) * bx + splat4(c[2].y) * by,
-          splat4(c[0].z) * w0 + splat4(c[1].z) * bx + splat4(c[2].z) * by,
-          splat4(c[0].w) * w0 + splat4(c[1].w) * bx + splat4(c[2].w) * by};
-}
-
-// Four consecutive barycentric pairs as one vector per weight.
-inline void load_bary4(const glm::vec2* b, f4& bx, f4& by) {
-  const f4 b01 = load4(&b[0].x), b23 = load4(&b[2].x);
-  bx = __builtin_shuffle(b01, b23, i4{0, 2, 4, 6});
-  by = __builtin_shuffle(b01, b23, i4{1, 3, 5, 7});
+[[gnu::always_inline]] inline Axes mix_axes(const glm::vec4* c, const Weights& w) {
+  return {splat4(c[0].x) * w.w0 + splat4(c[1].x) * w.bx + splat4(c[2].x) * w.by,
+          splat4(c[0].y) * w.w0 + splat4(c[1].y) * w.bx + splat4(c[2].y) * w.by,
+          splat4(c[0].z) * w.w0 + splat4(c[1].z) * w.bx + splat4(c[2].z) * w.by,
+          splat4(c[0].w) * w.w0 + splat4(c[1].w) * w.bx + splat4(c[2].w) * w.by};
 }
 
 // Four lanes of (x, y, z, w) to one vector per axis.

@@ -395,11 +395,9 @@ std::uint64_t build_queued_rays(Packet& p, const LowSurface& surface, const RayO
     const i4 tri = load4i(p.triangle + g);
     if (all4(tri == splat4i(tri[0]))) {
       const std::size_t base = 3 * static_cast<std::size_t>(tri[0]);
-      f4 bx, by;
-      load_bary4(&p.bary[g], bx, by);
-      const f4 w0 = splat4(1.0f) - bx - by;
-      P = mix_axes(&surface.position[base], w0, bx, by);
-      a = mix_axes(&normals[base], w0, bx, by);
+      const Weights w = lane_weights(&p.bary[g]);
+      P = mix_axes(&surface.position[base], w);
+      a = mix_axes(&normals[base], w);
     } else {
       f4 point[4], normal[4];
       for (int k = 0; k < 4; ++k) {
