@@ -177,6 +177,31 @@ Status validate_mesh(const Mesh& mesh, const std::string& name) {
     return Status::bad_input(name + ": triangle " + std::to_string(i / 3) + " refers to vertex " +
                              std::to_string(mesh.indices[i]) + " of " + std::to_string(vertex_count));
   }
+  if (!mesh.tangents.empty() && mesh.tangents.size() != vertex_count) {
+    return Status::bad_input(name + ": " + std::to_string(mesh.tangents.size()) + " tangents for " +
+                             std::to_string(vertex_count) + " vertices");
+  }
+  if (const std::size_t i = first_failing(mesh.tangents.size(),
+                                          [&](std::size_t k) {
+                                            const glm::vec4& t = mesh.tangents[k];
+                                            return !finite3(glm::vec3(t)) || !std::isfinite(t.w);
+                                          });
+      i < mesh.tangents.size()) {
+    return Status::bad_input(name + ": vertex " + std::to_string(i) + " has a non-finite tangent " +
+                             vec_text(&mesh.tangents[i].x, 4));
+  }
+  std::uint64_t next_triangle = 0;
+  for (const MeshPart& part : mesh.parts) {
+    if (part.first_triangle != next_triangle || part.triangle_count == 0) {
+      return Status::bad_input(name + ": part '" + part.name + "' (triangles " + std::to_string(part.first_triangle) +
+                               " + " + std::to_string(part.triangle_count) + ") does not follow the part before it");
+    }
+    next_triangle += part.triangle_count;
+  }
+  if (!mesh.parts.empty() && next_triangle != mesh.triangle_count()) {
+    return Status::bad_input(name + ": the parts cover " + std::to_string(next_triangle) + " of " +
+                             std::to_string(mesh.triangle_count()) + " triangles");
+  }
   return Status::ok();
 }
 

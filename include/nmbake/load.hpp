@@ -53,6 +53,8 @@ namespace nmbake {
 struct LoadOptions {
   bool keep_uvs = true;      // false for the high mesh: never split vertices at UV seams
   bool keep_normals = true;  // false: file normals are dropped (e.g. --high-normals face)
+  int uv_set = 0;            // glTF TEXCOORD_N / FBX UV channel N (OBJ and PLY have one: N must be 0)
+  bool keep_tangents = false;  // glTF TANGENT / FBX tangents into Mesh::tangents (--tangents file)
   // Tuning of the parallel parsers, for tests and benchmarks; the loaded mesh
   // and every error are the same whatever they are set to.
   std::size_t block_bytes = 0;  // bytes read and decoded at a time; 0: 4 MiB
@@ -60,11 +62,15 @@ struct LoadOptions {
 };
 
 struct LoadStats {
-  std::uint64_t bytes = 0;           // file size
+  std::uint64_t bytes = 0;           // file size (for glTF: the .gltf plus its external buffers)
   double seconds = 0.0;              // wall time of load_mesh
   std::uint64_t polygons = 0;        // faces in the file before triangulation
   std::uint64_t triangles = 0;       // after triangulation
   std::uint64_t degenerate_faces = 0;  // faces with fewer than 3 corners: skipped
+  // Length of one file unit in metres when the file says (FBX UnitScaleFactor:
+  // 0.01 for centimetres; glTF: 1); 0 when the format does not say (OBJ, PLY).
+  // Positions are kept in file units; the report shows this note.
+  double unit_meters = 0.0;
 
   // Load rate in MB/s (10^6 bytes), 0 before a load.
   double mb_per_second() const { return seconds > 0.0 ? static_cast<double>(bytes) / seconds * 1e-6 : 0.0; }

@@ -11,25 +11,44 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
 
 #include "nmbake/common.hpp"
 
 namespace nmbake {
 
+// A named piece of a mesh file (OBJ `o`/`g`, a glTF node's mesh, an FBX
+// model): a contiguous range of triangles. Bake groups are made of parts
+// (parts.hpp); the rest of the pipeline never looks at them.
+struct MeshPart {
+  std::string name;  // as in the file; may be empty
+  std::uint32_t first_triangle = 0;
+  std::uint32_t triangle_count = 0;
+};
+
 struct Mesh {
   std::vector<glm::vec3> positions;
   std::vector<glm::vec3> normals;  // empty, or one unit normal per vertex
   std::vector<glm::vec2> uvs;      // empty, or one per vertex (v = 0 at the image bottom)
+  // Empty, or one per vertex as the file stored them (glTF TANGENT, FBX
+  // tangents): xyz and the bitangent sign in w. Only for --tangents file.
+  std::vector<glm::vec4> tangents;
   std::vector<std::uint32_t> indices;  // three per triangle, counter-clockwise = front
+  // Empty (one unnamed part: the whole mesh), or ranges in triangle order
+  // that cover every triangle exactly once, without empty parts. A name may
+  // appear in several ranges (an OBJ that returns to `g body` later).
+  std::vector<MeshPart> parts;
 
   std::size_t vertex_count() const { return positions.size(); }
   std::size_t triangle_count() const { return indices.size() / 3; }
   bool has_normals() const { return !normals.empty(); }
   bool has_uvs() const { return !uvs.empty(); }
+  bool has_tangents() const { return !tangents.empty(); }
 };
 
 // Counts of the numerical fallbacks taken while preparing a mesh.
@@ -40,8 +59,8 @@ struct MeshStats {
 };
 
 // Rejects a mesh no later stage can use: NaN/Inf in any attribute, an index
-// out of range, attribute arrays of the wrong size, no triangles. `name` is
-// used in the message (the file path).
+// out of range, attribute arrays of the wrong size, no triangles, parts that
+// do not tile the triangles. `name` is used in the message (the file path).
 Status validate_mesh(const Mesh& mesh, const std::string& name);
 
 // Area-weighted vertex normals (the cross product of two edges, unnormalised,
