@@ -4,6 +4,7 @@
 #include "nmbake/bake.hpp"
 
 #include "huge_pages.hpp"
+#include "nmbake/udim.hpp"
 
 #include <charconv>
 #include <chrono>
@@ -209,6 +210,90 @@ int band_rows(int width, int height, int samples, std::size_t band_samples) {
   return static_cast<int>(std::min<std::size_t>(rows, static_cast<std::size_t>(height)));
 }
 
+namespace {
+
+// What every UDIM tile of a bake shares: the prepared meshes, the scene and
+// the rays.
+struct Prepared {
+  const BakeOptions& options;
+  const Mesh& high;
+  const HighScene& scene;
+  const RayOptions& rays;
+  EncodeOptions encode;
+};
+
+// raster -> trace -> encode, band of rows by band of rows, then dilate and
+// write, for one map (a UDIM tile: `surface` has the tile's UVs shifted
+// into [0, 1]^2). The per-sample arrays are reused and bounded, so a 16384^2
+// map bakes in the memory of a small one. Bands change nothing in the
+// result: raster tiles and ray packets both start on band rows.
+Status bake_tile(const Prepared& p, const LowSurface& surface, const std::vector<OutputSpec>& outputs,
+                 const std::string& debug_prefix, BakeReport& r, StageTimer& timer, const ProgressFn& progress,
+                 std::uint64_t& covered_texels) {
+  const BakeOptions& o = p.options;
+  Image image;
+  image.width = o.width;
+  image.height = o.height;
+  image.channels = 3;
+  // Every texel is written by encode; huge pages make the first touch cheap.
+  detail::size_output(image.pixels, static_cast<std::size_t>(o.width) * o.height * 3);
+  std::vector<std::uint8_t> coverage(static_cast<std::size_t>(o.width) * o.height, 0);
+  std::unique_ptr<DebugImages> debug;
+  if (!debug_prefix.empty()) debug = std::make_unique<DebugImages>(o.width, o.height);
+  TexelSamples samples;
+  Hits hits;
+  covered_texels = 0;
+  const int rows_per_band = band_rows(o.width, o.height, o.samples, o.band_samples);
+  for (int row = 0; row < o.height; row += rows_per_band) {
+    const int row_end = std::min(row + rows_per_band, o.height);
+    timer.start_quietly("raster");
+    RasterStats band_raster;
+    rasterize(surface, o.width, o.height, o.samples, samples, band_raster, row, row_end);
+    covered_texels += band_raster.covered_texels;
+    r.raster.covered_texels += band_raster.covered_texels;
+    r.raster.border_samples += band_raster.border_samples;
+    r.raster.overlapping_samples += band_raster.overlapping_samples;
+    r.raster.degenerate_uv_triangles = band_raster.degenerate_uv_triangles;  // the same in every band
+    std::copy(samples.coverage.begin(), samples.coverage.end(),
+              coverage.begin() + static_cast<std::ptrdiff_t>(row) * o.width);
+    timer.stop(false);
+
+    timer.start_quietly("trace");
+    // Without a listener trace() gets none: it then runs each band as one
+    // parallel loop instead of 100 batches with a barrier each.
+    std::function<void(double)> trace_progress;
+    if (progress) {
+      trace_progress = [&](double f) { progress("trace", (row + f * (row_end - row)) / o.height); };
+    }
+    trace(p.scene, surface, samples, p.rays, hits, r.trace, trace_progress);
+    timer.stop(false);
+
+    timer.start_quietly("encode");
+    encode(surface, samples, p.high, hits, p.encode, image, r.encode);
+    timer.stop(false);
+    if (debug) debug->add_band(samples, hits);
+  }
+  if (debug) NMBAKE_TRY(debug->write(debug_prefix));
+
+  timer.start("dilate");
+  DilateStats dilate_stats;
+  dilate(image, coverage, o.padding, dilate_stats);
+  r.dilate.filled_texels += dilate_stats.filled_texels;
+  r.dilate.fallback_texels += dilate_stats.fallback_texels;
+  timer.stop();
+
+  // Every output is written at once (each writer is single-threaded).
+  timer.start("write");
+  std::vector<Status> written(outputs.size());
+  tbb::parallel_for(std::size_t{0}, outputs.size(),
+                    [&](std::size_t i) { written[i] = write_image(image, outputs[i].path, outputs[i].format); });
+  for (const Status& s : written) NMBAKE_TRY(s);
+  timer.stop();
+  return Status::ok();
+}
+
+}  // namespace
+
 Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   const Clock::time_point bake_begin = Clock::now();
   NMBAKE_TRY(validate_options(o));
@@ -236,10 +321,17 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
     NMBAKE_TRY(check_cage_topology(low, cage, o.cage_path));
   }
   timer.stop();
+  // Parts into groups before anything is baked: a naming mistake is found in
+  // a second, not after the unwrap.
+  BakeGroups groups;
+  NMBAKE_TRY(match_parts(low, high, o.match, o.low_path, o.high_path, groups));
+  const bool udim = std::any_of(o.outputs.begin(), o.outputs.end(),
+                                [](const OutputSpec& out) { return has_udim_token(out.path); });
   if (!low.has_uvs()) {
     timer.start("unwrap");
     // No UV layout: make one; the map is useless without the mesh, so it is
-    // written beside the map (in the write stage, with the maps).
+    // written beside the map (in the write stage, with the maps). The unwrap
+    // keeps the triangle order, so the groups stay valid.
     UnwrapOptions unwrap_options;
     unwrap_options.pack.resolution = std::min(o.width, o.height);
     unwrap_options.pack.gutter = o.unwrap_gutter;
@@ -248,21 +340,33 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
     if (!s) return Status::bad_input(o.low_path + ": the low mesh has no UVs; " + s.message());
     low = std::move(unwrapped);
     r.unwrapped = true;
-    const std::filesystem::path first(o.outputs.front().path);
+    const std::filesystem::path first(udim_path(o.outputs.front().path, 1001));
     r.unwrapped_low_path = (first.parent_path() / (first.stem().string() + "_low_uv.obj")).string();
     timer.stop();
   }
+  std::vector<int> tiles;
+  NMBAKE_TRY(find_udim_tiles(low, o.low_path, udim, tiles));
   r.low_triangles = low.triangle_count();
   r.high_triangles = high.triangle_count();
   r.high_vertices = high.vertex_count();
 
-  // prepare: normals, tangents, cage
+  // prepare: normals, tangents, cage, groups
   timer.start("prepare");
   prepare_low_normals(low, r.low_mesh);
   if (smooth_high) prepare_high_normals(high, r.high_mesh);
+  SceneGroups scene_groups;
+  if (groups.grouped()) {
+    // Normals come from the whole high mesh first; then each group's
+    // triangles become one range of the index buffer (unused parts dropped).
+    high.indices = group_high_indices(high, groups, scene_groups.first_triangle);
+    high.parts.clear();
+    scene_groups.groups_per_scene = o.groups_per_scene;
+  }
+  r.high_triangles_used = high.triangle_count();
   pad_for_embree(high);
   SurfaceStats surface_stats;
-  const LowSurface surface = build_low_surface(low, use_cage_mesh ? &cage : nullptr, o.tangent_basis, surface_stats);
+  LowSurface surface = build_low_surface(low, use_cage_mesh ? &cage : nullptr, o.tangent_basis, surface_stats);
+  surface.group = groups.low_group;
   r.low_mesh.zero_area_triangles += surface_stats.mesh.zero_area_triangles;
   r.low_mesh.zero_length_normals += surface_stats.mesh.zero_length_normals;
   r.tangents = surface_stats.tangents;
@@ -271,11 +375,14 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
 
   timer.start("build");
   HighScene scene;
-  NMBAKE_TRY(HighScene::build(high, o.build_quality, o.ignore_backfaces, scene, o.bvh_memory));
+  NMBAKE_TRY(HighScene::build(high, o.build_quality, o.ignore_backfaces, scene, o.bvh_memory,
+                              groups.grouped() ? &scene_groups : nullptr));
   r.compact_bvh = scene.compact();
+  r.scenes = scene.scene_count();
   timer.stop();
 
-  // Ray distances: as given, or estimated by probing the two meshes.
+  // Ray distances: as given, or estimated by probing the two meshes (each
+  // group its own).
   RayOptions rays;
   rays.cage = use_cage_mesh ? CageMode::mesh : o.cage_mode;
   rays.hit = o.hit;
@@ -294,70 +401,44 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   rays.back = resolve(o.back, r.low_diagonal, estimate.back);
   r.front = rays.front;
   r.back = rays.back;
-
-  // raster -> trace -> encode, band of rows by band of rows: the per-sample
-  // arrays are reused and bounded, so a 16384^2 map bakes in the memory of a
-  // small one. Bands change nothing in the result: raster tiles and ray
-  // packets both start on band rows.
-  EncodeOptions encode_options;
-  encode_options.space = o.space;
-  encode_options.green = o.green;
-  encode_options.high_normals = o.high_normals;
-  encode_options.tangent_encode = o.tangent_encode;
-  Image image;
-  image.width = o.width;
-  image.height = o.height;
-  image.channels = 3;
-  // Every texel is written by encode; huge pages make the first touch cheap.
-  detail::size_output(image.pixels, static_cast<std::size_t>(o.width) * o.height * 3);
-  std::vector<std::uint8_t> coverage(static_cast<std::size_t>(o.width) * o.height, 0);
-  std::unique_ptr<DebugImages> debug;
-  if (!o.debug_dump_prefix.empty()) debug = std::make_unique<DebugImages>(o.width, o.height);
-  TexelSamples samples;
-  Hits hits;
-  const int rows_per_band = band_rows(o.width, o.height, o.samples, o.band_samples);
-  for (int row = 0; row < o.height; row += rows_per_band) {
-    const int row_end = std::min(row + rows_per_band, o.height);
-    timer.start_quietly("raster");
-    RasterStats band_raster;
-    rasterize(surface, o.width, o.height, o.samples, samples, band_raster, row, row_end);
-    r.raster.covered_texels += band_raster.covered_texels;
-    r.raster.border_samples += band_raster.border_samples;
-    r.raster.overlapping_samples += band_raster.overlapping_samples;
-    r.raster.degenerate_uv_triangles = band_raster.degenerate_uv_triangles;  // the same in every band
-    std::copy(samples.coverage.begin(), samples.coverage.end(),
-              coverage.begin() + static_cast<std::ptrdiff_t>(row) * o.width);
-    timer.stop(false);
-
-    timer.start_quietly("trace");
-    // Without a listener trace() gets none: it then runs each band as one
-    // parallel loop instead of 100 batches with a barrier each.
-    std::function<void(double)> trace_progress;
-    if (progress) {
-      trace_progress = [&](double f) { progress("trace", (row + f * (row_end - row)) / o.height); };
-    }
-    trace(scene, surface, samples, rays, hits, r.trace, trace_progress);
-    timer.stop(false);
-
-    timer.start_quietly("encode");
-    encode(surface, samples, high, hits, encode_options, image, r.encode);
-    timer.stop(false);
-    if (debug) debug->add_band(samples, hits);
+  for (std::size_t g = 0; g < groups.groups.size(); ++g) {
+    const GroupDistances e = need_estimate ? estimate.groups[g] : GroupDistances{};
+    rays.groups.push_back({resolve(o.front, r.low_diagonal, e.front), resolve(o.back, r.low_diagonal, e.back)});
+    r.groups.push_back({groups.groups[g], rays.groups.back().front, rays.groups.back().back});
   }
-  if (debug) NMBAKE_TRY(debug->write(o.debug_dump_prefix));
+  r.unused_high_parts = groups.unused_high_parts;
 
-  timer.start("dilate");
-  dilate(image, coverage, o.padding, r.dilate);
-  timer.stop();
-
-  // Every output is written at once (each writer is single-threaded).
-  timer.start("write");
-  std::vector<Status> written(o.outputs.size());
-  tbb::parallel_for(std::size_t{0}, o.outputs.size(),
-                    [&](std::size_t i) { written[i] = write_image(image, o.outputs[i].path, o.outputs[i].format); });
-  for (const Status& s : written) NMBAKE_TRY(s);
-  if (r.unwrapped) NMBAKE_TRY(save_mesh(r.unwrapped_low_path, low));
-  timer.stop();
+  Prepared prepared{o, high, scene, rays, EncodeOptions{}};
+  prepared.encode.space = o.space;
+  prepared.encode.green = o.green;
+  prepared.encode.high_normals = o.high_normals;
+  prepared.encode.tangent_encode = o.tangent_encode;
+  const std::vector<glm::vec2> file_uvs = udim ? surface.uv : std::vector<glm::vec2>{};
+  r.outputs.clear();
+  for (const int tile : tiles) {
+    BakeReport::Tile done;
+    done.tile = tile;
+    std::vector<OutputSpec> outputs = o.outputs;
+    for (OutputSpec& out : outputs) {
+      out.path = udim_path(out.path, tile);
+      done.outputs.push_back(out.path);
+      r.outputs.push_back(out.path);
+    }
+    std::string debug_prefix = o.debug_dump_prefix;
+    if (udim) {
+      // The tile's UVs into [0, 1]^2 (exact: whole-number shifts).
+      const glm::vec2 offset = udim_offset(tile);
+      for (std::size_t i = 0; i < file_uvs.size(); ++i) surface.uv[i] = file_uvs[i] - offset;
+      if (!debug_prefix.empty()) debug_prefix += "." + std::to_string(tile);
+    }
+    NMBAKE_TRY(bake_tile(prepared, surface, outputs, debug_prefix, r, timer, progress, done.covered_texels));
+    r.tiles.push_back(std::move(done));
+  }
+  if (r.unwrapped) {
+    timer.start("write");
+    NMBAKE_TRY(save_mesh(r.unwrapped_low_path, low));
+    timer.stop();
+  }
 
   r.total_seconds = std::chrono::duration<double>(Clock::now() - bake_begin).count();
   r.peak_rss_bytes = peak_rss_bytes();

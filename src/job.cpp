@@ -146,6 +146,46 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
     else if (key == "high") o.high_path = p;
     else if (key == "report") job.report_path = p;
     else o.debug_dump_prefix = p;
+  } else if (key == "match") {
+    if (!get_string(text) || !parse_match_mode(text, o.match.mode)) return bad("expected \"auto\", \"name\" or \"off\"");
+  } else if (key == "unmatched") {
+    if (!get_string(text) || !parse_unmatched(text, o.match.unmatched)) return bad("expected \"error\" or \"all\"");
+  } else if (key == "low_suffix" || key == "high_suffix") {
+    if (!get_string(text) || text.empty()) return bad("expected a non-empty string");
+    (key == "low_suffix" ? o.match.low_suffix : o.match.high_suffix) = text;
+  } else if (in_bake && key == "group") {
+    // [[bake.group]] name = "..", low = ["body_low"], high = ["body_high", "bolts_high"]
+    const toml::array* list = value.as_array();
+    if (!list) return bad("expected [[bake.group]] tables");
+    for (const toml::node& item : *list) {
+      const toml::table* t = item.as_table();
+      if (!t) return Status::bad_input(where(file, item) + ": group: expected a table with low = [..] and high = [..]");
+      GroupSpec group;
+      for (const auto& [group_key, group_value] : *t) {
+        const std::string k(group_key.str());
+        if (k == "name") {
+          const auto name = group_value.value<std::string>();
+          if (!name) return Status::bad_input(where(file, group_value) + ": group: name: expected a string");
+          group.name = *name;
+        } else if (k == "low" || k == "high") {
+          const toml::array* names = group_value.as_array();
+          if (!names || names->empty()) {
+            return Status::bad_input(where(file, group_value) + ": group: " + k + ": expected a non-empty list of part names");
+          }
+          for (const toml::node& n : *names) {
+            const auto name = n.value<std::string>();
+            if (!name) return Status::bad_input(where(file, n) + ": group: " + k + ": expected part names (strings)");
+            (k == "low" ? group.low : group.high).push_back(*name);
+          }
+        } else {
+          return Status::bad_input(where(file, group_value) + ": group: unknown key \"" + k + "\" (name, low, high)");
+        }
+      }
+      if (group.low.empty() || group.high.empty()) {
+        return Status::bad_input(where(file, item) + ": group needs low = [..] and high = [..]");
+      }
+      o.match.groups.push_back(std::move(group));
+    }
   } else if (in_bake && key == "outputs") {
     const toml::array* list = value.as_array();
     if (!list) return bad("expected a list of paths or { path = .., format = .. } tables");

@@ -63,6 +63,28 @@ std::string BakeReport::to_json() const {
       {"dilate_filled_texels", dilate.filled_texels},
       {"load_skipped_faces", low_load.degenerate_faces + high_load.degenerate_faces},
   };
+  j["high_triangles_used"] = high_triangles_used;
+  j["embree_scenes"] = scenes;
+  ordered_json group_json = ordered_json::array();
+  for (const Group& g : groups) {
+    group_json.push_back({{"name", g.parts.name},
+                          {"low_parts", g.parts.low_parts},
+                          {"high_parts", g.parts.high_parts},
+                          {"low_triangles", g.parts.low_triangles},
+                          {"high_triangles", g.parts.high_triangles},
+                          {"front", g.front},
+                          {"back", g.back}});
+  }
+  j["groups"] = group_json;
+  j["unused_high_parts"] = unused_high_parts;
+  ordered_json tile_json = ordered_json::array();
+  for (const Tile& t : tiles) {
+    tile_json.push_back({{"tile", t.tile}, {"outputs", t.outputs}, {"covered_texels", t.covered_texels}});
+  }
+  j["udim_tiles"] = tile_json;
+  // Units as the files state them (FBX UnitScaleFactor, glTF metres); 0:
+  // the format does not say. Positions are baked in file units.
+  j["units"] = {{"low_unit_meters", low_load.unit_meters}, {"high_unit_meters", high_load.unit_meters}};
   if (unwrapped) {
     j["unwrap"] = ordered_json::parse(unwrap.to_json());
     j["unwrap"]["mesh"] = unwrapped_low_path;
@@ -97,6 +119,24 @@ std::string BakeReport::summary_line() const {
                 distances_estimated ? " (auto)" : "", total_seconds,
                 static_cast<double>(peak_rss_bytes) / (1024.0 * 1024.0));
   std::string text = line;
+  if (!groups.empty()) {
+    std::snprintf(line, sizeof line, "; %zu bake groups", groups.size());
+    text += line;
+    if (!unused_high_parts.empty()) {
+      std::snprintf(line, sizeof line, " (%zu high parts in none, ignored)", unused_high_parts.size());
+      text += line;
+    }
+  }
+  if (tiles.size() > 1 || (!tiles.empty() && tiles.front().tile != 1001)) {
+    std::snprintf(line, sizeof line, "; %zu UDIM tiles (%d to %d)", tiles.size(), tiles.front().tile,
+                  tiles.back().tile);
+    text += line;
+  }
+  if (low_load.unit_meters > 0.0 && high_load.unit_meters > 0.0 && low_load.unit_meters != high_load.unit_meters) {
+    std::snprintf(line, sizeof line, "; WARNING: low unit %g m, high unit %g m (positions are not rescaled)",
+                  low_load.unit_meters, high_load.unit_meters);
+    text += line;
+  }
   if (unwrapped) {
     std::snprintf(line, sizeof line, "; no UVs: unwrapped into %llu charts (%.1f%% of the map), mesh %s",
                   static_cast<unsigned long long>(unwrap.chart_count), 100.0 * unwrap.utilization,

@@ -52,13 +52,21 @@ glm::vec3 face_normal(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c
   return glm::cross(b - a, c - a);
 }
 
+// What a geometry's filter needs: the mesh and the first triangle of the
+// geometry's index range (a bake group's).
+struct GeometryRef {
+  const Mesh* mesh = nullptr;
+  std::uint32_t first_triangle = 0;
+};
+
 // Ignores hits on triangles whose front (counter-clockwise) side faces away
 // from the ray: dot(face normal, direction) > 0.
 void backface_filter(const RTCFilterFunctionNArguments* args) {
-  const Mesh* mesh = static_cast<const Mesh*>(args->geometryUserPtr);
+  const auto* ref = static_cast<const GeometryRef*>(args->geometryUserPtr);
+  const Mesh* mesh = ref->mesh;
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] != -1) continue;
-    const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
+    const unsigned prim = RTCHitN_primID(args->hit, args->N, i) + ref->first_triangle;
     const glm::vec3 dir(RTCRayN_dir_x(args->ray, args->N, i), RTCRayN_dir_y(args->ray, args->N, i),
                         RTCRayN_dir_z(args->ray, args->N, i));
     const std::uint32_t* tri = &mesh->indices[3 * static_cast<std::size_t>(prim)];
@@ -76,11 +84,16 @@ void backface_filter(const RTCFilterFunctionNArguments* args) {
 
 struct HighScene::Impl {
   RTCDevice device = nullptr;
-  RTCScene scene = nullptr;
+  RTCScene scene = nullptr;  // scenes[0]
+  std::vector<RTCScene> scenes;
+  std::vector<std::uint32_t> first_triangle{0};  // per group, + the end
+  std::vector<GeometryRef> refs;                 // per group; addresses handed to Embree
+  int groups_per_scene = 1;
   const Mesh* mesh = nullptr;
   bool compact = false;
+  int group_count() const { return static_cast<int>(first_triangle.size()) - 1; }
   ~Impl() {
-    if (scene) rtcReleaseScene(scene);
+    for (RTCScene s : scenes) rtcReleaseScene(s);
     if (device) rtcReleaseDevice(device);
   }
 };
@@ -91,45 +104,74 @@ HighScene::HighScene(HighScene&&) noexcept = default;
 HighScene& HighScene::operator=(HighScene&&) noexcept = default;
 
 bool HighScene::compact() const { return impl_ != nullptr && impl_->compact; }
+int HighScene::group_count() const { return impl_ != nullptr ? impl_->group_count() : 0; }
+int HighScene::scene_count() const { return impl_ != nullptr ? static_cast<int>(impl_->scenes.size()) : 0; }
+
+// Measured (BENCHMARKS.md, "Bake groups"): groups sharing a BVH through ray
+// masks against one scene per group.
+constexpr int kGroupsPerSceneDefault = 32;
 
 Status HighScene::build(const Mesh& mesh, BuildQuality quality, bool backface_filter_on, HighScene& out,
-                        BvhMemory memory) {
+                        BvhMemory memory, const SceneGroups* groups) {
   NMBAKE_CHECK(mesh.positions.capacity() > mesh.positions.size(), "pad_for_embree() before building");
   auto impl = std::make_unique<Impl>();
   impl->mesh = &mesh;
+  if (groups != nullptr && groups->first_triangle.size() > 2) {
+    NMBAKE_CHECK(groups->first_triangle.front() == 0 && groups->first_triangle.back() == mesh.triangle_count(),
+                 "groups cover the mesh");
+    impl->first_triangle = groups->first_triangle;
+    impl->groups_per_scene = groups->groups_per_scene > 0 ? std::min(groups->groups_per_scene, 32)
+                                                          : kGroupsPerSceneDefault;
+  } else {
+    impl->first_triangle = {0, static_cast<std::uint32_t>(mesh.triangle_count())};
+    impl->groups_per_scene = 1;
+  }
   impl->device = rtcNewDevice(nullptr);
   if (!impl->device) return Status::internal("cannot create an Embree device: " + take_embree_error());
   rtcSetDeviceErrorFunction(impl->device, on_embree_error, nullptr);
 
-  impl->scene = rtcNewScene(impl->device);
-  rtcSetSceneBuildQuality(impl->scene, quality == BuildQuality::low    ? RTC_BUILD_QUALITY_LOW
-                                       : quality == BuildQuality::high ? RTC_BUILD_QUALITY_HIGH
-                                                                       : RTC_BUILD_QUALITY_MEDIUM);
+  const RTCBuildQuality rtc_quality = quality == BuildQuality::low    ? RTC_BUILD_QUALITY_LOW
+                                      : quality == BuildQuality::high ? RTC_BUILD_QUALITY_HIGH
+                                                                      : RTC_BUILD_QUALITY_MEDIUM;
   // Robust mode: the watertight intersection test. Bake rays often pass
   // exactly through shared edges of the high mesh (where its grid lines
   // up with the low one), and the fast test lets such rays slip through.
   impl->compact = memory == BvhMemory::compact ||
                   (memory == BvhMemory::automatic && mesh.triangle_count() > kCompactBvhAbove);
-  rtcSetSceneFlags(impl->scene, impl->compact ? RTCSceneFlags(RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_COMPACT)
-                                              : RTC_SCENE_FLAG_ROBUST);
-
-  RTCGeometry geometry = rtcNewGeometry(impl->device, RTC_GEOMETRY_TYPE_TRIANGLE);
-  // Shared buffers: the high mesh is never copied.
-  rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, mesh.positions.data(), 0,
-                             sizeof(glm::vec3), mesh.positions.size());
-  rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, mesh.indices.data(), 0,
-                             3 * sizeof(std::uint32_t), mesh.triangle_count());
-  rtcSetGeometryBuildQuality(geometry, quality == BuildQuality::low    ? RTC_BUILD_QUALITY_LOW
-                                       : quality == BuildQuality::high ? RTC_BUILD_QUALITY_HIGH
-                                                                       : RTC_BUILD_QUALITY_MEDIUM);
-  if (backface_filter_on) {
-    rtcSetGeometryUserData(geometry, const_cast<Mesh*>(&mesh));
-    rtcSetGeometryIntersectFilterFunction(geometry, backface_filter);
+  const int group_count = impl->group_count();
+  const int per_scene = impl->groups_per_scene;
+  impl->refs.resize(static_cast<std::size_t>(group_count));
+  for (int first_group = 0; first_group < group_count; first_group += per_scene) {
+    RTCScene scene = rtcNewScene(impl->device);
+    impl->scenes.push_back(scene);
+    rtcSetSceneBuildQuality(scene, rtc_quality);
+    rtcSetSceneFlags(scene, impl->compact ? RTCSceneFlags(RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_COMPACT)
+                                          : RTC_SCENE_FLAG_ROBUST);
+    for (int g = first_group; g < std::min(group_count, first_group + per_scene); ++g) {
+      const std::uint32_t first = impl->first_triangle[g];
+      const std::uint32_t count = impl->first_triangle[g + 1] - first;
+      RTCGeometry geometry = rtcNewGeometry(impl->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+      // Shared buffers: the high mesh is never copied; a group is a range of
+      // its index buffer.
+      rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, mesh.positions.data(), 0,
+                                 sizeof(glm::vec3), mesh.positions.size());
+      rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, mesh.indices.data(),
+                                 3 * sizeof(std::uint32_t) * first, 3 * sizeof(std::uint32_t), count);
+      rtcSetGeometryBuildQuality(geometry, rtc_quality);
+      // Geometry IDs are the group's place in its scene; its mask bit too.
+      if (per_scene > 1) rtcSetGeometryMask(geometry, 1u << (g - first_group));
+      impl->refs[g] = GeometryRef{&mesh, first};
+      if (backface_filter_on) {
+        rtcSetGeometryUserData(geometry, &impl->refs[g]);
+        rtcSetGeometryIntersectFilterFunction(geometry, backface_filter);
+      }
+      rtcCommitGeometry(geometry);
+      rtcAttachGeometryByID(scene, geometry, static_cast<unsigned>(g - first_group));
+      rtcReleaseGeometry(geometry);
+    }
+    rtcCommitScene(scene);
   }
-  rtcCommitGeometry(geometry);
-  rtcAttachGeometry(impl->scene, geometry);
-  rtcReleaseGeometry(geometry);
-  rtcCommitScene(impl->scene);
+  impl->scene = impl->scenes.front();
   if (rtcGetDeviceError(impl->device) != RTC_ERROR_NONE) {
     return Status::internal("building the ray-tracing scene failed: " + take_embree_error());
   }
@@ -502,7 +544,24 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
   const int tiles_y = (samples.height + kTile - 1) / kTile;
   const int tile_count = tiles_x * tiles_y;
   const int spp = samples.samples;
-  RTCScene rtc_scene = scene.impl()->scene;
+  const HighScene::Impl& impl = *scene.impl();
+  RTCScene rtc_scene = impl.scene;
+  // Bake groups: each sample's ray gets its group's distances and mask bit,
+  // and a packet holds the rays of one scene only.
+  const int group_count = impl.group_count();
+  const bool grouped = group_count > 1;
+  const int per_scene = impl.groups_per_scene;
+  std::vector<RayOptions> group_options;
+  if (grouped) {
+    NMBAKE_CHECK(surface.group.size() == surface.triangle_count(), "a group per low triangle");
+    NMBAKE_CHECK(options.groups.size() == static_cast<std::size_t>(group_count), "distances per group");
+    group_options.assign(static_cast<std::size_t>(group_count), options);
+    for (int g = 0; g < group_count; ++g) {
+      group_options[g].groups.clear();
+      group_options[g].front = options.groups[g].front;
+      group_options[g].back = options.groups[g].back;
+    }
+  }
 
   struct TileCounts {
     std::uint64_t rays = 0, samples = 0, hits = 0, misses = 0, fallbacks = 0;
@@ -517,8 +576,9 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
     rtcInitIntersectContext(&context);
     context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
     Packet packet;
-    const bool queued = batched_rays(options);
+    const bool queued = !grouped && batched_rays(options);
     start_packet(packet, queued);
+    int packet_scene = 0;
 
     // The common case (first hit, rays queued and built together): each
     // sample's result is written once, -1 for no sample or a miss, and the
@@ -545,17 +605,20 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
     // rays of up to 8 samples, so the best is settled inside one flush.
     auto flush = [&]() {
       if (packet.count == 0) return;
-      rtcIntersect16(packet.valid, rtc_scene, &context, &packet.rayhit);
+      rtcIntersect16(packet.valid, impl.scenes[packet_scene], &context, &packet.rayhit);
       counts.rays += static_cast<std::uint64_t>(packet.count);
       for (int i = 0; i < packet.count; ++i) {
         const std::size_t s = packet.sample[i];
-        if (packet.rayhit.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) continue;
+        const unsigned geometry = packet.rayhit.hit.geomID[i];
+        if (geometry == RTC_INVALID_GEOMETRY_ID) continue;
+        // The hit's triangle in the mesh: its group's range + Embree's primID.
+        const std::uint32_t first = impl.first_triangle[packet_scene * per_scene + static_cast<int>(geometry)];
         const float t = packet.rayhit.ray.tfar[i];
         const float distance = packet.sign[i] * (packet.t_surface[i] - t);
         const bool better = hits.triangle[s] < 0 || std::fabs(distance) < std::fabs(hits.distance[s]) ||
                             (std::fabs(distance) == std::fabs(hits.distance[s]) && distance > hits.distance[s]);
         if (options.hit == HitRule::first || better) {
-          hits.triangle[s] = static_cast<std::int32_t>(packet.rayhit.hit.primID[i]);
+          hits.triangle[s] = static_cast<std::int32_t>(first + packet.rayhit.hit.primID[i]);
           hits.bary[s] = glm::vec2(packet.rayhit.hit.u[i], packet.rayhit.hit.v[i]);
           hits.distance[s] = distance;
         }
@@ -568,17 +631,30 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
       hits.triangle[s] = -1;
       if (tri < 0) return;
       ++counts.samples;
+      const RayOptions* ray_options = &options;
+      unsigned mask = 0xffffffffu;
+      if (grouped) {
+        const std::uint32_t g = surface.group[static_cast<std::size_t>(tri)];
+        ray_options = &group_options[g];
+        const int scene_index = static_cast<int>(g) / per_scene;
+        if (per_scene > 1) mask = 1u << (static_cast<int>(g) % per_scene);
+        if (scene_index != packet_scene) flush();
+        packet_scene = scene_index;
+      }
       bool fallback = false;
-      const Ray ray = build_ray(surface, tri, samples.bary[s], options, fallback);
+      const Ray ray = build_ray(surface, tri, samples.bary[s], *ray_options, fallback);
       counts.fallbacks += fallback ? 1 : 0;
       if (options.hit == HitRule::first) {
         if (packet.count == kPacket) flush();
         add_ray(packet, s, ray.origin, ray.direction, ray.tfar, ray.t_surface, 1.0f);
+        packet.rayhit.ray.mask[packet.count - 1] = mask;
       } else {
         if (packet.count > kPacket - 2) flush();
         // Outwards from P up to the cage, and inwards up to `back`.
         add_ray(packet, s, ray.surface_point, -ray.direction, ray.t_surface, 0.0f, -1.0f);
         add_ray(packet, s, ray.surface_point, ray.direction, ray.tfar - ray.t_surface, 0.0f, 1.0f);
+        packet.rayhit.ray.mask[packet.count - 2] = mask;
+        packet.rayhit.ray.mask[packet.count - 1] = mask;
       }
     });
     flush();
@@ -643,11 +719,19 @@ DistanceEstimate estimate_distances(const HighScene& scene, const LowSurface& su
   const float reach = 0.25f * diagonal;
   RayOptions options;
   options.cage = CageMode::averaged;
-  RTCScene rtc_scene = scene.impl()->scene;
+  const HighScene::Impl& impl = *scene.impl();
+  const int group_count = impl.group_count();
+  const bool grouped = group_count > 1;
+  const int per_scene = impl.groups_per_scene;
+  if (grouped) NMBAKE_CHECK(surface.group.size() == triangle_count, "a group per low triangle");
 
   tbb::parallel_for(std::size_t{0}, triangle_count, [&](std::size_t t) {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
+    // A probe sees only its own group's high triangles.
+    const int g = grouped ? static_cast<int>(surface.group[t]) : 0;
+    RTCScene rtc_scene = impl.scenes[g / per_scene];
+    const unsigned mask = per_scene > 1 ? 1u << (g % per_scene) : 0xffffffffu;
     for (std::uint32_t p = first_probe[t]; p < first_probe[t + 1]; ++p) {
       const std::uint32_t k = p - first_probe[t];
       // R2 sequence folded into the triangle.
@@ -673,7 +757,7 @@ DistanceEstimate estimate_distances(const HighScene& scene, const LowSurface& su
         rh.ray.dir_z = dir.z;
         rh.ray.time = 0.0f;
         rh.ray.tfar = reach;
-        rh.ray.mask = 0xffffffffu;
+        rh.ray.mask = mask;
         rh.ray.id = 0;
         rh.ray.flags = 0;
         rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
@@ -688,20 +772,6 @@ DistanceEstimate estimate_distances(const HighScene& scene, const LowSurface& su
     }
   });
 
-  std::vector<float> outside, inside;
-  DistanceEstimate e;
-  e.probes = probe_count;
-  for (std::size_t p = 0; p < probe_count; ++p) {
-    if (!found[p]) {
-      ++e.probe_misses;
-      continue;
-    }
-    if (signed_distance[p] >= 0.0f) {
-      outside.push_back(signed_distance[p]);
-    } else {
-      inside.push_back(-signed_distance[p]);
-    }
-  }
   // A high quantile rather than the maximum: one stray probe that found a
   // far surface must not stretch every ray of the bake.
   auto quantile = [](std::vector<float>& v, double q) {
@@ -711,8 +781,38 @@ DistanceEstimate estimate_distances(const HighScene& scene, const LowSurface& su
     return v[k];
   };
   const float floor_distance = 0.002f * diagonal;
-  e.front = std::max(floor_distance, 1.25f * quantile(outside, 0.995) + floor_distance);
-  e.back = std::max(floor_distance, 1.25f * quantile(inside, 0.995) + floor_distance);
+  // The estimate from the probes of the triangles with keep(t).
+  const auto estimate = [&](auto&& keep, GroupDistances& d, std::uint64_t* misses) {
+    std::vector<float> outside, inside;
+    for (std::size_t t = 0; t < triangle_count; ++t) {
+      if (!keep(t)) continue;
+      for (std::uint32_t p = first_probe[t]; p < first_probe[t + 1]; ++p) {
+        if (!found[p]) {
+          if (misses) ++*misses;
+          continue;
+        }
+        if (signed_distance[p] >= 0.0f) {
+          outside.push_back(signed_distance[p]);
+        } else {
+          inside.push_back(-signed_distance[p]);
+        }
+      }
+    }
+    d.front = std::max(floor_distance, 1.25f * quantile(outside, 0.995) + floor_distance);
+    d.back = std::max(floor_distance, 1.25f * quantile(inside, 0.995) + floor_distance);
+  };
+  DistanceEstimate e;
+  e.probes = probe_count;
+  GroupDistances all;
+  estimate([](std::size_t) { return true; }, all, &e.probe_misses);
+  e.front = all.front;
+  e.back = all.back;
+  if (grouped) {
+    e.groups.resize(static_cast<std::size_t>(group_count));
+    for (int g = 0; g < group_count; ++g) {
+      estimate([&](std::size_t t) { return static_cast<int>(surface.group[t]) == g; }, e.groups[g], nullptr);
+    }
+  }
   return e;
 }
 

@@ -16,6 +16,7 @@
 #include "nmbake/encode.hpp"
 #include "nmbake/image.hpp"
 #include "nmbake/load.hpp"
+#include "nmbake/parts.hpp"
 #include "nmbake/raster.hpp"
 #include "nmbake/surface.hpp"
 #include "nmbake/trace.hpp"
@@ -35,7 +36,7 @@ bool parse_distance(const std::string& text, Distance& out);
 std::string to_string(const Distance& distance);
 
 struct OutputSpec {
-  std::string path;
+  std::string path;  // may hold <UDIM> (udim.hpp): one map per UV tile
   PixelFormat format = PixelFormat::png16;
 };
 
@@ -68,6 +69,9 @@ struct BakeOptions {
   // Samples per band of rows (raster, trace and encode run band by band);
   // 0 = about 1M. Changes memory use only, never the result (tested).
   std::size_t band_samples = 0;
+  // Parts into bake groups (parts.hpp): names matched by suffix, or groups.
+  MatchOptions match;
+  int groups_per_scene = 0;  // SceneGroups::groups_per_scene: 0 automatic (for benchmarks)
 };
 
 // Checks options that need no file: sizes, sample count, outputs and formats.
@@ -98,6 +102,22 @@ struct BakeReport {
   bool unwrapped = false;           // the low mesh had no UVs and was unwrapped
   std::string unwrapped_low_path;   // where the unwrapped low mesh was written
   UnwrapReport unwrap;
+  // Bake groups (empty: every low triangle against every high triangle).
+  struct Group {
+    BakeGroup parts;
+    float front = 0.0f, back = 0.0f;  // resolved for this group
+  };
+  std::vector<Group> groups;
+  std::vector<std::string> unused_high_parts;
+  std::uint64_t high_triangles_used = 0;  // in some group (high_triangles without groups)
+  int scenes = 0;                         // Embree scenes built
+  // UDIM tiles baked, and the maps each wrote (1001 alone without <UDIM>).
+  struct Tile {
+    int tile = 1001;
+    std::vector<std::string> outputs;
+    std::uint64_t covered_texels = 0;
+  };
+  std::vector<Tile> tiles;
   std::vector<StageTime> stages;
   double total_seconds = 0.0;
   std::uint64_t peak_rss_bytes = 0;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include <glm/vec2.hpp>
@@ -22,6 +23,7 @@ struct LowSurface {
   std::vector<glm::vec4> tangent;      // MikkTSpace: xyz, sign in w
   std::vector<glm::vec3> cage_normal;  // unit averaged normal: where the default cage is pushed
   std::vector<glm::vec3> cage_position;  // explicit cage mesh corners; empty without --cage
+  std::vector<std::uint32_t> group;       // bake group per triangle (parts.hpp); empty: one group
 
   std::size_t triangle_count() const { return position.size() / 3; }
   bool has_cage_mesh() const { return !cage_position.empty(); }

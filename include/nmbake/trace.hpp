@@ -13,6 +13,13 @@
 // hit nearest to the low surface point P (two rays from P, outwards up to the
 // cage and inwards up to back, the nearer hit wins).
 //
+// Bake groups (parts.hpp): a scene built with SceneGroups holds group g's
+// high triangles as [first[g], first[g + 1]) of its mesh, and a ray of a low
+// triangle of group LowSurface::group[t] can hit only those: up to
+// groups_per_scene groups share one BVH, each group a geometry with its own
+// Embree ray-mask bit, and further groups get further scenes (a packet never
+// mixes scenes). Each group has its own ray distances (RayOptions::groups).
+//
 // Embree's types stay in trace.cpp; HighScene is a move-only handle.
 #pragma once
 
@@ -41,12 +48,28 @@ enum class BuildQuality : std::uint8_t { low, medium, high };
 enum class BvhMemory : std::uint8_t { automatic, fast, compact };
 constexpr std::size_t kCompactBvhAbove = 16'000'000;
 
+struct GroupDistances {
+  float front = 0.0f;
+  float back = 0.0f;
+};
+
 struct RayOptions {
   CageMode cage = CageMode::averaged;
   HitRule hit = HitRule::first;
   float front = 0.0f;  // scene units, already resolved from % / auto
   float back = 0.0f;
   bool ignore_backfaces = false;  // skip hits on high triangles facing along the ray
+  // With a grouped scene: the distances of each group (front and back above
+  // are then unused); empty otherwise.
+  std::vector<GroupDistances> groups;
+};
+
+// How a scene holds bake groups (see above).
+struct SceneGroups {
+  std::vector<std::uint32_t> first_triangle;  // group count + 1 entries, ascending, last = triangle count
+  // Groups told apart by ray masks in one BVH: 1 (a scene per group) to 32;
+  // 0: automatic (the measured choice, BENCHMARKS.md).
+  int groups_per_scene = 0;
 };
 
 struct Ray {
@@ -76,9 +99,12 @@ class HighScene {
 
   // Builds the BVH. `mesh` positions must be padded (pad_for_embree).
   static Status build(const Mesh& mesh, BuildQuality quality, bool backface_filter, HighScene& out,
-                      BvhMemory memory = BvhMemory::automatic);
+                      BvhMemory memory = BvhMemory::automatic, const SceneGroups* groups = nullptr);
   // Whether the built BVH is the compact layout (automatic resolved).
   bool compact() const;
+  // Bake groups held (1 without SceneGroups) and Embree scenes built for them.
+  int group_count() const;
+  int scene_count() const;
 
   struct Impl;
   Impl* impl() const { return impl_.get(); }
@@ -105,6 +131,8 @@ struct TraceStats {
 // Traces every sample with triangle >= 0. Parallel over tiles of texels;
 // the result does not depend on the thread count. `progress` (may be empty)
 // is called from the calling thread with the fraction done.
+// A grouped scene needs surface.group (one per low triangle, < group count)
+// and options.groups (one per group).
 void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples& samples,
            const RayOptions& options, Hits& hits, TraceStats& stats,
            const std::function<void(double)>& progress = {});
@@ -139,6 +167,10 @@ std::vector<PacketRay> packet_rays(const LowSurface& surface, const TexelSamples
 struct DistanceEstimate {
   float front = 0.0f;
   float back = 0.0f;
+  // With a grouped scene: per group, from that group's probes alone (a group
+  // without a found probe gets the floor distance); front/back above are the
+  // estimate over all probes.
+  std::vector<GroupDistances> groups;
   std::uint64_t probes = 0;
   std::uint64_t probe_misses = 0;  // probe points with no high surface within reach
 };

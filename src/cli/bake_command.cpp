@@ -29,6 +29,7 @@ struct BakeFlags {
   std::string report;
   std::string debug_dump;
   double max_miss_rate = -1.0;  // < 0: no gate
+  std::string match = "auto", unmatched = "error", low_suffix = "_low", high_suffix = "_high";
 };
 
 int fail(const Status& status) {
@@ -75,6 +76,11 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
   if (!parse_tangent_basis(f.tangent_basis, o.tangent_basis)) return Status::bad_input("--tangent-basis " + f.tangent_basis + ": expected mikktspace, lengyel or face");
   if (!parse_distance(f.front, o.front)) return Status::bad_input("--front " + f.front + ": expected a distance, N% or auto");
   if (!parse_distance(f.back, o.back)) return Status::bad_input("--back " + f.back + ": expected a distance, N% or auto");
+  if (!parse_match_mode(f.match, o.match.mode)) return Status::bad_input("--match " + f.match + ": expected auto, name or off");
+  if (!parse_unmatched(f.unmatched, o.match.unmatched)) return Status::bad_input("--unmatched " + f.unmatched + ": expected error or all");
+  if (f.low_suffix.empty() || f.high_suffix.empty()) return Status::bad_input("--low-suffix and --high-suffix must not be empty");
+  o.match.low_suffix = f.low_suffix;
+  o.match.high_suffix = f.high_suffix;
   o.ignore_backfaces = f.ignore_backfaces;
   o.padding = f.padding;
   o.debug_dump_prefix = f.debug_dump;
@@ -223,6 +229,10 @@ Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
       ->default_val("auto");
   cmd->add_option("--encode", flags->encode, "tangent-space encode: inverse (exact) | transpose (for comparison)")->default_val("inverse");
   cmd->add_option("--tangent-basis", flags->tangent_basis, "basis the map is encoded in: mikktspace | lengyel | face (comparison only)")->default_val("mikktspace");
+  cmd->add_option("--match", flags->match, "parts into bake groups: auto (by name when a low part ends in the low suffix) | name | off")->default_val("auto");
+  cmd->add_option("--low-suffix", flags->low_suffix, "name suffix of low parts (X_low bakes from X_high, X_high_1, X_high.001)")->default_val("_low");
+  cmd->add_option("--high-suffix", flags->high_suffix, "name suffix of high parts")->default_val("_high");
+  cmd->add_option("--unmatched", flags->unmatched, "low parts with no high match: error | all (bake them against every unused high part)")->default_val("error");
   cmd->add_option("--debug-dump", flags->debug_dump, "also write PREFIX_coverage.png, PREFIX_misses.png, PREFIX_distance.exr");
   return [flags, &global, cmd]() { return run_bake(*flags, global, *cmd); };
 }

@@ -60,6 +60,20 @@ struct RawCorner {
   std::int64_t vn = 0;
 };
 
+// An `o` or `g` statement: where a named part begins (mesh.hpp MeshPart).
+struct NameStatement {
+  bool object = false;  // `o`; else `g`
+  std::string name;     // the rest of the line, blanks trimmed
+  std::uint64_t faces_before = 0;  // slice records: faces of the slice before it
+};
+
+// The name of an `o`/`g` statement: all its arguments ("g a b" names "a b").
+std::string statement_name(const char* p, const char* end) {
+  p = skip_blanks(p, end);
+  while (end > p && is_blank(end[-1])) --end;
+  return std::string(p, end);
+}
+
 struct RawFace {
   std::uint32_t first_corner = 0;
   std::uint32_t corner_count = 0;
@@ -83,6 +97,7 @@ struct ObjSlice {
   std::uint64_t normal_count = 0;    // vn statements, kept or not
   std::vector<RawFace> faces;
   std::vector<RawCorner> corners;
+  std::vector<NameStatement> names;
   std::uint64_t line_count = 0;
   const char* stop = nullptr;  // first line the slice parser did not take, or nullptr
   std::uint64_t stop_line = 0;
@@ -95,6 +110,7 @@ struct ObjSlice {
     normal_count = 0;
     faces.clear();
     corners.clear();
+    names.clear();
     line_count = 0;
     stop = nullptr;
     stop_line = 0;
@@ -181,6 +197,7 @@ class ObjParser {
                                " faces with fewer than 3 corners skipped)");
     }
     finish();
+    finish_parts();
     return Status::ok();
   }
 
@@ -196,11 +213,53 @@ class ObjParser {
     if (keyword == "vt") return parse_texcoord(keyword_end, end);
     if (keyword == "vn") return parse_normal(keyword_end, end);
     if (keyword == "f") return parse_face(keyword_end, end);
-    // Everything else (o, g, s, usemtl, mtllib, l, p, vp, curves) carries
-    // nothing a bake uses.
+    if (keyword == "o" || keyword == "g") {
+      add_name(NameStatement{keyword == "o", statement_name(keyword_end, end), 0});
+      return Status::ok();
+    }
+    // Everything else (s, usemtl, mtllib, l, p, vp, curves) carries nothing a
+    // bake uses.
     return Status::ok();
   }
 
+
+  // A part name starts at the next triangle.
+  void add_name(NameStatement statement) {
+    statement.faces_before = out_.indices.size() / 3;  // now: triangles before it
+    names_.push_back(std::move(statement));
+  }
+
+  // Parts from the `o`/`g` statements: by `o` when the file has any (Blender,
+  // Maya and 3ds Max name objects with `o` and use `g` for materials or
+  // smoothing groups), else by `g`. Triangles before the first name are an
+  // unnamed part; a name that names no triangle makes no part; consecutive
+  // ranges of one name are one part. A file without names has no parts.
+  void finish_parts() {
+    const bool by_object =
+        std::any_of(names_.begin(), names_.end(), [](const NameStatement& n) { return n.object; });
+    std::vector<MeshPart>& parts = out_.parts;
+    const auto triangle_count = static_cast<std::uint32_t>(out_.indices.size() / 3);
+    std::string current;
+    std::uint32_t begin = 0;
+    bool any = false;
+    const auto close = [&](std::uint32_t end) {
+      if (end == begin) return;
+      if (!parts.empty() && parts.back().name == current) {
+        parts.back().triangle_count += end - begin;
+      } else {
+        parts.push_back(MeshPart{current, begin, end - begin});
+      }
+      begin = end;
+    };
+    for (const NameStatement& n : names_) {
+      if (n.object != by_object) continue;
+      any = true;
+      close(static_cast<std::uint32_t>(n.faces_before));
+      current = n.name;
+    }
+    if (!any) return;
+    close(triangle_count);
+  }
 
   // Reads `count` reals (at least `required`), the rest left at their value.
   Status parse_reals(const char* p, const char* end, float* values, int required, int count) {
@@ -469,6 +528,8 @@ class ObjParser {
       }
       face.corner_count = static_cast<std::uint32_t>(slice.corners.size() - face.first_corner);
       slice.faces.push_back(face);
+    } else if (keyword == "o" || keyword == "g") {
+      slice.names.push_back(NameStatement{keyword == "o", statement_name(keyword_end, end), slice.faces.size()});
     }
     return true;
   }
@@ -516,7 +577,16 @@ class ObjParser {
     texcoord_count_ += slice.texcoord_count;
     normal_count_ += slice.normal_count;
     if (split_) first_vertex_.resize(positions_.size(), kNone);
-    for (const RawFace& face : slice.faces) {
+    std::size_t next_name = 0;
+    // Names recorded before face `f` of the slice.
+    const auto add_names_before = [&](std::size_t f) {
+      for (; next_name < slice.names.size() && slice.names[next_name].faces_before <= f; ++next_name) {
+        add_name(slice.names[next_name]);
+      }
+    };
+    for (std::size_t f = 0; f < slice.faces.size(); ++f) {
+      const RawFace& face = slice.faces[f];
+      add_names_before(f);
       const std::uint64_t v_count = base_v + face.v_before;
       const std::uint64_t vt_count = base_vt + face.vt_before;
       const std::uint64_t vn_count = base_vn + face.vn_before;
@@ -558,6 +628,7 @@ class ObjParser {
       line_number_ = first_line + face.line;
       NMBAKE_TRY(add_face());
     }
+    add_names_before(slice.faces.size());
     if (slice.stop != nullptr) return parse_lines_serially(slice.stop, slice.end, first_line + slice.stop_line);
     return Status::ok();
   }
@@ -653,6 +724,7 @@ class ObjParser {
   std::vector<std::uint32_t> vertex_vt_;
   std::vector<std::uint32_t> vertex_vn_;
 
+  std::vector<NameStatement> names_;  // o / g statements, faces_before = triangles before
   std::vector<Corner> corners_;  // scratch of the current face
   std::uint64_t line_number_ = 0;  // of the line being parsed, for messages
   std::vector<ObjSlice> slices_;    // of the parallel path
