@@ -1,0 +1,533 @@
+// Parts, bake groups and UDIM tiles: OBJ o/g parts, name matching, explicit
+// groups, and end-to-end bakes where parts must not bleed into each other and
+// tiles must equal the tile baked alone.
+#include <cmath>
+#include <fstream>
+#include <functional>
+#include <iterator>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include "nmbake/bake.hpp"
+#include "nmbake/diff.hpp"
+#include "nmbake/job.hpp"
+#include "nmbake/parts.hpp"
+#include "nmbake/udim.hpp"
+#include "test_util.hpp"
+
+namespace nmbake {
+namespace {
+
+std::string read_bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// A named grid of n x n quads over [x0, x1] x [y0, y1] at height z + h(x, y),
+// with UVs over [u0, u1] x [v0, v1] (none when u0 == u1).
+struct Plate {
+  std::string name;
+  int n = 8;
+  float x0 = 0, x1 = 1, y0 = 0, y1 = 1, z = 0;
+  float u0 = 0, u1 = 0, v0 = 0, v1 = 0;
+  std::function<float(float, float)> h;
+  glm::vec2 uv_shift{0.0f};  // subtracted from each UV after it is computed
+};
+
+// OBJ text of several plates, each an `o` object (vertices numbered across
+// the file as OBJ does).
+std::string plates_obj(const std::vector<Plate>& plates) {
+  std::ostringstream out;
+  out.precision(9);
+  std::size_t base = 0;
+  for (const Plate& p : plates) {
+    out << "o " << p.name << "\n";
+    const bool uv = p.u1 != p.u0;
+    for (int j = 0; j <= p.n; ++j) {
+      for (int i = 0; i <= p.n; ++i) {
+        const float s = static_cast<float>(i) / p.n, t = static_cast<float>(j) / p.n;
+        const float x = p.x0 + s * (p.x1 - p.x0), y = p.y0 + t * (p.y1 - p.y0);
+        out << "v " << x << " " << y << " " << p.z + (p.h ? p.h(x, y) : 0.0f) << "\n";
+        if (uv) {
+          const float u = p.u0 + s * (p.u1 - p.u0), v = p.v0 + t * (p.v1 - p.v0);
+          out << "vt " << u - p.uv_shift.x << " " << v - p.uv_shift.y << "\n";
+        }
+      }
+    }
+    for (int j = 0; j < p.n; ++j) {
+      for (int i = 0; i < p.n; ++i) {
+        const std::size_t a = base + static_cast<std::size_t>(j * (p.n + 1) + i) + 1;
+        const std::size_t b = a + 1, c = a + static_cast<std::size_t>(p.n + 1) + 1, d = c - 1;
+        if (uv) {
+          out << "f " << a << "/" << a << " " << b << "/" << b << " " << c << "/" << c << "\n";
+          out << "f " << a << "/" << a << " " << c << "/" << c << " " << d << "/" << d << "\n";
+        } else {
+          out << "f " << a << " " << b << " " << c << "\nf " << a << " " << c << " " << d << "\n";
+        }
+      }
+    }
+    base += static_cast<std::size_t>((p.n + 1) * (p.n + 1));
+  }
+  return out.str();
+}
+
+Mesh load(const std::string& path, bool uvs = true) {
+  Mesh mesh;
+  LoadStats stats;
+  const Status s = load_mesh(path, LoadOptions{uvs, true}, mesh, stats);
+  EXPECT_TRUE(s.is_ok()) << s.message();
+  return mesh;
+}
+
+// -------------------------------------------------------------- OBJ parts
+
+TEST(LoadParts, ObjObjectsNameParts) {
+  test::TempDir dir;
+  // Triangles before the first name are an unnamed part; `g` inside objects
+  // does not split them; an object named again later joins consecutive runs
+  // only.
+  test::write_text(dir.file("m.obj"),
+                   "v 0 0 0\nv 1 0 0\nv 0 1 0\n"
+                   "f 1 2 3\n"
+                   "o body_low\ng material_a\nf 1 2 3\nf 1 2 3\ng material_b\nf 1 2 3\n"
+                   "o empty\n"
+                   "o mag_low\nf 1 2 3\n"
+                   "o body_low\nf 1 2 3\n");
+  for (const bool serial : {true, false}) {
+    Mesh mesh;
+    LoadStats stats;
+    LoadOptions options;
+    options.serial = serial;
+    options.block_bytes = 16;  // many blocks: names across block boundaries
+    ASSERT_TRUE(load_mesh(dir.file("m.obj"), options, mesh, stats).is_ok());
+    ASSERT_EQ(mesh.parts.size(), 4u) << serial;
+    EXPECT_EQ(mesh.parts[0].name, "");
+    EXPECT_EQ(mesh.parts[0].triangle_count, 1u);
+    EXPECT_EQ(mesh.parts[1].name, "body_low");
+    EXPECT_EQ(mesh.parts[1].first_triangle, 1u);
+    EXPECT_EQ(mesh.parts[1].triangle_count, 3u);
+    EXPECT_EQ(mesh.parts[2].name, "mag_low");
+    EXPECT_EQ(mesh.parts[2].triangle_count, 1u);
+    EXPECT_EQ(mesh.parts[3].name, "body_low");
+    EXPECT_EQ(mesh.parts[3].first_triangle, 5u);
+  }
+}
+
+TEST(LoadParts, ObjGroupsNamePartsWhenThereAreNoObjects) {
+  test::TempDir dir;
+  test::write_text(dir.file("g.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\ng  a_low \nf 1 2 3\ng b low\nf 1 2 3\nf 1 2 3\n");
+  const Mesh mesh = load(dir.file("g.obj"));
+  ASSERT_EQ(mesh.parts.size(), 2u);
+  EXPECT_EQ(mesh.parts[0].name, "a_low");  // blanks trimmed
+  EXPECT_EQ(mesh.parts[1].name, "b low");  // "g b low": the whole rest of the line
+  EXPECT_EQ(mesh.parts[1].triangle_count, 2u);
+  test::write_text(dir.file("n.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  EXPECT_TRUE(load(dir.file("n.obj")).parts.empty());
+}
+
+TEST(LoadParts, ValidateRejectsPartsThatDoNotTile) {
+  Mesh mesh;
+  mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  mesh.indices = {0, 1, 2, 0, 1, 2};
+  mesh.parts = {{"a", 0, 1}};
+  EXPECT_FALSE(validate_mesh(mesh, "m").is_ok());
+  mesh.parts = {{"a", 0, 1}, {"b", 2, 1}};
+  EXPECT_FALSE(validate_mesh(mesh, "m").is_ok());
+  mesh.parts = {{"a", 0, 1}, {"b", 1, 1}};
+  EXPECT_TRUE(validate_mesh(mesh, "m").is_ok());
+}
+
+// -------------------------------------------------------------- matching
+
+Mesh with_parts(const std::vector<std::pair<std::string, std::uint32_t>>& parts) {
+  Mesh mesh;
+  mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  std::uint32_t first = 0;
+  for (const auto& [name, count] : parts) {
+    mesh.parts.push_back({name, first, count});
+    for (std::uint32_t t = 0; t < count; ++t) mesh.indices.insert(mesh.indices.end(), {0, 1, 2});
+    first += count;
+  }
+  return mesh;
+}
+
+TEST(MatchParts, SuffixesNumberedDuplicatesAndCase) {
+  const Mesh low = with_parts({{"body_low", 2}, {"Mag_LOW", 1}, {"body_low", 1}});
+  const Mesh high = with_parts({{"Mag_High", 1}, {"body_high", 3}, {"body_high.001", 2}, {"body_high_2", 1},
+                                {"bodyx_high", 1}, {"mag_high", 1}, {"stray", 1}});
+  BakeGroups g;
+  ASSERT_TRUE(match_parts(low, high, MatchOptions{}, "low.obj", "high.obj", g).is_ok());
+  ASSERT_EQ(g.groups.size(), 2u);
+  EXPECT_EQ(g.groups[0].name, "body");
+  EXPECT_EQ(g.groups[0].low_parts, (std::vector<std::string>{"body_low"}));
+  EXPECT_EQ(g.groups[0].high_parts, (std::vector<std::string>{"body_high", "body_high.001", "body_high_2"}));
+  EXPECT_EQ(g.groups[0].low_triangles, 3u);
+  EXPECT_EQ(g.groups[0].high_triangles, 6u);
+  // The suffix ignores case, the base name does not: Mag_LOW takes Mag_High only.
+  EXPECT_EQ(g.groups[1].name, "Mag");
+  EXPECT_EQ(g.groups[1].high_parts, (std::vector<std::string>{"Mag_High"}));
+  EXPECT_EQ(g.low_group, (std::vector<std::uint32_t>{0, 0, 1, 0}));
+  EXPECT_EQ(g.high_triangles[1], (std::vector<std::uint32_t>{0}));
+  EXPECT_EQ(g.high_triangles[0], (std::vector<std::uint32_t>{1, 2, 3, 4, 5, 6}));
+  EXPECT_EQ(g.unused_high_parts, (std::vector<std::string>{"bodyx_high", "mag_high", "stray"}));
+
+  std::vector<std::uint32_t> first;
+  const std::vector<std::uint32_t> indices = group_high_indices(high, g, first);
+  EXPECT_EQ(first, (std::vector<std::uint32_t>{0, 6, 7}));
+  EXPECT_EQ(indices.size(), 21u);
+}
+
+TEST(MatchParts, UnmatchedLowPartsAreListedOrBakedAgainstTheRest) {
+  const Mesh low = with_parts({{"body_low", 1}, {"scope_low", 1}, {"bolt", 1}});
+  const Mesh high = with_parts({{"body_high", 1}, {"scope_hi", 1}, {"bolts", 2}});
+  BakeGroups g;
+  const Status s = match_parts(low, high, MatchOptions{}, "low.obj", "high.obj", g);
+  ASSERT_FALSE(s.is_ok());
+  EXPECT_EQ(s.code(), StatusCode::bad_input);
+  EXPECT_NE(s.message().find("low.obj"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("'scope_low', 'bolt'"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("--unmatched all"), std::string::npos) << s.message();
+
+  MatchOptions all;
+  all.unmatched = Unmatched::all;
+  ASSERT_TRUE(match_parts(low, high, all, "low.obj", "high.obj", g).is_ok());
+  ASSERT_EQ(g.groups.size(), 2u);
+  EXPECT_EQ(g.groups[1].name, "(unmatched)");
+  EXPECT_EQ(g.groups[1].low_parts, (std::vector<std::string>{"scope_low", "bolt"}));
+  EXPECT_EQ(g.groups[1].high_parts, (std::vector<std::string>{"scope_hi", "bolts"}));
+  EXPECT_EQ(g.low_group, (std::vector<std::uint32_t>{0, 1, 1}));
+  EXPECT_TRUE(g.unused_high_parts.empty());
+}
+
+TEST(MatchParts, NoSuffixOrMatchOffIsOneGroupOfEverything) {
+  const Mesh low = with_parts({{"body", 1}, {"mag", 1}});
+  const Mesh high = with_parts({{"body_high", 1}, {"mag_high", 1}});
+  BakeGroups g;
+  ASSERT_TRUE(match_parts(low, high, MatchOptions{}, "l", "h", g).is_ok());
+  EXPECT_FALSE(g.grouped());
+  MatchOptions name;
+  name.mode = MatchMode::name;
+  EXPECT_FALSE(match_parts(low, high, name, "l", "h", g).is_ok());
+
+  const Mesh suffixed = with_parts({{"body_low", 1}, {"mag_low", 1}});
+  MatchOptions off;
+  off.mode = MatchMode::off;
+  ASSERT_TRUE(match_parts(suffixed, high, off, "l", "h", g).is_ok());
+  EXPECT_FALSE(g.grouped());
+  // One group that holds every high triangle is no grouping either.
+  ASSERT_TRUE(match_parts(with_parts({{"x_low", 2}}), with_parts({{"x_high", 1}, {"x_high.002", 1}}),
+                          MatchOptions{}, "l", "h", g)
+                  .is_ok());
+  EXPECT_FALSE(g.grouped());
+  // Custom suffixes.
+  MatchOptions custom;
+  custom.low_suffix = "_lp";
+  custom.high_suffix = "_hp";
+  ASSERT_TRUE(match_parts(with_parts({{"a_lp", 1}, {"b_lp", 1}}), with_parts({{"a_hp", 1}, {"b_hp", 1}}), custom,
+                          "l", "h", g)
+                  .is_ok());
+  EXPECT_EQ(g.groups.size(), 2u);
+}
+
+TEST(MatchParts, ExplicitGroups) {
+  const Mesh low = with_parts({{"body", 1}, {"mag", 1}});
+  const Mesh high = with_parts({{"body_hi", 1}, {"bolts", 1}, {"mag_hi", 1}});
+  MatchOptions options;
+  options.groups = {{"main", {"body"}, {"body_hi", "bolts"}}, {"", {"mag"}, {"mag_hi", "bolts"}}};
+  BakeGroups g;
+  ASSERT_TRUE(match_parts(low, high, options, "l", "h", g).is_ok());
+  ASSERT_EQ(g.groups.size(), 2u);
+  EXPECT_EQ(g.groups[0].name, "main");
+  EXPECT_EQ(g.groups[1].name, "group 2");
+  EXPECT_EQ(g.high_triangles[0], (std::vector<std::uint32_t>{0, 1}));
+  EXPECT_EQ(g.high_triangles[1], (std::vector<std::uint32_t>{1, 2}));  // bolts in both
+
+  MatchOptions unknown;
+  unknown.groups = {{"g", {"body"}, {"nope"}}};
+  const Status s = match_parts(low, high, unknown, "l.obj", "h.obj", g);
+  ASSERT_FALSE(s.is_ok());
+  EXPECT_NE(s.message().find("h.obj: group 'g' names high part 'nope'"), std::string::npos) << s.message();
+  MatchOptions twice;
+  twice.groups = {{"a", {"body"}, {"body_hi"}}, {"b", {"body", "mag"}, {"mag_hi"}}};
+  EXPECT_FALSE(match_parts(low, high, twice, "l", "h", g).is_ok());
+  MatchOptions missing;  // mag in no group: unmatched
+  missing.groups = {{"a", {"body"}, {"body_hi"}}};
+  EXPECT_FALSE(match_parts(low, high, missing, "l", "h", g).is_ok());
+}
+
+TEST(JobGroups, ParsesGroupTablesAndMatchKeys) {
+  test::TempDir dir;
+  test::write_text(dir.file("job.toml"),
+                   "[defaults]\nlow_suffix = \"_lp\"\nunmatched = \"all\"\n"
+                   "[[bake]]\nlow = \"l.obj\"\nhigh = \"h.obj\"\noutputs = [\"m.png\"]\nmatch = \"name\"\n"
+                   "[[bake.group]]\nname = \"body\"\nlow = [\"body_lp\"]\nhigh = [\"body_hp\", \"bolts_hp\"]\n"
+                   "[[bake.group]]\nlow = [\"mag_lp\"]\nhigh = [\"mag_hp\"]\n");
+  std::vector<BakeJob> jobs;
+  const Status s = load_job_file(dir.file("job.toml"), jobs);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  ASSERT_EQ(jobs.size(), 1u);
+  const MatchOptions& m = jobs[0].options.match;
+  EXPECT_EQ(m.low_suffix, "_lp");
+  EXPECT_EQ(m.unmatched, Unmatched::all);
+  EXPECT_EQ(m.mode, MatchMode::name);
+  ASSERT_EQ(m.groups.size(), 2u);
+  EXPECT_EQ(m.groups[0].name, "body");
+  EXPECT_EQ(m.groups[0].high, (std::vector<std::string>{"body_hp", "bolts_hp"}));
+  EXPECT_EQ(m.groups[1].low, (std::vector<std::string>{"mag_lp"}));
+
+  test::write_text(dir.file("bad.toml"),
+                   "[[bake]]\nlow = \"l.obj\"\nhigh = \"h.obj\"\noutputs = [\"m.png\"]\n"
+                   "[[bake.group]]\nlow = [\"a\"]\nhihg = [\"b\"]\n");
+  const Status bad = load_job_file(dir.file("bad.toml"), jobs);
+  ASSERT_FALSE(bad.is_ok());
+  EXPECT_NE(bad.message().find("hihg"), std::string::npos) << bad.message();
+}
+
+// -------------------------------------------------------------- bleeding
+
+// Two parts stacked 1 mm apart (plates 10 cm wide): part b sits right above
+// part a, so a's cage rays cross b's high mesh before they reach a's. Side
+// by side in UV: a in the left half of the map, b in the right.
+struct BleedScene {
+  test::TempDir dir;
+  Plate a_low{"a_low", 8, 0, 0.1f, 0, 0.1f, 0, 0.02f, 0.48f, 0.02f, 0.98f, {}};
+  Plate b_low{"b_low", 8, 0, 0.1f, 0, 0.1f, 0.001f, 0.52f, 0.98f, 0.02f, 0.98f, {}};
+  Plate a_high{"a_high", 96, 0, 0.1f, 0, 0.1f, 0, 0, 0, 0, 0,
+               [](float x, float y) { return 0.0003f * std::sin(120.0f * x) * std::cos(90.0f * y); }};
+  Plate b_high{"b_high", 96, 0, 0.1f, 0, 0.1f, 0.001f, 0, 0, 0, 0, [](float x, float) { return 0.0002f * std::sin(200.0f * x); }};
+
+  BleedScene() {
+    test::write_text(dir.file("low.obj"), plates_obj({a_low, b_low}));
+    test::write_text(dir.file("high.obj"), plates_obj({a_high, b_high}));
+    test::write_text(dir.file("a_low.obj"), plates_obj({a_low}));
+    test::write_text(dir.file("a_high.obj"), plates_obj({a_high}));
+    test::write_text(dir.file("b_low.obj"), plates_obj({b_low}));
+    test::write_text(dir.file("b_high.obj"), plates_obj({b_high}));
+  }
+  // Distances: auto, or a cage 1.5 mm out, past b's high mesh (as an
+  // artist's cage often is), and 0.5 mm in.
+  BakeOptions options(const std::string& low, const std::string& high, const std::string& out,
+                      bool auto_distances = false) const {
+    BakeOptions o;
+    if (!auto_distances) {
+      o.front = {Distance::Kind::absolute, 0.0015f};
+      o.back = {Distance::Kind::absolute, 0.0005f};
+    }
+    o.low_path = dir.file(low);
+    o.high_path = dir.file(high);
+    o.outputs = {{dir.file(out), PixelFormat::png16}};
+    o.width = o.height = 128;
+    o.padding = 0;  // the halves of the map stay apart
+    return o;
+  }
+};
+
+Image read(const std::string& path) {
+  Image image;
+  EXPECT_TRUE(read_image(path, image).is_ok()) << path;
+  return image;
+}
+
+// Angular difference over one half of the map.
+DiffStats diff_half(const std::string& a, const std::string& b, bool left) {
+  const Image ia = read(a), ib = read(b);
+  Image mask;
+  mask.width = ia.width;
+  mask.height = ia.height;
+  mask.channels = 1;
+  mask.pixels.assign(static_cast<std::size_t>(ia.width) * ia.height, 0.0f);
+  for (int y = 0; y < ia.height; ++y) {
+    for (int x = 0; x < ia.width; ++x) {
+      if ((x < ia.width / 2) == left) mask.pixels[static_cast<std::size_t>(y) * ia.width + x] = 1.0f;
+    }
+  }
+  DiffStats stats;
+  DiffOptions options;
+  options.quantisation = Quantisation::uint16;
+  EXPECT_TRUE(diff_images(ia, ib, &mask, options, stats, nullptr).is_ok());
+  return stats;
+}
+
+TEST(BakeGroupsEndToEnd, MatchedPartsDoNotBleedAndUnmatchedDo) {
+  BleedScene scene;
+  BakeReport report;
+  for (const auto& [low, high, out] : {std::tuple{"a_low.obj", "a_high.obj", "a.png"},
+                                       std::tuple{"b_low.obj", "b_high.obj", "b.png"},
+                                       std::tuple{"low.obj", "high.obj", "matched.png"}}) {
+    const Status s = bake(scene.options(low, high, out), report);
+    ASSERT_TRUE(s.is_ok()) << s.message();
+  }
+  ASSERT_EQ(report.groups.size(), 2u);
+  EXPECT_EQ(report.groups[0].parts.name, "a");
+  EXPECT_EQ(report.groups[1].parts.high_parts, (std::vector<std::string>{"b_high"}));
+  EXPECT_EQ(report.scenes, 1);  // two groups share a BVH through ray masks
+  EXPECT_EQ(report.high_triangles_used, report.high_triangles);
+  BakeOptions unmatched = scene.options("low.obj", "high.obj", "unmatched.png");
+  unmatched.match.mode = MatchMode::off;
+  ASSERT_TRUE(bake(unmatched, report).is_ok());
+  EXPECT_TRUE(report.groups.empty());
+
+  const DiffStats a_matched = diff_half(scene.dir.file("matched.png"), scene.dir.file("a.png"), true);
+  const DiffStats b_matched = diff_half(scene.dir.file("matched.png"), scene.dir.file("b.png"), false);
+  const DiffStats a_bleed = diff_half(scene.dir.file("unmatched.png"), scene.dir.file("a.png"), true);
+  std::printf("bleed: matched vs alone a: %s\n", a_matched.summary_line().c_str());
+  std::printf("bleed: matched vs alone b: %s\n", b_matched.summary_line().c_str());
+  std::printf("bleed: unmatched vs alone a: %s\n", a_bleed.summary_line().c_str());
+  // Matched: each part's map is the part baked alone; with the same
+  // distances the rays are the same, so the halves are identical.
+  EXPECT_EQ(a_matched.changed_texels, 0u);
+  EXPECT_EQ(b_matched.changed_texels, 0u);
+  // Unmatched: a's rays pick up b's high mesh.
+  EXPECT_GT(a_bleed.mean, 0.5);
+  EXPECT_GT(a_bleed.share_changed(), 0.5);
+}
+
+// Auto distances are estimated per group: a's probes never see b's mesh.
+// Probes are placed by the whole low mesh's area, so a group's probes are
+// not exactly those of the part baked alone: equal to the 16-bit floor.
+TEST(BakeGroupsEndToEnd, AutoDistancesPerGroupMatchThePartBakedAlone) {
+  BleedScene scene;
+  BakeReport report;
+  ASSERT_TRUE(bake(scene.options("a_low.obj", "a_high.obj", "a.png", true), report).is_ok());
+  const float alone_front = report.front;
+  ASSERT_TRUE(bake(scene.options("low.obj", "high.obj", "matched.png", true), report).is_ok());
+  ASSERT_EQ(report.groups.size(), 2u);
+  std::printf("auto distances: a alone front %.6f, in the group %.6f back %.6f; b front %.6f back %.6f\n",
+              alone_front, report.groups[0].front, report.groups[0].back, report.groups[1].front,
+              report.groups[1].back);
+  EXPECT_NEAR(report.groups[0].front, alone_front, 0.1f * alone_front);
+  EXPECT_LT(report.groups[0].front, 0.001f);  // below b: the cage does not reach b's mesh
+  const DiffStats a = diff_half(scene.dir.file("matched.png"), scene.dir.file("a.png"), true);
+  std::printf("auto distances: matched vs alone a: %s\n", a.summary_line().c_str());
+  EXPECT_LT(a.max, 0.01);
+}
+
+TEST(BakeGroupsEndToEnd, MasksAndScenePerGroupGiveTheSameBytes) {
+  BleedScene scene;
+  BakeReport report;
+  BakeOptions masks = scene.options("low.obj", "high.obj", "masks.png");
+  masks.samples = 4;
+  masks.groups_per_scene = 32;
+  ASSERT_TRUE(bake(masks, report).is_ok());
+  EXPECT_EQ(report.scenes, 1);
+  BakeOptions scenes = scene.options("low.obj", "high.obj", "scenes.png");
+  scenes.samples = 4;
+  scenes.groups_per_scene = 1;
+  ASSERT_TRUE(bake(scenes, report).is_ok());
+  EXPECT_EQ(report.scenes, 2);
+  EXPECT_EQ(read_bytes(scene.dir.file("masks.png")), read_bytes(scene.dir.file("scenes.png")));
+  // `nearest` and --ignore-backfaces take the same grouped path.
+  masks.hit = scenes.hit = HitRule::nearest;
+  masks.ignore_backfaces = scenes.ignore_backfaces = true;
+  ASSERT_TRUE(bake(masks, report).is_ok());
+  ASSERT_TRUE(bake(scenes, report).is_ok());
+  EXPECT_EQ(read_bytes(scene.dir.file("masks.png")), read_bytes(scene.dir.file("scenes.png")));
+}
+
+TEST(BakeGroupsEndToEnd, CliListsUnmatchedPartsAndWritesNothing) {
+  BleedScene scene;
+  test::write_text(scene.dir.file("high2.obj"), plates_obj({scene.a_high}));
+  const test::CommandResult r =
+      test::run_command(test::cli_path() + " bake --low " + scene.dir.file("low.obj") + " --high " +
+                        scene.dir.file("high2.obj") + " --size 64 -o " + scene.dir.file("x.png") + " -q 2>&1");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("'b_low'"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(scene.dir.file("x.png")));
+  const test::CommandResult all =
+      test::run_command(test::cli_path() + " bake --low " + scene.dir.file("low.obj") + " --high " +
+                        scene.dir.file("high.obj") + " --size 64 --unmatched all --low-suffix _LOW -o " +
+                        scene.dir.file("x.png") + " --report " + scene.dir.file("r.json") + " -q 2>&1");
+  EXPECT_EQ(all.exit_code, 0) << all.output;
+  const std::string report = read_bytes(scene.dir.file("r.json"));
+  EXPECT_NE(report.find("\"low_parts\""), std::string::npos);
+}
+
+// -------------------------------------------------------------- UDIM
+
+TEST(Udim, TilePathsAndOffsets) {
+  EXPECT_TRUE(has_udim_token("a/n.<UDIM>.png"));
+  EXPECT_EQ(udim_path("a/n.<UDIM>.png", 1012), "a/n.1012.png");
+  EXPECT_EQ(udim_offset(1001), glm::vec2(0, 0));
+  EXPECT_EQ(udim_offset(1012), glm::vec2(1, 1));
+  EXPECT_EQ(udim_offset(1010), glm::vec2(9, 0));
+}
+
+// Three plates side by side in space, their UVs in tiles 1001, 1002 and
+// 1011. Each tile's map equals that plate baked alone with its UVs moved
+// into [0, 1]^2, byte for byte (fixed distances: auto ones would be
+// estimated from other probes).
+TEST(Udim, EachTileEqualsTheTileBakedAlone) {
+  test::TempDir dir;
+  const auto bumps = [](float x, float y) { return 0.02f * std::sin(9.0f * x) * std::sin(7.0f * y); };
+  std::vector<Plate> low, high;
+  const int tiles[3] = {1001, 1002, 1011};
+  for (int k = 0; k < 3; ++k) {
+    const glm::vec2 o = udim_offset(tiles[k]);
+    const float x0 = 1.2f * static_cast<float>(k);
+    low.push_back({"p" + std::to_string(k), 6, x0, x0 + 1, 0, 1, 0, o.x + 0.05f, o.x + 0.95f, o.y + 0.05f, o.y + 0.95f, {}});
+    high.push_back({"h" + std::to_string(k), 64, x0, x0 + 1, 0, 1, 0, 0, 0, 0, 0, bumps});
+  }
+  test::write_text(dir.file("low.obj"), plates_obj(low));
+  test::write_text(dir.file("high.obj"), plates_obj(high));
+  BakeOptions o;
+  o.low_path = dir.file("low.obj");
+  o.high_path = dir.file("high.obj");
+  o.width = o.height = 96;
+  o.front = {Distance::Kind::absolute, 0.05f};
+  o.back = {Distance::Kind::absolute, 0.05f};
+  o.outputs = {{dir.file("n.<UDIM>.png"), PixelFormat::png16}, {dir.file("n_<UDIM>.exr"), PixelFormat::exr_half}};
+  BakeReport report;
+  Status s = bake(o, report);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  ASSERT_EQ(report.tiles.size(), 3u);
+  EXPECT_EQ(report.outputs.size(), 6u);
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(report.tiles[k].tile, tiles[k]);
+  for (int k = 0; k < 3; ++k) {
+    Plate alone = low[k];
+    alone.uv_shift = udim_offset(tiles[k]);  // the baker's own shift, in floats
+    test::write_text(dir.file("alone.obj"), plates_obj({alone}));
+    BakeOptions a = o;
+    a.low_path = dir.file("alone.obj");
+    a.outputs = {{dir.file("alone.png"), PixelFormat::png16}};
+    s = bake(a, report);
+    ASSERT_TRUE(s.is_ok()) << s.message();
+    const std::string tile_map = dir.file("n." + std::to_string(tiles[k]) + ".png");
+    const std::string tile_exr = dir.file("n_" + std::to_string(tiles[k]) + ".exr");
+    EXPECT_TRUE(std::filesystem::exists(tile_exr));
+    const std::string tile_bytes = read_bytes(tile_map);
+    EXPECT_FALSE(tile_bytes.empty()) << tile_map;
+    if (tile_bytes != read_bytes(dir.file("alone.png"))) {
+      const DiffStats d = diff_half(tile_map, dir.file("alone.png"), true);
+      ADD_FAILURE() << "tile " << tiles[k] << " differs from the tile baked alone: " << d.summary_line();
+    }
+  }
+}
+
+TEST(Udim, UvsOutsideTheUnitSquareNeedTheToken) {
+  test::TempDir dir;
+  test::write_text(dir.file("low.obj"), plates_obj({{"a", 2, 0, 1, 0, 1, 0, 1.1f, 1.9f, 0.1f, 0.9f, {}}}));
+  test::write_text(dir.file("high.obj"), plates_obj({{"b", 4, 0, 1, 0, 1, 0, 0, 0, 0, 0, {}}}));
+  BakeOptions o;
+  o.low_path = dir.file("low.obj");
+  o.high_path = dir.file("high.obj");
+  o.width = o.height = 32;
+  o.outputs = {{dir.file("n.png"), PixelFormat::png16}};
+  BakeReport report;
+  Status s = bake(o, report);
+  ASSERT_FALSE(s.is_ok());
+  EXPECT_EQ(s.code(), StatusCode::bad_input);
+  EXPECT_NE(s.message().find("tiles 1002"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("<UDIM>"), std::string::npos) << s.message();
+  EXPECT_FALSE(std::filesystem::exists(dir.file("n.png")));
+  // Negative UVs are in no tile at all.
+  test::write_text(dir.file("neg.obj"), plates_obj({{"a", 2, 0, 1, 0, 1, 0, -0.9f, -0.1f, 0.1f, 0.9f, {}}}));
+  o.low_path = dir.file("neg.obj");
+  o.outputs = {{dir.file("n.<UDIM>.png"), PixelFormat::png16}};
+  s = bake(o, report);
+  ASSERT_FALSE(s.is_ok());
+  EXPECT_NE(s.message().find("outside every UDIM tile"), std::string::npos) << s.message();
+}
+
+}  // namespace
+}  // namespace nmbake
