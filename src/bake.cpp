@@ -318,6 +318,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   if (use_cage_mesh) {
     LoadStats cage_load;
     NMBAKE_TRY(load_mesh(o.cage_path, LoadOptions{false, false}, cage, cage_load));
+    NMBAKE_TRY(order_cage_by_parts(low, o.match, o.cage_path, cage));
     NMBAKE_TRY(check_cage_topology(low, cage, o.cage_path));
   }
   timer.stop();

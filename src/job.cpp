@@ -150,9 +150,9 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
     if (!get_string(text) || !parse_match_mode(text, o.match.mode)) return bad("expected \"auto\", \"name\" or \"off\"");
   } else if (key == "unmatched") {
     if (!get_string(text) || !parse_unmatched(text, o.match.unmatched)) return bad("expected \"error\" or \"all\"");
-  } else if (key == "low_suffix" || key == "high_suffix") {
+  } else if (key == "low_suffix" || key == "high_suffix" || key == "cage_suffix") {
     if (!get_string(text) || text.empty()) return bad("expected a non-empty string");
-    (key == "low_suffix" ? o.match.low_suffix : o.match.high_suffix) = text;
+    (key == "low_suffix" ? o.match.low_suffix : key == "high_suffix" ? o.match.high_suffix : o.match.cage_suffix) = text;
   } else if (in_bake && key == "group") {
     // [[bake.group]] name = "..", low = ["body_low"], high = ["body_high", "bolts_high"]
     const toml::array* list = value.as_array();

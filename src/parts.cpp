@@ -247,6 +247,56 @@ Status match_parts(const Mesh& low, const Mesh& high, const MatchOptions& option
   return Status::ok();
 }
 
+Status order_cage_by_parts(const Mesh& low, const MatchOptions& options, const std::string& cage_path, Mesh& cage) {
+  const bool named = std::any_of(cage.parts.begin(), cage.parts.end(), [](const MeshPart& p) { return !p.name.empty(); });
+  if (low.parts.empty() || !named) return Status::ok();
+  // Unused ranges of each cage name, in file order.
+  std::map<std::string, std::vector<const MeshPart*>> ranges;
+  for (const MeshPart& part : cage.parts) ranges[part.name].push_back(&part);
+  std::map<std::string, std::size_t> taken;
+  std::vector<std::uint32_t> indices;
+  indices.reserve(cage.indices.size());
+  for (const MeshPart& part : low.parts) {
+    std::string wanted = part.name;
+    if (ranges.find(wanted) == ranges.end() && ends_with_nocase(part.name, options.low_suffix)) {
+      const std::string base = part.name.substr(0, part.name.size() - options.low_suffix.size());
+      for (const auto& [name, list] : ranges) {
+        if (ends_with_nocase(name, options.cage_suffix) &&
+            name.compare(0, name.size() - options.cage_suffix.size(), base) == 0 &&
+            name.size() - options.cage_suffix.size() == base.size()) {
+          wanted = name;
+          break;
+        }
+      }
+    }
+    const auto it = ranges.find(wanted);
+    std::size_t& k = taken[wanted];
+    if (it == ranges.end() || k >= it->second.size()) {
+      return Status::bad_input(cage_path + ": no cage part for low part '" + part.name + "' (expected '" +
+                               (ends_with_nocase(part.name, options.low_suffix)
+                                    ? part.name.substr(0, part.name.size() - options.low_suffix.size()) + options.cage_suffix
+                                    : part.name) +
+                               "')");
+    }
+    const MeshPart& cage_part = *it->second[k++];
+    if (cage_part.triangle_count != part.triangle_count) {
+      return Status::bad_input(cage_path + ": cage part '" + cage_part.name + "' has " +
+                               std::to_string(cage_part.triangle_count) + " triangles, low part '" + part.name +
+                               "' has " + std::to_string(part.triangle_count));
+    }
+    indices.insert(indices.end(), cage.indices.begin() + 3 * static_cast<std::ptrdiff_t>(cage_part.first_triangle),
+                   cage.indices.begin() + 3 * static_cast<std::ptrdiff_t>(cage_part.first_triangle + cage_part.triangle_count));
+  }
+  for (const auto& [name, list] : ranges) {
+    if (taken[name] < list.size()) {
+      return Status::bad_input(cage_path + ": cage part '" + name + "' belongs to no low part");
+    }
+  }
+  cage.indices = std::move(indices);
+  cage.parts.clear();
+  return Status::ok();
+}
+
 std::vector<std::uint32_t> group_high_indices(const Mesh& high, const BakeGroups& groups,
                                               std::vector<std::uint32_t>& first) {
   std::vector<std::uint32_t> indices;

@@ -443,6 +443,37 @@ TEST(BakeGroupsEndToEnd, CliListsUnmatchedPartsAndWritesNothing) {
   EXPECT_NE(report.find("\"low_parts\""), std::string::npos);
 }
 
+// A cage file whose parts come in another order than the low file's is
+// put in the low order by name; the bake equals the bake with a cage in the
+// low order.
+TEST(BakeGroupsEndToEnd, CagePartsAreMatchedByName) {
+  BleedScene scene;
+  Plate a_cage = scene.a_low, b_cage = scene.b_low;
+  a_cage.name = "a_cage";
+  b_cage.name = "b_cage";
+  a_cage.z += 0.0012f;
+  b_cage.z += 0.0012f;
+  test::write_text(scene.dir.file("cage_in_order.obj"), plates_obj({a_cage, b_cage}));
+  test::write_text(scene.dir.file("cage_swapped.obj"), plates_obj({b_cage, a_cage}));
+  BakeReport report;
+  BakeOptions in_order = scene.options("low.obj", "high.obj", "in_order.png", true);
+  in_order.cage_path = scene.dir.file("cage_in_order.obj");
+  Status s = bake(in_order, report);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  BakeOptions swapped = scene.options("low.obj", "high.obj", "swapped.png", true);
+  swapped.cage_path = scene.dir.file("cage_swapped.obj");
+  s = bake(swapped, report);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  EXPECT_EQ(read_bytes(scene.dir.file("in_order.png")), read_bytes(scene.dir.file("swapped.png")));
+  Plate c_cage = a_cage;
+  c_cage.name = "c_cage";
+  test::write_text(scene.dir.file("cage_wrong.obj"), plates_obj({b_cage, c_cage}));
+  swapped.cage_path = scene.dir.file("cage_wrong.obj");
+  s = bake(swapped, report);
+  ASSERT_FALSE(s.is_ok());
+  EXPECT_NE(s.message().find("no cage part for low part 'a_low' (expected 'a_cage')"), std::string::npos) << s.message();
+}
+
 // -------------------------------------------------------------- UDIM
 
 TEST(Udim, TilePathsAndOffsets) {

@@ -13,7 +13,8 @@
 //
 // Keys of [defaults] and [[bake]]: size, width, height, samples, space,
 // green, front, back, hit, cage_mode, ignore_backfaces, high_normals, padding,
-// build_quality, bvh, cage, match, unmatched, low_suffix, high_suffix;
+// build_quality, bvh, cage, match, unmatched, low_suffix, high_suffix,
+// cage_suffix;
 // [[bake]] alone: name, low, high, outputs, report, debug_dump, and
 // [[bake.group]] tables (name, low = [part names], high = [part names]:
 // explicit bake groups, parts.hpp). Unknown keys are errors (a typo must not

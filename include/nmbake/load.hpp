@@ -78,8 +78,8 @@ struct LoadStats {
 
 Status load_mesh(const std::string& path, const LoadOptions& options, Mesh& out, LoadStats& stats);
 
-// Writes a mesh as OBJ (v, vt, vn, f; reals in the shortest form that reads
-// back bit for bit) or PLY (binary little endian: float x y z [nx ny nz]
+// Writes a mesh as OBJ (v, vt, vn, f, and `o NAME` where each part begins;
+// reals in the shortest form that reads back bit for bit) or PLY (no parts) (binary little endian: float x y z [nx ny nz]
 // [u v], face list uchar uint), by extension. The mesh must pass
 // validate_mesh(). The file is written to a temporary file in the same folder
 // and renamed, so a failure never leaves a half-written mesh (Status::io).

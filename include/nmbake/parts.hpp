@@ -48,6 +48,7 @@ struct MatchOptions {
   MatchMode mode = MatchMode::automatic;
   std::string low_suffix = "_low";
   std::string high_suffix = "_high";
+  std::string cage_suffix = "_cage";
   Unmatched unmatched = Unmatched::error;
   std::vector<GroupSpec> groups;  // non-empty: explicit groups, names are not matched
 };
@@ -79,6 +80,15 @@ struct BakeGroups {
 // no named low part.
 Status match_parts(const Mesh& low, const Mesh& high, const MatchOptions& options, const std::string& low_path,
                    const std::string& high_path, BakeGroups& out);
+
+// A cage file with named parts is put in the low mesh's triangle order:
+// low part `X<low suffix>` (or any low part named N) takes the cage part
+// `X<cage suffix>` (or the cage part named N), the k-th range of a name the
+// k-th range, and their triangle counts must agree. A cage without names,
+// or a low mesh without parts, is left as it is (corner order, as before).
+// bad_input naming the cage file and the part on a missing or extra part or
+// a count that differs.
+Status order_cage_by_parts(const Mesh& low, const MatchOptions& options, const std::string& cage_path, Mesh& cage);
 
 // Keeps only the high triangles some group uses, group by group: group g's
 // triangles become [first[g], first[g + 1]) of the returned indices (a

@@ -29,7 +29,8 @@ struct BakeFlags {
   std::string report;
   std::string debug_dump;
   double max_miss_rate = -1.0;  // < 0: no gate
-  std::string match = "auto", unmatched = "error", low_suffix = "_low", high_suffix = "_high";
+  std::string match = "auto", unmatched = "error", low_suffix = "_low", high_suffix = "_high", cage_suffix = "_cage";
+  int groups_per_scene = 0;
 };
 
 int fail(const Status& status) {
@@ -79,7 +80,10 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
   if (!parse_match_mode(f.match, o.match.mode)) return Status::bad_input("--match " + f.match + ": expected auto, name or off");
   if (!parse_unmatched(f.unmatched, o.match.unmatched)) return Status::bad_input("--unmatched " + f.unmatched + ": expected error or all");
   if (f.low_suffix.empty() || f.high_suffix.empty()) return Status::bad_input("--low-suffix and --high-suffix must not be empty");
+  o.groups_per_scene = f.groups_per_scene;
   o.match.low_suffix = f.low_suffix;
+  if (f.cage_suffix.empty()) return Status::bad_input("--cage-suffix must not be empty");
+  o.match.cage_suffix = f.cage_suffix;
   o.match.high_suffix = f.high_suffix;
   o.ignore_backfaces = f.ignore_backfaces;
   o.padding = f.padding;
@@ -232,7 +236,9 @@ Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--match", flags->match, "parts into bake groups: auto (by name when a low part ends in the low suffix) | name | off")->default_val("auto");
   cmd->add_option("--low-suffix", flags->low_suffix, "name suffix of low parts (X_low bakes from X_high, X_high_1, X_high.001)")->default_val("_low");
   cmd->add_option("--high-suffix", flags->high_suffix, "name suffix of high parts")->default_val("_high");
+  cmd->add_option("--cage-suffix", flags->cage_suffix, "name suffix of cage parts (X_cage is the cage of X_low)")->default_val("_cage");
   cmd->add_option("--unmatched", flags->unmatched, "low parts with no high match: error | all (bake them against every unused high part)")->default_val("error");
+  cmd->add_option("--groups-per-scene", flags->groups_per_scene, "bake groups sharing one BVH through ray masks, 1-32 (0: auto; for benchmarks)")->default_val(0)->check(CLI::Range(0, 32));
   cmd->add_option("--debug-dump", flags->debug_dump, "also write PREFIX_coverage.png, PREFIX_misses.png, PREFIX_distance.exr");
   return [flags, &global, cmd]() { return run_bake(*flags, global, *cmd); };
 }

@@ -104,7 +104,15 @@ void write_obj(Writer& out, const Mesh& mesh) {
   }
   // Every attribute is per vertex, so a corner uses the same number thrice.
   const std::string_view normal_separator = mesh.has_uvs() ? "/" : "//";
+  std::size_t next_part = 0;
   for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
+    // Parts as `o` objects, so they load back as the same parts.
+    if (next_part < mesh.parts.size() && mesh.parts[next_part].first_triangle == t) {
+      out.text("o ");
+      out.text(mesh.parts[next_part].name);
+      out.text("\n");
+      ++next_part;
+    }
     out.text("f");
     for (int c = 0; c < 3; ++c) {
       const std::uint64_t index = std::uint64_t{mesh.indices[3 * t + c]} + 1;

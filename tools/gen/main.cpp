@@ -5,6 +5,7 @@
 //   R] nmbake-gen heightfield --out-dir DIR [--high-cells N] [--low-cells N] [--amplitude A] [--size S]
 //   nmbake-gen sphere      --out-dir DIR [--high-cells N] [--low-cells N] [--amplitude A] [--radius R]
 //   nmbake-gen torus|craters|box|slot --out-dir DIR [--high-cells N] [--low-cells N]
+//   nmbake-gen parts --out-dir DIR [--count N] [--high-triangles T]   (named parts, high as OBJ)
 //   nmbake-gen eval SCENE --map M --low L [--cage C] [--samples N] [--space tangent|object]
 //              [--cage-mode averaged|interpolated] [--front F --back B | --report bake_report.json]
 //              [--json out.json] [--floors]
@@ -47,6 +48,7 @@ struct Options {
   scenes::CraterParams craters;
   scenes::BoxParams box;
   scenes::SlotParams slot;
+  scenes::PartsParams parts;
 };
 
 double seconds_since(std::chrono::steady_clock::time_point start) {
@@ -74,8 +76,10 @@ int write_mesh(const std::string& out_dir, const std::string& name, const nmbake
   return 0;
 }
 
+// `high_extension` ".obj" keeps the high mesh's part names (PLY has none).
 template <typename Generate>
-int generate_and_write(const Options& options, const std::string& scene, const Generate& generate) {
+int generate_and_write(const Options& options, const std::string& scene, const Generate& generate,
+                       const char* high_extension = ".ply") {
   std::error_code error;
   std::filesystem::create_directories(options.out_dir, error);
   if (error) {
@@ -93,7 +97,7 @@ int generate_and_write(const Options& options, const std::string& scene, const G
     const nmbake::Mesh cage = scenes::make_offset_cage(pair.low, distances.front);
     if (const int code = write_mesh(options.out_dir, scene + "_cage.obj", cage, generate_seconds)) return code;
   }
-  return write_mesh(options.out_dir, scene + "_high.ply", pair.high, generate_seconds);
+  return write_mesh(options.out_dir, scene + "_high" + high_extension, pair.high, generate_seconds);
 }
 
 void add_common_options(CLI::App& command, Options& options, int& high_cells, int& low_cells) {
@@ -248,6 +252,12 @@ int main(int argc, char** argv) {
   CLI::App* slot = app.add_subcommand("slot", "Concave U groove with bumps: long rays cross the far wall");
   add_common_options(*slot, options, options.slot.high_cells, options.slot.low_cells);
 
+  CLI::App* parts = app.add_subcommand("parts", "Many heightfield plates, each a named part (p<i>_low / p<i>_high, high as OBJ)");
+  parts->add_option("--out-dir", options.out_dir, "Folder to write parts_low.obj and parts_high.obj into")->required();
+  parts->add_option("--count", options.parts.count, "Number of parts")->check(CLI::Range(1, 10000))->capture_default_str();
+  parts->add_option("--high-triangles", options.parts.high_triangles, "High triangles in all (about)")->capture_default_str();
+  parts->add_option("--threads", options.threads, "Worker threads, 0 = all cores")->check(CLI::Range(0, 1024));
+
   // The lab's evaluator (eval.hpp).
   struct EvalFlags {
     std::string scene, map, low, cage, report, json, space = "tangent", cage_mode = "averaged", green = "up";
@@ -336,6 +346,9 @@ int main(int argc, char** argv) {
     if (torus->parsed()) return generate_and_write(options, "torus", [&] { return scenes::make_torus(options.torus); });
     if (craters->parsed()) {
       return generate_and_write(options, "craters", [&] { return scenes::make_craters(options.craters); });
+    }
+    if (parts->parsed()) {
+      return generate_and_write(options, "parts", [&] { return scenes::make_parts(options.parts); }, ".obj");
     }
     if (box->parsed()) return generate_and_write(options, "box", [&] { return scenes::make_box(options.box); });
     if (slot->parsed()) return generate_and_write(options, "slot", [&] { return scenes::make_slot(options.slot); });

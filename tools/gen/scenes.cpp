@@ -10,6 +10,8 @@
 // the meshes are bitwise reproducible and the analytic normals are accurate.
 #include "scenes.hpp"
 
+#include <string>
+
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -150,6 +152,45 @@ ScenePair make_heightfield(const HeightfieldParams& p) {
     }
   });
   append_grid_indices(p.high_cells, high.indices);
+  return pair;
+}
+
+// --- Many parts -----------------------------------------------------------
+
+ScenePair make_parts(const PartsParams& p) {
+  NMBAKE_CHECK(p.count >= 1 && p.count <= 10000, "parts count out of range");
+  const int side = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(p.count))));
+  HeightfieldParams plate;
+  plate.size = 1.0f;
+  plate.low_cells = p.low_cells;
+  plate.high_cells = std::max(1, static_cast<int>(std::sqrt(static_cast<double>(p.high_triangles) / (2.0 * p.count))));
+  const ScenePair one = make_heightfield(plate);
+  ScenePair pair;
+  const float cell = 1.0f / static_cast<float>(side);
+  const float margin = 0.04f * cell;
+  for (int i = 0; i < p.count; ++i) {
+    const int cx = i % side, cy = i / side;
+    const glm::vec3 offset(static_cast<float>(cx) * (1.0f + p.gap), static_cast<float>(cy) * (1.0f + p.gap), 0.0f);
+    const auto append = [&](const Mesh& from, Mesh& to, const std::string& name, bool uvs) {
+      const auto base = static_cast<std::uint32_t>(to.positions.size());
+      to.parts.push_back({name, static_cast<std::uint32_t>(to.triangle_count()),
+                          static_cast<std::uint32_t>(from.triangle_count())});
+      for (const glm::vec3& v : from.positions) to.positions.push_back(v + offset);
+      to.normals.insert(to.normals.end(), from.normals.begin(), from.normals.end());
+      if (uvs) {
+        for (const glm::vec2& uv : from.uvs) {
+          to.uvs.emplace_back(static_cast<float>(cx) * cell + margin + uv.x * (cell - 2.0f * margin),
+                              static_cast<float>(cy) * cell + margin + uv.y * (cell - 2.0f * margin));
+        }
+      }
+      for (const std::uint32_t index : from.indices) to.indices.push_back(base + index);
+    };
+    // Appended piecewise: GCC 12 warns falsely (-Wrestrict) on "p" + string.
+    std::string name(1, 'p');
+    name.append(std::to_string(i));
+    append(one.low, pair.low, name + "_low", true);
+    append(one.high, pair.high, name + "_high", false);
+  }
   return pair;
 }
 

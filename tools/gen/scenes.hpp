@@ -99,6 +99,20 @@ struct MoonParams {
 };
 ScenePair make_moon(const MoonParams& p);
 
+// --- Many parts ----------------------------------------------------------
+// `count` heightfield plates (make_heightfield, size 1) side by side in a
+// square grid with gaps of `gap`, each its own named part: p<i>_low in the
+// low mesh, p<i>_high in the high mesh (bake groups, parts.hpp). Part i's
+// UVs fill cell i of a square grid of the map with a margin of 4% of a cell.
+// About `high_triangles` high triangles in all.
+struct PartsParams {
+  int count = 8;
+  std::uint64_t high_triangles = 2'000'000;
+  int low_cells = 4;
+  float gap = 0.05f;
+};
+ScenePair make_parts(const PartsParams& p);
+
 // The moon's radius function (what make_moon samples at the high vertices),
 // for tests and tools that need the surface between vertices. Building it
 // places the craters; radius() is pure and thread-safe.
