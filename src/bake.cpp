@@ -4,6 +4,7 @@
 #include "nmbake/bake.hpp"
 
 #include "huge_pages.hpp"
+#include "nmbake/task.hpp"
 #include "nmbake/udim.hpp"
 
 #include <charconv>
@@ -227,25 +228,31 @@ struct Prepared {
 // into [0, 1]^2). The per-sample arrays are reused and bounded, so a 16384^2
 // map bakes in the memory of a small one. Bands change nothing in the
 // result: raster tiles and ray packets both start on band rows.
+// Rows [first_row, last_row) of the map (all of it, or a tile's: then the
+// image and coverage hold only those rows, and nothing is dilated or
+// written: `tile` gets them).
 Status bake_tile(const Prepared& p, const LowSurface& surface, const std::vector<OutputSpec>& outputs,
                  const std::string& debug_prefix, BakeReport& r, StageTimer& timer, const ProgressFn& progress,
-                 std::uint64_t& covered_texels) {
+                 std::uint64_t& covered_texels, int first_row, int last_row, TileData* tile) {
   const BakeOptions& o = p.options;
+  const int rows = last_row - first_row;
   Image image;
   image.width = o.width;
-  image.height = o.height;
+  image.height = rows;
   image.channels = 3;
   // Every texel is written by encode; huge pages make the first touch cheap.
-  detail::size_output(image.pixels, static_cast<std::size_t>(o.width) * o.height * 3);
-  std::vector<std::uint8_t> coverage(static_cast<std::size_t>(o.width) * o.height, 0);
+  detail::size_output(image.pixels, static_cast<std::size_t>(o.width) * rows * 3);
+  std::vector<std::uint8_t> coverage(static_cast<std::size_t>(o.width) * rows, 0);
   std::unique_ptr<DebugImages> debug;
   if (!debug_prefix.empty()) debug = std::make_unique<DebugImages>(o.width, o.height);
+  EncodeOptions encode_options = p.encode;
+  encode_options.out_row_begin = first_row;
   TexelSamples samples;
   Hits hits;
   covered_texels = 0;
   const int rows_per_band = band_rows(o.width, o.height, o.samples, o.band_samples);
-  for (int row = 0; row < o.height; row += rows_per_band) {
-    const int row_end = std::min(row + rows_per_band, o.height);
+  for (int row = first_row; row < last_row; row += rows_per_band) {
+    const int row_end = std::min(row + rows_per_band, last_row);
     timer.start_quietly("raster");
     RasterStats band_raster;
     rasterize(surface, o.width, o.height, o.samples, samples, band_raster, row, row_end);
@@ -255,7 +262,7 @@ Status bake_tile(const Prepared& p, const LowSurface& surface, const std::vector
     r.raster.overlapping_samples += band_raster.overlapping_samples;
     r.raster.degenerate_uv_triangles = band_raster.degenerate_uv_triangles;  // the same in every band
     std::copy(samples.coverage.begin(), samples.coverage.end(),
-              coverage.begin() + static_cast<std::ptrdiff_t>(row) * o.width);
+              coverage.begin() + static_cast<std::ptrdiff_t>(row - first_row) * o.width);
     timer.stop(false);
 
     timer.start_quietly("trace");
@@ -269,11 +276,16 @@ Status bake_tile(const Prepared& p, const LowSurface& surface, const std::vector
     timer.stop(false);
 
     timer.start_quietly("encode");
-    encode(surface, samples, p.high, hits, p.encode, image, r.encode);
+    encode(surface, samples, p.high, hits, encode_options, image, r.encode);
     timer.stop(false);
     if (debug) debug->add_band(samples, hits);
   }
   if (debug) NMBAKE_TRY(debug->write(debug_prefix));
+  if (tile != nullptr) {
+    tile->pixels = std::move(image.pixels);
+    tile->coverage = std::move(coverage);
+    return Status::ok();
+  }
 
   timer.start("dilate");
   DilateStats dilate_stats;
@@ -297,6 +309,17 @@ Status bake_tile(const Prepared& p, const LowSurface& surface, const std::vector
 Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   const Clock::time_point bake_begin = Clock::now();
   NMBAKE_TRY(validate_options(o));
+  const bool tiled = o.tile_count > 0;
+  if (tiled) {
+    if (o.tile_index < 0 || o.tile_index >= o.tile_count || o.tile_count > 4096) {
+      return Status::bad_input("tile " + std::to_string(o.tile_index + 1) + "/" + std::to_string(o.tile_count) +
+                               " does not exist (1/N to N/N, N up to 4096)");
+    }
+    if (o.tile_path.empty()) return Status::bad_input("a tile bake needs a tile file to write");
+    for (const OutputSpec& out : o.outputs) {
+      if (has_udim_token(out.path)) return Status::bad_input(out.path + ": <UDIM> maps cannot be baked in tiles yet");
+    }
+  }
   r = BakeReport{};
   r.low_path = o.low_path;
   r.high_path = o.high_path;
@@ -432,7 +455,33 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
       for (std::size_t i = 0; i < file_uvs.size(); ++i) surface.uv[i] = file_uvs[i] - offset;
       if (!debug_prefix.empty()) debug_prefix += "." + std::to_string(tile);
     }
-    NMBAKE_TRY(bake_tile(prepared, surface, outputs, debug_prefix, r, timer, progress, done.covered_texels));
+    if (tiled) {
+      TileData rows;
+      NMBAKE_TRY(bake_key(o, rows.key));
+      r.key = rows.key.hex();
+      rows.width = o.width;
+      rows.height = o.height;
+      tile_rows(o.height, o.tile_index, o.tile_count, rows.row_begin, rows.row_end);
+      rows.index = o.tile_index;
+      rows.count = o.tile_count;
+      rows.padding = o.padding;
+      rows.outputs = o.outputs;
+      NMBAKE_TRY(bake_tile(prepared, surface, outputs, debug_prefix, r, timer, progress, done.covered_texels,
+                           rows.row_begin, rows.row_end, &rows));
+      timer.start("write");
+      NMBAKE_TRY(write_tile(o.tile_path, rows));
+      timer.stop();
+      r.tile_index = rows.index;
+      r.tile_count = rows.count;
+      r.tile_row_begin = rows.row_begin;
+      r.tile_row_end = rows.row_end;
+      r.tile_path = o.tile_path;
+      r.outputs = {o.tile_path};
+      done.outputs = {o.tile_path};
+    } else {
+      NMBAKE_TRY(bake_tile(prepared, surface, outputs, debug_prefix, r, timer, progress, done.covered_texels, 0,
+                           o.height, nullptr));
+    }
     r.tiles.push_back(std::move(done));
   }
   if (r.unwrapped) {

@@ -350,7 +350,8 @@ void encode_impl(const LowSurface& surface, const TexelSamples& samples, const M
   const bool eight = in_lanes && lanes >= 8 && cpu_has_avx2();
 #endif
   // A band of rows lands at its place in `out`, which grows to hold it.
-  const int row_begin = samples.row_begin;
+  const int row_begin = samples.row_begin - options.out_row_begin;
+  NMBAKE_CHECK(row_begin >= 0, "the band lies in the output's rows");
   if (out.width != width || out.channels != 3 || out.height < row_begin + height) {
     out.width = width;
     out.height = std::max(out.height, row_begin + height);

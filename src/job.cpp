@@ -146,6 +146,9 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
     else if (key == "high") o.high_path = p;
     else if (key == "report") job.report_path = p;
     else o.debug_dump_prefix = p;
+  } else if (key == "cache") {
+    if (!get_string(text) || text.empty()) return bad("expected a folder");
+    job.cache_dir = resolve_path(folder, text);
   } else if (key == "match") {
     if (!get_string(text) || !parse_match_mode(text, o.match.mode)) return bad("expected \"auto\", \"name\" or \"off\"");
   } else if (key == "unmatched") {

@@ -63,6 +63,12 @@ std::string BakeReport::to_json() const {
       {"dilate_filled_texels", dilate.filled_texels},
       {"load_skipped_faces", low_load.degenerate_faces + high_load.degenerate_faces},
   };
+  if (!key.empty()) j["key"] = key;
+  j["cached"] = cached;
+  if (tile_count > 0) {
+    j["tile"] = {{"index", tile_index + 1}, {"count", tile_count}, {"rows", {tile_row_begin, tile_row_end}},
+                 {"file", tile_path}};
+  }
   j["high_triangles_used"] = high_triangles_used;
   j["embree_scenes"] = scenes;
   ordered_json group_json = ordered_json::array();

@@ -72,6 +72,12 @@ struct BakeOptions {
   // Parts into bake groups (parts.hpp): names matched by suffix, or groups.
   MatchOptions match;
   int groups_per_scene = 0;  // SceneGroups::groups_per_scene: 0 automatic (for benchmarks)
+  // A tile (task.hpp): tile_count > 0 bakes only the rows of tile
+  // tile_index and writes them, before dilation, to tile_path instead of
+  // the outputs (`nmbake merge` dilates and writes). Not with <UDIM>.
+  int tile_index = 0;
+  int tile_count = 0;
+  std::string tile_path;
 };
 
 // Checks options that need no file: sizes, sample count, outputs and formats.
@@ -118,6 +124,11 @@ struct BakeReport {
     std::uint64_t covered_texels = 0;
   };
   std::vector<Tile> tiles;
+  // A tile bake: its rows and file (tile_count 0 otherwise).
+  int tile_index = 0, tile_count = 0, tile_row_begin = 0, tile_row_end = 0;
+  std::string tile_path;
+  std::string key;  // the bake key (task.hpp) when it was computed: tiles, caching
+  bool cached = false;
   std::vector<StageTime> stages;
   double total_seconds = 0.0;
   std::uint64_t peak_rss_bytes = 0;

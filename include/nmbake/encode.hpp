@@ -28,6 +28,9 @@ struct EncodeOptions {
   GreenChannel green = GreenChannel::up;
   HighNormals high_normals = HighNormals::smooth;
   TangentEncode tangent_encode = TangentEncode::inverse;
+  // Map row held by row 0 of `out`: 0 for a whole map; a tile of rows
+  // (task.hpp) keeps only its own rows.
+  int out_row_begin = 0;
 };
 
 struct EncodeStats {

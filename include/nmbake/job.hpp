@@ -14,7 +14,7 @@
 // Keys of [defaults] and [[bake]]: size, width, height, samples, space,
 // green, front, back, hit, cage_mode, ignore_backfaces, high_normals, padding,
 // build_quality, bvh, cage, match, unmatched, low_suffix, high_suffix,
-// cage_suffix;
+// cage_suffix, cache;
 // [[bake]] alone: name, low, high, outputs, report, debug_dump, and
 // [[bake.group]] tables (name, low = [part names], high = [part names]:
 // explicit bake groups, parts.hpp). Unknown keys are errors (a typo must not
@@ -32,6 +32,7 @@ struct BakeJob {
   std::string name;
   BakeOptions options;
   std::string report_path;  // empty: no JSON report
+  std::string cache_dir;    // `cache = "DIR"`: the bake cache (cache.hpp); empty: none
 };
 
 Status load_job_file(const std::string& path, std::vector<BakeJob>& jobs);

@@ -7,7 +7,9 @@
 
 #include "commands.hpp"
 #include "nmbake/bake.hpp"
+#include "nmbake/cache.hpp"
 #include "nmbake/job.hpp"
+#include "nmbake/task.hpp"
 #include "progress.hpp"
 
 namespace nmbake::cli {
@@ -31,6 +33,7 @@ struct BakeFlags {
   double max_miss_rate = -1.0;  // < 0: no gate
   std::string match = "auto", unmatched = "error", low_suffix = "_low", high_suffix = "_high", cage_suffix = "_cage";
   int groups_per_scene = 0;
+  std::string only, tile, tile_file, cache;
 };
 
 int fail(const Status& status) {
@@ -118,6 +121,30 @@ Status write_report(const std::string& path, const BakeReport& report) {
   return Status::ok();
 }
 
+// A bake through the cache (cache.hpp): fetched when its key is there,
+// else baked and stored. Without a cache folder, or for a tile, just bake().
+Status bake_or_fetch(const BakeJob& job, const std::string& cache_dir, BakeReport& report, const ProgressFn& listener,
+                     bool& cached) {
+  cached = false;
+  if (cache_dir.empty() || job.options.tile_count > 0) return bake(job.options, report, listener);
+  BakeKey key;
+  NMBAKE_TRY(validate_options(job.options));
+  NMBAKE_TRY(bake_key(job.options, key));
+  std::vector<std::string> written;
+  NMBAKE_TRY(cache_fetch(cache_dir, key, job.options, job.report_path, cached, written));
+  if (cached) {
+    report = BakeReport{};
+    report.key = key.hex();
+    report.cached = true;
+    report.outputs = written;
+    return Status::ok();
+  }
+  NMBAKE_TRY(bake(job.options, report, listener));
+  report.key = key.hex();
+  NMBAKE_TRY(cache_store(cache_dir, key, job.options, report, report.to_json()));
+  return Status::ok();
+}
+
 int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& command) {
   std::vector<BakeJob> jobs;
   if (!flags.job_file.empty()) {
@@ -139,6 +166,33 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
     job.report_path = flags.report;
     jobs.push_back(std::move(job));
   }
+  // --only NAME: one bake of a job file (what a plan's tasks run).
+  if (!flags.only.empty()) {
+    std::vector<BakeJob> kept;
+    std::string names;
+    for (BakeJob& job : jobs) {
+      names += (names.empty() ? "" : ", ") + job.name;
+      if (job.name == flags.only) kept.push_back(std::move(job));
+    }
+    if (kept.empty()) return usage_error("--only " + flags.only + ": no bake of that name (bakes: " + names + ")");
+    jobs = std::move(kept);
+  }
+  // --tile I/N: one band of rows of one bake, written as a tile file.
+  if (!flags.tile.empty()) {
+    int index = 0, count = 0;
+    if (!parse_tile_spec(flags.tile, index, count)) {
+      return usage_error("--tile " + flags.tile + ": expected I/N with 1 <= I <= N <= 4096");
+    }
+    if (jobs.size() != 1) return usage_error("--tile bakes one bake: pick it with --only NAME");
+    BakeOptions& o = jobs.front().options;
+    o.tile_index = index;
+    o.tile_count = count;
+    o.tile_path = !flags.tile_file.empty() ? flags.tile_file
+                                           : o.outputs.front().path + ".tile-" + std::to_string(index + 1) + "-of-" +
+                                                 std::to_string(count);
+  } else if (!flags.tile_file.empty()) {
+    return usage_error("--tile-file needs --tile I/N");
+  }
   // Check every job before the first one runs: a typo in the last bake of a
   // job file must not be found after an hour of baking.
   for (const BakeJob& job : jobs) {
@@ -158,9 +212,15 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
     // pauses they make to report progress.
     ProgressFn listener;
     if (show_progress) listener = [&](const char* stage, double f) { bar.update(stage, f); };
-    const Status s = bake(job.options, report, listener);
+    bool cached = false;
+    const Status s = bake_or_fetch(job, !flags.cache.empty() ? flags.cache : resolve_cache_dir(job.cache_dir), report,
+                                   listener, cached);
     bar.finish();
     if (!s) return fail(s);
+    if (cached) {
+      if (!global.quiet) std::printf("%s: cached (key %s): %zu maps\n", job.name.c_str(), report.key.c_str(), report.outputs.size());
+      continue;
+    }
     if (!job.report_path.empty()) {
       const Status rs = write_report(job.report_path, report);
       if (!rs) return fail(rs);
@@ -239,6 +299,10 @@ Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--cage-suffix", flags->cage_suffix, "name suffix of cage parts (X_cage is the cage of X_low)")->default_val("_cage");
   cmd->add_option("--unmatched", flags->unmatched, "low parts with no high match: error | all (bake them against every unused high part)")->default_val("error");
   cmd->add_option("--groups-per-scene", flags->groups_per_scene, "bake groups sharing one BVH through ray masks, 1-32 (0: auto; for benchmarks)")->default_val(0)->check(CLI::Range(0, 32));
+  cmd->add_option("--only", flags->only, "of a job file, bake only the bake of this name");
+  cmd->add_option("--tile", flags->tile, "bake only tile I of N (bands of rows) into a tile file, for nmbake merge");
+  cmd->add_option("--tile-file", flags->tile_file, "where --tile writes (default: FIRST_OUTPUT.tile-I-of-N)");
+  cmd->add_option("--cache", flags->cache, "content-addressed cache folder: a bake whose key is there is copied, not baked (also NMBAKE_CACHE)");
   cmd->add_option("--debug-dump", flags->debug_dump, "also write PREFIX_coverage.png, PREFIX_misses.png, PREFIX_distance.exr");
   return [flags, &global, cmd]() { return run_bake(*flags, global, *cmd); };
 }

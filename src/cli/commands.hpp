@@ -40,5 +40,7 @@ struct ViewFlags {
 void add_view_flags(CLI::App* cmd, ViewFlags& flags, int default_size);
 Status parse_view_flags(const ViewFlags& flags, ViewOptions& view);
 Runner add_unwrap_command(CLI::App& app, const GlobalOptions& global);
+Runner add_merge_command(CLI::App& app, const GlobalOptions& global);  // merge_command.cpp
+Runner add_plan_command(CLI::App& app, const GlobalOptions& global);   // plan_command.cpp
 
 }  // namespace nmbake::cli

@@ -8,11 +8,12 @@
 #include <tbb/global_control.h>
 
 #include "commands.hpp"
+#include "nmbake/task.hpp"
 
 int main(int argc, char** argv) {
   using namespace nmbake::cli;
   CLI::App app{"nmbake: bakes the detail of a high-poly mesh into a normal map of a low-poly mesh"};
-  app.set_version_flag("--version", "nmbake 0.1.0");
+  app.set_version_flag("--version", std::string("nmbake ") + nmbake::kNmbakeVersion);
   app.require_subcommand(1);
   app.fallthrough();  // --threads, -q, -v also after the subcommand
   app.get_formatter()->column_width(36);
@@ -27,6 +28,8 @@ int main(int argc, char** argv) {
   const Runner height2normal = add_height2normal_command(app, global);
   const Runner tangents = add_tangents_command(app, global);
   const Runner unwrap = add_unwrap_command(app, global);
+  const Runner merge = add_merge_command(app, global);
+  const Runner plan = add_plan_command(app, global);
 
   try {
     app.parse(argc, argv);
@@ -46,6 +49,8 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("height2normal")) return height2normal();
     if (app.got_subcommand("tangents")) return tangents();
     if (app.got_subcommand("unwrap")) return unwrap();
+    if (app.got_subcommand("merge")) return merge();
+    if (app.got_subcommand("plan")) return plan();
   } catch (const std::exception& e) {
     std::fprintf(stderr, "nmbake: internal error: %s\n", e.what());
     return kInternal;

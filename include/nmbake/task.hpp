@@ -1,0 +1,80 @@
+// Tasks, keys and tiles (DESIGN.md, "Growing the pipeline"): a bake is a
+// pure function of its inputs' bytes and its options, so
+//   * it has a key: XXH3-128 (xxHash) of the low, high and cage files' bytes
+//     and of every option that can change an output byte, in a canonical
+//     text form (bake_key_text), with the output formats and the nmbake
+//     version. Not in the key: paths (the same meshes elsewhere give the
+//     same maps), threads and band size (tested not to change a byte), the
+//     report and debug-dump paths. `auto` distances enter as "auto": they
+//     are a function of the meshes, which are in the key;
+//   * any band of rows can be baked alone (a tile, bake_tile_rows) and the
+//     tiles merged before dilation give the bytes of the whole bake.
+// Scheduling is left to existing engines (plan.hpp writes Ninja files,
+// Slurm scripts and JSON task lists).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "nmbake/bake.hpp"
+#include "nmbake/common.hpp"
+
+namespace nmbake {
+
+inline constexpr const char* kNmbakeVersion = "0.1.0";
+
+struct BakeKey {
+  std::uint64_t high = 0, low = 0;
+  std::string hex() const;  // 32 lower-case hex digits
+  bool operator==(const BakeKey&) const = default;
+};
+
+// The options part of the key, one `name value` line each.
+std::string bake_key_text(const BakeOptions& options);
+// Hashes the input files and the options. bad_input naming a file that
+// cannot be read.
+Status bake_key(const BakeOptions& options, BakeKey& key);
+
+// Rows [begin, end) of tile `index` (0-based) of `count` over a map of
+// `height` rows: bands of whole kRasterTileSize-row raster tiles, as even as
+// that allows (with more tiles than 32-row bands some tiles are empty).
+void tile_rows(int height, int index, int count, int& begin, int& end);
+// "I/N" with 1 <= I <= N (1-based, as users count), into index = I - 1.
+bool parse_tile_spec(const std::string& text, int& index, int& count);
+
+// A baked tile: the map's rows [row_begin, row_end) before dilation, their
+// coverage, and what merging needs (the key, the map's size and padding,
+// the outputs the bake names).
+struct TileData {
+  BakeKey key;
+  int width = 0, height = 0;  // of the whole map
+  int row_begin = 0, row_end = 0;
+  int index = 0, count = 1;
+  int padding = 0;
+  std::vector<OutputSpec> outputs;
+  std::vector<float> pixels;            // (row_end - row_begin) * width * 3
+  std::vector<std::uint8_t> coverage;   // (row_end - row_begin) * width
+};
+// Written to a temporary file and renamed (Status::io on failure).
+Status write_tile(const std::string& path, const TileData& tile);
+// bad_input naming the file on anything that is not a complete tile file.
+Status read_tile(const std::string& path, TileData& tile);
+
+struct MergeReport {
+  BakeKey key;
+  int width = 0, height = 0, tiles = 0;
+  std::vector<std::string> outputs;
+  DilateStats dilate;
+  double read_seconds = 0.0, dilate_seconds = 0.0, write_seconds = 0.0;
+  std::string to_json() const;
+};
+
+// Checks that the tiles are all of one bake (key, size, count, padding) and
+// together hold every tile exactly once, then dilates and writes `outputs`
+// (empty: the outputs the bake named). The bytes are those of the whole bake.
+// bad_input naming the tile file on a mixed, missing or repeated tile.
+Status merge_tiles(const std::vector<std::string>& tile_paths, const std::vector<OutputSpec>& outputs,
+                   MergeReport& report);
+
+}  // namespace nmbake

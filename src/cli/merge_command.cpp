@@ -1,0 +1,68 @@
+// `nmbake merge TILE... [-o map.png ...]`: the tiles of one bake (`nmbake
+// bake --tile I/N`) into its maps, dilated and written as the whole bake
+// would write them, byte for byte.
+#include <cstdio>
+#include <fstream>
+
+#include "commands.hpp"
+#include "nmbake/task.hpp"
+
+namespace nmbake::cli {
+
+namespace {
+
+struct MergeFlags {
+  std::vector<std::string> tiles, outputs;
+  std::string format, report;
+};
+
+int run_merge(const MergeFlags& f, const GlobalOptions& global) {
+  std::vector<OutputSpec> outputs;
+  for (const std::string& path : f.outputs) {
+    OutputSpec out;
+    out.path = path;
+    const bool ok = f.format.empty() ? pixel_format_from_path(path, out.format) : parse_pixel_format(f.format, out.format);
+    if (!ok) {
+      std::fprintf(stderr, "nmbake: error: %s: unknown image extension or --format\n", path.c_str());
+      return kBadInput;
+    }
+    outputs.push_back(out);
+  }
+  MergeReport report;
+  const Status s = merge_tiles(f.tiles, outputs, report);
+  if (!s) {
+    std::fprintf(stderr, "nmbake: error: %s\n", s.message().c_str());
+    return s.code() == StatusCode::internal ? kInternal : kBadInput;
+  }
+  if (!f.report.empty()) {
+    const std::string temp = f.report + ".tmp";
+    std::ofstream out(temp, std::ios::binary | std::ios::trunc);
+    out << report.to_json();
+    if (!out.flush() || std::rename(temp.c_str(), f.report.c_str()) != 0) {
+      std::fprintf(stderr, "nmbake: error: %s: cannot write the report\n", f.report.c_str());
+      return kBadInput;
+    }
+  }
+  if (!global.quiet) {
+    std::printf("merged %d tiles of %dx%d (key %s) into", report.tiles, report.width, report.height,
+                report.key.hex().c_str());
+    for (const std::string& o : report.outputs) std::printf(" %s", o.c_str());
+    std::printf(": read %.3f s, dilate %.3f s, write %.3f s\n", report.read_seconds, report.dilate_seconds,
+                report.write_seconds);
+  }
+  return kSuccess;
+}
+
+}  // namespace
+
+Runner add_merge_command(CLI::App& app, const GlobalOptions& global) {
+  auto flags = std::make_shared<MergeFlags>();
+  CLI::App* cmd = app.add_subcommand("merge", "merge the tile files of one bake (bake --tile I/N) into its maps");
+  cmd->add_option("tiles", flags->tiles, "every tile file of the bake, in any order")->required();
+  cmd->add_option("-o,--output", flags->outputs, "output map(s) (default: the maps the bake names)")->allow_extra_args(false);
+  cmd->add_option("--format", flags->format, "png8 | png16 | tiff16 | exr-half | exr-float | exr-float-piz");
+  cmd->add_option("--report", flags->report, "write the merge report (JSON) here");
+  return [flags, &global]() { return run_merge(*flags, global); };
+}
+
+}  // namespace nmbake::cli

@@ -1,0 +1,281 @@
+// `nmbake plan` (plan.hpp): tasks of a job file, and the files that hand
+// them to Ninja, Slurm or any farm manager.
+#include "nmbake/plan.hpp"
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <set>
+
+#include <sys/stat.h>
+
+#include <nlohmann/json.hpp>
+
+#include "nmbake/task.hpp"
+#include "nmbake/udim.hpp"
+
+namespace nmbake {
+
+namespace fs = std::filesystem;
+
+// Joins pieces; GCC 12 warns falsely (-Wrestrict) on "literal" + std::string.
+template <typename... Pieces>
+std::string concat(const Pieces&... pieces) {
+  std::string out;
+  (out.append(pieces), ...);
+  return out;
+}
+
+std::string shell_command(const std::vector<std::string>& argv) {
+  std::string line;
+  for (const std::string& word : argv) {
+    if (!line.empty()) line += ' ';
+    const bool plain = !word.empty() && word.find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz"
+                                                               "0123456789_-./=:%+,@") == std::string::npos;
+    if (plain) {
+      line += word;
+      continue;
+    }
+    line += '\'';
+    for (const char c : word) {
+      if (c == '\'') {
+        line += "'\\''";
+      } else {
+        line += c;
+      }
+    }
+    line += '\'';
+  }
+  return line;
+}
+
+namespace {
+
+std::string absolute(const std::string& path) { return fs::absolute(path).lexically_normal().string(); }
+
+// The maps a bake writes: each output, per UDIM tile when it has the token
+// (the low mesh is read to find its tiles).
+Status bake_outputs(const BakeJob& job, std::vector<std::string>& outputs) {
+  std::vector<int> tiles{1001};
+  bool udim = false;
+  for (const OutputSpec& out : job.options.outputs) udim |= has_udim_token(out.path);
+  if (udim) {
+    Mesh low;
+    LoadStats stats;
+    NMBAKE_TRY(load_mesh(job.options.low_path, LoadOptions{true, false}, low, stats));
+    if (low.has_uvs()) NMBAKE_TRY(find_udim_tiles(low, job.options.low_path, true, tiles));
+  }
+  for (const int tile : tiles) {
+    for (const OutputSpec& out : job.options.outputs) outputs.push_back(absolute(udim_path(out.path, tile)));
+  }
+  return Status::ok();
+}
+
+}  // namespace
+
+Status plan_jobs(const std::vector<BakeJob>& jobs, const PlanOptions& options, std::vector<PlanTask>& tasks) {
+  tasks.clear();
+  std::set<std::string> names;
+  std::vector<PlanTask> merges;
+  for (const BakeJob& job : jobs) {
+    if (!names.insert(job.name).second) {
+      return Status::bad_input(concat(options.job_file, ": two bakes are named '", job.name,
+                                      "': a plan runs each by name (--only), so names must differ"));
+    }
+    BakeKey key;
+    NMBAKE_TRY(bake_key(job.options, key));
+    std::vector<std::string> inputs;
+    for (const std::string* p : {&job.options.low_path, &job.options.high_path, &job.options.cage_path}) {
+      if (!p->empty()) inputs.push_back(absolute(*p));
+    }
+    inputs.push_back(options.job_file);
+    inputs.push_back(options.nmbake);
+    std::vector<std::string> maps;
+    NMBAKE_TRY(bake_outputs(job, maps));
+    std::vector<std::string> base{options.nmbake, "bake", options.job_file, "--only", job.name, "-q"};
+    const bool udim = maps.size() != job.options.outputs.size() ||
+                      std::any_of(job.options.outputs.begin(), job.options.outputs.end(),
+                                  [](const OutputSpec& o) { return has_udim_token(o.path); });
+    const bool tiled = options.tiles > 1 && !udim &&
+                       std::max(job.options.width, job.options.height) >= options.tiles_min_size;
+    if (!tiled) {
+      PlanTask t;
+      t.id = concat("bake:", job.name);
+      t.kind = "bake";
+      t.name = job.name;
+      t.command = base;
+      if (!options.cache_dir.empty()) {
+        t.command.push_back("--cache");
+        t.command.push_back(options.cache_dir);
+      }
+      t.inputs = inputs;
+      t.outputs = maps;
+      if (!job.report_path.empty()) t.outputs.push_back(absolute(job.report_path));
+      t.key = key.hex();
+      tasks.push_back(std::move(t));
+      continue;
+    }
+    PlanTask merge;
+    merge.id = concat("merge:", job.name);
+    merge.kind = "merge";
+    merge.name = job.name;
+    merge.command = {options.nmbake, "merge", "-q"};
+    for (int i = 0; i < options.tiles; ++i) {
+      const std::string spec = std::to_string(i + 1) + "/" + std::to_string(options.tiles);
+      const std::string tile_file = concat(absolute(job.options.outputs.front().path), ".tile-", std::to_string(i + 1),
+                                           "-of-", std::to_string(options.tiles));
+      PlanTask t;
+      t.id = concat("tile:", job.name, ":", std::to_string(i + 1));
+      t.kind = "tile";
+      t.name = job.name;
+      t.command = base;
+      t.command.insert(t.command.end(), {"--tile", spec, "--tile-file", tile_file});
+      t.inputs = inputs;
+      t.outputs = {tile_file};
+      t.key = key.hex();
+      merge.command.push_back(tile_file);
+      merge.inputs.push_back(tile_file);
+      merge.dependencies.push_back(t.id);
+      tasks.push_back(std::move(t));
+    }
+    merge.inputs.push_back(options.nmbake);
+    merge.outputs = maps;
+    if (!job.report_path.empty()) {
+      merge.command.push_back("--report");
+      merge.command.push_back(absolute(job.report_path));
+      merge.outputs.push_back(absolute(job.report_path));
+    }
+    merge.key = key.hex();
+    merges.push_back(std::move(merge));
+  }
+  for (PlanTask& m : merges) tasks.push_back(std::move(m));
+  return Status::ok();
+}
+
+namespace {
+
+// Ninja paths: '$', ' ', ':' and newlines are escaped with '$'.
+std::string ninja_path(const std::string& path) {
+  std::string out;
+  for (const char c : path) {
+    if (c == '$' || c == ' ' || c == ':') out += '$';
+    if (c == '\n') return out + "$\n";  // never in our paths; kept valid anyway
+    out += c;
+  }
+  return out;
+}
+
+// A variable's value: only '$' is special (and newlines).
+std::string ninja_value(const std::string& text) {
+  std::string out;
+  for (const char c : text) {
+    if (c == '$') out += '$';
+    out += c == '\n' ? ' ' : c;
+  }
+  return out;
+}
+
+Status write_file(const std::string& path, const std::string& text, bool executable = false) {
+  const std::string temp = path + ".tmp";
+  {
+    std::ofstream out(temp, std::ios::binary | std::ios::trunc);
+    if (!out) return Status::io(path + ": cannot write the plan");
+    out << text;
+    if (!out.flush()) return Status::io(path + ": cannot write the plan (disk full?)");
+  }
+  if (executable) ::chmod(temp.c_str(), 0755);
+  std::error_code ec;
+  fs::rename(temp, path, ec);
+  if (ec) return Status::io(path + ": cannot write the plan: " + ec.message());
+  return Status::ok();
+}
+
+}  // namespace
+
+Status write_ninja_plan(const std::vector<PlanTask>& tasks, const std::string& path) {
+  std::string text =
+      "# Written by nmbake plan: one build statement per bake, tile and merge.\n"
+      "# `ninja -f FILE` bakes what is out of date; restat: a task whose outputs\n"
+      "# do not change does not make its dependents run.\n"
+      "ninja_required_version = 1.3\n\n"
+      "rule nmbake\n  command = $cmd\n  description = $desc\n  restat = 1\n\n";
+  for (const PlanTask& t : tasks) {
+    text += "build";
+    for (const std::string& o : t.outputs) text.append(" ").append(ninja_path(o));
+    text += ": nmbake";
+    for (const std::string& i : t.inputs) text.append(" ").append(ninja_path(i));
+    text.append("\n  cmd = ").append(ninja_value(shell_command(t.command))).append("\n");
+    const std::string tile_number = t.kind == "tile" ? concat(" ", t.id.substr(t.id.rfind(':') + 1)) : "";
+    text.append("  desc = ").append(ninja_value(concat(t.kind, " ", t.name, tile_number))).append("\n\n");
+  }
+  return write_file(path, text);
+}
+
+Status write_slurm_plan(const std::vector<PlanTask>& tasks, const std::string& folder) {
+  std::error_code ec;
+  fs::create_directories(fs::path(folder) / "logs", ec);
+  if (ec) return Status::io(folder + ": cannot create the plan folder: " + ec.message());
+  const std::string dir = absolute(folder);
+  std::string bakes, merges;
+  int bake_count = 0, merge_count = 0;
+  for (const PlanTask& t : tasks) {
+    if (t.kind == "merge") {
+      merges += shell_command(t.command) + "\n";
+      ++merge_count;
+    } else {
+      bakes += shell_command(t.command) + "\n";
+      ++bake_count;
+    }
+  }
+  NMBAKE_TRY(write_file(dir + "/tasks.txt", bakes));
+  NMBAKE_TRY(write_file(dir + "/merges.txt", merges));
+  const auto array_script = [&](const char* name, const char* list, int count) {
+    return std::string("#!/bin/bash\n") + "# Written by nmbake plan: array task K runs line K + 1 of " + list + ".\n" +
+           "#SBATCH --job-name=nmbake-" + name + "\n" + "#SBATCH --array=0-" + std::to_string(std::max(0, count - 1)) +
+           "\n" + "#SBATCH --output=" + dir + "/logs/" + name + "-%A_%a.log\n" + "set -euo pipefail\n" +
+           "line=$(sed -n \"$((SLURM_ARRAY_TASK_ID + 1))p\" " + shell_command({dir + "/" + list}) + ")\n" +
+           "echo \"nmbake task $SLURM_ARRAY_JOB_ID.$SLURM_ARRAY_TASK_ID: $line\"\n" + "exec bash -c \"$line\"\n";
+  };
+  NMBAKE_TRY(write_file(dir + "/bake.sbatch", array_script("bake", "tasks.txt", bake_count), true));
+  NMBAKE_TRY(write_file(dir + "/merge.sbatch", array_script("merge", "merges.txt", merge_count), true));
+  std::string submit =
+      "#!/bin/bash\n"
+      "# Written by nmbake plan. Submits every bake and tile as one job array and\n"
+      "# the merges as a second array that starts only when every task of the\n"
+      "# first succeeded (afterok; a failed bake cancels its merges). Prints the\n"
+      "# job ids. --wait: returns when all is done, with sbatch's exit code.\n"
+      "set -euo pipefail\n"
+      "cd " + shell_command({dir}) + "\n"
+      "wait=()\n"
+      "[ \"${1:-}\" = --wait ] && wait=(--wait)\n";
+  if (merge_count == 0) {
+    submit += "bake=$(sbatch --parsable \"${wait[@]}\" bake.sbatch)\necho \"bake array: job $bake\"\n";
+  } else {
+    submit +=
+        "bake=$(sbatch --parsable bake.sbatch)\n"
+        "echo \"bake array: job $bake (" + std::to_string(bake_count) + " tasks)\"\n"
+        "merge=$(sbatch --parsable \"${wait[@]}\" --kill-on-invalid-dep=yes --dependency=afterok:$bake merge.sbatch)\n"
+        "echo \"merge array: job $merge (" + std::to_string(merge_count) + " tasks, after $bake)\"\n";
+  }
+  return write_file(dir + "/submit.sh", submit, true);
+}
+
+Status write_json_plan(const std::vector<PlanTask>& tasks, const std::string& path) {
+  nlohmann::ordered_json j;
+  j["format"] = "nmbake-plan";
+  j["version"] = 1;
+  j["tasks"] = nlohmann::ordered_json::array();
+  for (const PlanTask& t : tasks) {
+    j["tasks"].push_back({{"id", t.id},
+                          {"kind", t.kind},
+                          {"name", t.name},
+                          {"command", t.command},
+                          {"inputs", t.inputs},
+                          {"outputs", t.outputs},
+                          {"dependencies", t.dependencies},
+                          {"key", t.key}});
+  }
+  return write_file(path, j.dump(2) + "\n");
+}
+
+}  // namespace nmbake
