@@ -22,6 +22,7 @@
 #include <glm/geometric.hpp>
 #include <nlohmann/json.hpp>
 
+#include "nmbake/job.hpp"
 #include "nmbake/load.hpp"
 #include "nmbake/mesh.hpp"
 #include "test_util.hpp"
@@ -581,6 +582,171 @@ TEST(LoadFbx, BrokenFbxIsBadInputWithAssimpsReason) {
   EXPECT_EQ(run.exit_code, 2);
   EXPECT_EQ(std::count(run.output.begin(), run.output.end(), '\n'), 1) << run.output;
   EXPECT_TRUE(contains(run.output, path + ": Assimp: ")) << run.output;
+}
+
+// ---- bakes: the same asset as OBJ and as glTF; file tangents ----
+
+std::string bake_args(const std::string& low, const std::string& high, const std::string& out) {
+  return test::cli_path() + " bake -q --low " + low + " --high " + high + " -o " + out + " --size 128 --samples 1";
+}
+
+bool same_bytes(const std::string& a, const std::string& b) {
+  std::ifstream fa(a, std::ios::binary);
+  std::ifstream fb(b, std::ios::binary);
+  const std::string da((std::istreambuf_iterator<char>(fa)), std::istreambuf_iterator<char>());
+  const std::string db((std::istreambuf_iterator<char>(fb)), std::istreambuf_iterator<char>());
+  return !da.empty() && da == db;
+}
+
+TEST(LoadFormatsBake, ObjAndTransformedTwoPartGltfBakeTheSameMap) {
+  TempDir dir;
+  const std::string out = dir.path().string();
+  ASSERT_EQ(test::run_command(test::gen_path() + " box --out-dir " + out + " --high-cells 24 --low-cells 2").exit_code, 0);
+  const std::string low_obj = dir.file("box_low.obj");
+  const std::string high = dir.file("box_high.ply");
+  Loaded low = load(low_obj);
+  ASSERT_TRUE(low.status.is_ok()) << low.status.message();
+  ASSERT_TRUE(low.mesh.has_uvs() && low.mesh.has_normals());
+  // The same mesh under a node matrix M: (x, y, z) -> (-2y, 2x, 2z). The
+  // file holds M^-1 p and M^T n (so that M^-T of it is n); both are exact
+  // in floats, so the world-space positions equal the OBJ's bit for bit.
+  std::vector<float> positions;
+  std::vector<float> normals;
+  std::vector<float> uvs;
+  for (std::size_t v = 0; v < low.mesh.vertex_count(); ++v) {
+    const glm::vec3 p = low.mesh.positions[v];
+    const glm::vec3 n = low.mesh.normals[v];
+    positions.insert(positions.end(), {p.y / 2, -p.x / 2, p.z / 2});
+    normals.insert(normals.end(), {2 * n.y, -2 * n.x, 2 * n.z});
+    uvs.insert(uvs.end(), {low.mesh.uvs[v].x, 1.0f - low.mesh.uvs[v].y});
+  }
+  GltfFile file;
+  const int position_accessor = file.floats(positions, 3);
+  const int normal_accessor = file.floats(normals, 3);
+  const int uv_accessor = file.floats(uvs, 2);
+  const std::size_t half = low.mesh.triangle_count() / 2 * 3;
+  const std::vector<std::uint32_t> first(low.mesh.indices.begin(), low.mesh.indices.begin() + static_cast<std::ptrdiff_t>(half));
+  const std::vector<std::uint32_t> second(low.mesh.indices.begin() + static_cast<std::ptrdiff_t>(half), low.mesh.indices.end());
+  const json attributes = {{"POSITION", position_accessor}, {"NORMAL", normal_accessor}, {"TEXCOORD_0", uv_accessor}};
+  const int mesh_a = file.mesh(attributes, file.indices(first), "a");
+  const int mesh_b = file.mesh(attributes, file.indices(second), "b");
+  const json matrix = {0, 2, 0, 0, -2, 0, 0, 0, 0, 0, 2, 0, 0, 0, 0, 1};
+  file.node({{"name", "part_a"}, {"mesh", mesh_a}, {"matrix", matrix}});
+  file.node({{"name", "part_b"}, {"mesh", mesh_b}, {"matrix", matrix}});
+  file.scene({0, 1});
+  file.write_gltf(dir, "box_low.gltf", "box_low.bin");
+  const Loaded gltf = load(dir.file("box_low.gltf"));
+  ASSERT_TRUE(gltf.status.is_ok()) << gltf.status.message();
+  ASSERT_EQ(gltf.mesh.parts.size(), 2u);
+  EXPECT_EQ(gltf.mesh.positions, low.mesh.positions);
+  EXPECT_EQ(gltf.mesh.indices, low.mesh.indices);
+
+  ASSERT_EQ(test::run_command(bake_args(low_obj, high, dir.file("obj.png"))).exit_code, 0);
+  const test::CommandResult baked = test::run_command(bake_args(dir.file("box_low.gltf"), high, dir.file("gltf.png")));
+  ASSERT_EQ(baked.exit_code, 0) << baked.output;
+  // UVs went through 1 - (1 - v), which may move them by an ulp: the maps
+  // agree within the 16-bit floor rather than byte for byte.
+  const test::CommandResult diff = test::run_command(test::cli_path() + " diff " + dir.file("obj.png") + " " +
+                                                     dir.file("gltf.png") + " --max-max 0.05 --max-mean 0.001");
+  EXPECT_EQ(diff.exit_code, 0) << diff.output;
+  std::printf("OBJ vs transformed two-part glTF: %s\n", diff.output.c_str());
+}
+
+TEST(LoadFormatsBake, WrittenMikkTSpaceTangentsBakeLikeMikkTSpace) {
+  TempDir dir;
+  const std::string out = dir.path().string();
+  ASSERT_EQ(test::run_command(test::gen_path() + " sphere --out-dir " + out + " --high-cells 32 --low-cells 3").exit_code, 0);
+  const std::string low_obj = dir.file("sphere_low.obj");
+  const std::string high = dir.file("sphere_high.ply");
+  const std::string glb = dir.file("low_tangents.glb");
+  const test::CommandResult wrote = test::run_command(test::cli_path() + " tangents " + low_obj + " --write " + glb);
+  ASSERT_EQ(wrote.exit_code, 0) << wrote.output;
+  LoadOptions options;
+  options.keep_tangents = true;
+  const Loaded reloaded = load(glb, options);
+  ASSERT_TRUE(reloaded.status.is_ok()) << reloaded.status.message();
+  ASSERT_TRUE(reloaded.mesh.has_tangents());
+  const Loaded original = load(low_obj);
+  EXPECT_EQ(reloaded.mesh.triangle_count(), original.mesh.triangle_count());
+  EXPECT_GE(reloaded.mesh.vertex_count(), original.mesh.vertex_count());
+  for (const glm::vec4& t : reloaded.mesh.tangents) {
+    EXPECT_NEAR(glm::length(glm::vec3(t)), 1.0f, 1e-5f);
+    EXPECT_TRUE(t.w == 1.0f || t.w == -1.0f);
+  }
+  ASSERT_EQ(test::run_command(bake_args(glb, high, dir.file("mikk.png")) + " --tangents mikktspace").exit_code, 0);
+  const test::CommandResult file_run = test::run_command(bake_args(glb, high, dir.file("file.png")) + " --tangents file");
+  ASSERT_EQ(file_run.exit_code, 0) << file_run.output;
+  const test::CommandResult diff = test::run_command(test::cli_path() + " diff " + dir.file("mikk.png") + " " +
+                                                     dir.file("file.png") + " --max-max 0.05 --max-mean 0.001");
+  EXPECT_EQ(diff.exit_code, 0) << diff.output;
+  std::printf("--tangents file vs mikktspace: %s%s\n", same_bytes(dir.file("mikk.png"), dir.file("file.png")) ? "byte-identical; " : "",
+              diff.output.c_str());
+  // The file's tangents are really used: with every sign flipped the map
+  // differs (so the comparison above can fail).
+  Mesh flipped = reloaded.mesh;
+  for (glm::vec4& t : flipped.tangents) t.w = -t.w;
+  ASSERT_TRUE(save_mesh(dir.file("flipped.glb"), flipped).is_ok());
+  ASSERT_EQ(test::run_command(bake_args(dir.file("flipped.glb"), high, dir.file("flipped.png")) + " --tangents file").exit_code, 0);
+  EXPECT_EQ(test::run_command(test::cli_path() + " diff " + dir.file("mikk.png") + " " + dir.file("flipped.png") +
+                              " --max-max 0.05 --max-mean 0.001")
+                .exit_code,
+            1);
+  // A mesh without tangents cannot be baked with --tangents file.
+  const test::CommandResult no_tangents = test::run_command(bake_args(low_obj, high, dir.file("none.png")) + " --tangents file");
+  EXPECT_EQ(no_tangents.exit_code, 2);
+  EXPECT_TRUE(contains(no_tangents.output, "has no tangents")) << no_tangents.output;
+}
+
+TEST(LoadFormatsBake, UvSetPicksTheGltfTexcoordSet) {
+  TempDir dir;
+  const std::string out = dir.path().string();
+  ASSERT_EQ(test::run_command(test::gen_path() + " box --out-dir " + out + " --high-cells 24 --low-cells 2").exit_code, 0);
+  Loaded low = load(dir.file("box_low.obj"));
+  ASSERT_TRUE(low.status.is_ok()) << low.status.message();
+  // TEXCOORD_0 is garbage (every corner at one point), TEXCOORD_1 the real
+  // layout: only --uv-set 1 bakes the OBJ's map.
+  std::vector<float> positions, normals, uvs, flat;
+  for (std::size_t v = 0; v < low.mesh.vertex_count(); ++v) {
+    positions.insert(positions.end(), {low.mesh.positions[v].x, low.mesh.positions[v].y, low.mesh.positions[v].z});
+    normals.insert(normals.end(), {low.mesh.normals[v].x, low.mesh.normals[v].y, low.mesh.normals[v].z});
+    uvs.insert(uvs.end(), {low.mesh.uvs[v].x, 1.0f - low.mesh.uvs[v].y});
+    flat.insert(flat.end(), {0.5f, 0.5f});
+  }
+  GltfFile file;
+  const json attributes = {{"POSITION", file.floats(positions, 3)}, {"NORMAL", file.floats(normals, 3)},
+                           {"TEXCOORD_0", file.floats(flat, 2)}, {"TEXCOORD_1", file.floats(uvs, 2)}};
+  file.node({{"name", "box"}, {"mesh", file.mesh(attributes, file.indices(low.mesh.indices))}});
+  file.scene({0});
+  file.write_gltf(dir, "two_sets.gltf");
+  const std::string gltf = dir.file("two_sets.gltf");
+  ASSERT_EQ(test::run_command(bake_args(dir.file("box_low.obj"), dir.file("box_high.ply"), dir.file("obj.png"))).exit_code, 0);
+  const test::CommandResult set1 =
+      test::run_command(bake_args(gltf, dir.file("box_high.ply"), dir.file("set1.png")) + " --uv-set 1");
+  ASSERT_EQ(set1.exit_code, 0) << set1.output;
+  EXPECT_EQ(test::run_command(test::cli_path() + " diff " + dir.file("obj.png") + " " + dir.file("set1.png") +
+                              " --max-max 0.05 --max-mean 0.001").exit_code, 0);
+  ASSERT_EQ(test::run_command(bake_args(gltf, dir.file("box_high.ply"), dir.file("set0.png"))).exit_code, 0);
+  EXPECT_EQ(test::run_command(test::cli_path() + " diff " + dir.file("obj.png") + " " + dir.file("set0.png") +
+                              " --max-max 0.05 --max-mean 0.001").exit_code, 1);
+  const test::CommandResult set2 = test::run_command(bake_args(gltf, dir.file("box_high.ply"), dir.file("set2.png")) + " --uv-set 2");
+  EXPECT_EQ(set2.exit_code, 2);
+  EXPECT_TRUE(contains(set2.output, "TEXCOORD_0, TEXCOORD_1")) << set2.output;
+}
+
+TEST(LoadFormatsBake, JobFilesTakeTangentsAndUvSet) {
+  TempDir dir;
+  const std::string path = dir.file("job.toml");
+  write_text(path, "[[bake]]\nlow = \"l.glb\"\nhigh = \"h.ply\"\noutputs = [\"a.png\"]\ntangents = \"file\"\nuv_set = 1\n");
+  std::vector<BakeJob> jobs;
+  const Status s = load_job_file(path, jobs);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  ASSERT_EQ(jobs.size(), 1u);
+  EXPECT_EQ(jobs[0].options.tangent_basis, TangentBasis::file);
+  EXPECT_EQ(jobs[0].options.uv_set, 1);
+  write_text(path, "[[bake]]\nlow = \"l.glb\"\nhigh = \"h.ply\"\noutputs = [\"a.png\"]\ntangents = \"lengyel\"\n");
+  EXPECT_FALSE(load_job_file(path, jobs).is_ok());
+  write_text(path, "[[bake]]\nlow = \"l.glb\"\nhigh = \"h.ply\"\noutputs = [\"a.png\"]\nuv_set = -1\n");
+  EXPECT_FALSE(load_job_file(path, jobs).is_ok());
 }
 
 }  // namespace

@@ -24,6 +24,8 @@ struct BakeFlags {
   std::string cage_mode = "averaged", high_normals = "smooth", build_quality = "low", encode = "inverse", bvh = "auto";
   std::string format;
   std::string tangent_basis = "mikktspace";
+  std::string tangents = "mikktspace";
+  int uv_set = 0;
   bool ignore_backfaces = false;
   int padding = 16;
   std::string report;
@@ -72,7 +74,10 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
   if (!parse_bvh_memory(f.bvh, o.bvh_memory)) return Status::bad_input("--bvh " + f.bvh + ": expected auto, fast or compact");
   if (!parse_build_quality(f.build_quality, o.build_quality)) return Status::bad_input("--build-quality " + f.build_quality + ": expected low, medium or high");
   if (!parse_tangent_encode(f.encode, o.tangent_encode)) return Status::bad_input("--encode " + f.encode + ": expected inverse or transpose");
-  if (!parse_tangent_basis(f.tangent_basis, o.tangent_basis)) return Status::bad_input("--tangent-basis " + f.tangent_basis + ": expected mikktspace, lengyel or face");
+  if (!parse_tangent_basis(f.tangent_basis, o.tangent_basis)) return Status::bad_input("--tangent-basis " + f.tangent_basis + ": expected mikktspace, lengyel, face or file");
+  if (f.tangents != "mikktspace" && f.tangents != "file") return Status::bad_input("--tangents " + f.tangents + ": expected mikktspace or file");
+  if (f.tangents == "file") o.tangent_basis = TangentBasis::file;
+  o.uv_set = f.uv_set;
   if (!parse_distance(f.front, o.front)) return Status::bad_input("--front " + f.front + ": expected a distance, N% or auto");
   if (!parse_distance(f.back, o.back)) return Status::bad_input("--back " + f.back + ": expected a distance, N% or auto");
   o.ignore_backfaces = f.ignore_backfaces;
@@ -223,6 +228,11 @@ Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
       ->default_val("auto");
   cmd->add_option("--encode", flags->encode, "tangent-space encode: inverse (exact) | transpose (for comparison)")->default_val("inverse");
   cmd->add_option("--tangent-basis", flags->tangent_basis, "basis the map is encoded in: mikktspace | lengyel | face (comparison only)")->default_val("mikktspace");
+  cmd->add_option("--tangents", flags->tangents,
+                  "tangent frame of the map: mikktspace (computed) | file (the low mesh's glTF TANGENT / FBX tangents)")
+      ->default_val("mikktspace");
+  cmd->add_option("--uv-set", flags->uv_set, "the low mesh's UV set: glTF TEXCOORD_N, FBX UV channel N")
+      ->default_val(0)->check(CLI::Range(0, 7));
   cmd->add_option("--debug-dump", flags->debug_dump, "also write PREFIX_coverage.png, PREFIX_misses.png, PREFIX_distance.exr");
   return [flags, &global, cmd]() { return run_bake(*flags, global, *cmd); };
 }
