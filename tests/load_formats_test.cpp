@@ -22,6 +22,7 @@
 #include <glm/geometric.hpp>
 #include <nlohmann/json.hpp>
 
+#include "fbx_write.hpp"
 #include "nmbake/job.hpp"
 #include "nmbake/load.hpp"
 #include "nmbake/mesh.hpp"
@@ -568,6 +569,51 @@ TEST(LoadFbx, AssimpExportedFbxKeepsNodeTransformNameAndOurDiagonal) {
   }
 }
 
+TEST(LoadFbx, BinaryFbxInCentimetresAndMetresWithNodeTransform) {
+  TempDir dir;
+  // The concave quad again, as one FBX polygon of four corners.
+  Mesh quad;
+  quad.positions = {{0, 0, 0}, {2, 0, 0}, {0.5f, 0.5f, 0}, {0, 2, 0}};
+  quad.normals = {{0, 0, 1}, {0, 0, 1}, {0, 0, 1}, {0, 0, 1}};
+  quad.uvs = {{0, 0}, {1, 0}, {0.25f, 0.25f}, {0, 1}};
+  quad.indices = {0, 1, 2, 3};
+  gen::FbxModel model;
+  model.name = "crate";
+  model.translation = {10, 0, 0};
+  model.rotation_degrees = {0, 0, 90};
+  model.scaling = {2, 2, 2};
+  for (const double unit : {1.0, 100.0}) {
+    SCOPED_TRACE(unit);
+    model.unit_scale_factor = unit;
+    const std::string path = dir.file("quad.fbx");
+    ASSERT_TRUE(gen::write_fbx_binary(path, quad, model, {4}).is_ok());
+    const Loaded r = load(path);
+    ASSERT_TRUE(r.status.is_ok()) << r.status.message();
+    // Positions stay in file units whatever the unit; the unit is a note.
+    EXPECT_DOUBLE_EQ(r.stats.unit_meters, 0.01 * unit);
+    ASSERT_EQ(r.mesh.triangle_count(), 2u);
+    ASSERT_EQ(r.mesh.parts.size(), 1u);
+    EXPECT_EQ(r.mesh.parts[0].name, "crate");
+    // world = T(10,0,0) R(90 about z) S(2); the fan (0 1 2) (0 2 3).
+    const std::vector<glm::vec3> expected{{10, 0, 0}, {10, 4, 0}, {9, 1, 0}, {6, 0, 0}};
+    const std::size_t corners[2][3] = {{0, 1, 2}, {0, 2, 3}};
+    for (std::size_t t = 0; t < 2; ++t) {
+      for (std::size_t c = 0; c < 3; ++c) {
+        expect_near(r.mesh.positions[r.mesh.indices[3 * t + c]], expected[corners[t][c]], 1e-4f);
+      }
+    }
+    EXPECT_NEAR(r.mesh.uvs[r.mesh.indices[2]].x, 0.25f, 1e-6f);
+    // A high mesh read from the same file has no UVs, a low one with
+    // --uv-set 1 names the channels there are.
+    LoadOptions high;
+    high.keep_uvs = false;
+    EXPECT_FALSE(load(path, high).mesh.has_uvs());
+    LoadOptions second;
+    second.uv_set = 1;
+    expect_bad_input(load(path, second), path, {"part 'crate'", "UV channel 1 is missing", "channels: 0"});
+  }
+}
+
 TEST(LoadFbx, BrokenFbxIsBadInputWithAssimpsReason) {
   TempDir dir;
   const std::string path = dir.file("broken.fbx");
@@ -598,7 +644,7 @@ bool same_bytes(const std::string& a, const std::string& b) {
   return !da.empty() && da == db;
 }
 
-TEST(LoadFormatsBake, ObjAndTransformedTwoPartGltfBakeTheSameMap) {
+TEST(LoadFormatsBake, ObjTransformedTwoPartGltfAndFbxBakeTheSameMap) {
   TempDir dir;
   const std::string out = dir.path().string();
   ASSERT_EQ(test::run_command(test::gen_path() + " box --out-dir " + out + " --high-cells 24 --low-cells 2").exit_code, 0);
@@ -650,6 +696,27 @@ TEST(LoadFormatsBake, ObjAndTransformedTwoPartGltfBakeTheSameMap) {
                                                      dir.file("gltf.png") + " --max-max 0.05 --max-mean 0.001");
   EXPECT_EQ(diff.exit_code, 0) << diff.output;
   std::printf("OBJ vs transformed two-part glTF: %s\n", diff.output.c_str());
+
+  // And as binary FBX in centimetres: the model scaled by 2 and turned a
+  // quarter about z (in double, so not bit-exact), holding M^-1 p.
+  Mesh local = low.mesh;
+  for (std::size_t v = 0; v < local.vertex_count(); ++v) {
+    const glm::vec3 p = low.mesh.positions[v];
+    const glm::vec3 n = low.mesh.normals[v];
+    local.positions[v] = {p.y / 2, -p.x / 2, p.z / 2};
+    local.normals[v] = {n.y, -n.x, n.z};
+  }
+  gen::FbxModel model;
+  model.name = "box";
+  model.rotation_degrees = {0, 0, 90};
+  model.scaling = {2, 2, 2};
+  ASSERT_TRUE(gen::write_fbx_binary(dir.file("box_low.fbx"), local, model).is_ok());
+  const test::CommandResult fbx = test::run_command(bake_args(dir.file("box_low.fbx"), high, dir.file("fbx.png")));
+  ASSERT_EQ(fbx.exit_code, 0) << fbx.output;
+  const test::CommandResult fbx_diff = test::run_command(test::cli_path() + " diff " + dir.file("obj.png") + " " +
+                                                         dir.file("fbx.png") + " --max-max 0.05 --max-mean 0.001");
+  EXPECT_EQ(fbx_diff.exit_code, 0) << fbx_diff.output;
+  std::printf("OBJ vs transformed FBX (cm): %s\n", fbx_diff.output.c_str());
 }
 
 TEST(LoadFormatsBake, WrittenMikkTSpaceTangentsBakeLikeMikkTSpace) {

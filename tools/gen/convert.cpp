@@ -8,9 +8,7 @@
 #include <memory>
 #include <string>
 
-#include <assimp/Exporter.hpp>
-#include <assimp/scene.h>
-
+#include "fbx_write.hpp"
 #include "nmbake/load.hpp"
 
 namespace nmbake::gen {
@@ -24,51 +22,6 @@ std::string lower_extension(const std::string& path) {
   return extension;
 }
 
-// One node, one mesh: Assimp's exporter wants a material too.
-Status export_fbx(const Mesh& mesh, const std::string& path, bool ascii) {
-  aiScene scene;
-  auto* out = new aiMesh();
-  out->mName = "mesh";
-  out->mPrimitiveTypes = aiPrimitiveType_TRIANGLE;
-  out->mNumVertices = static_cast<unsigned>(mesh.vertex_count());
-  out->mVertices = new aiVector3D[mesh.vertex_count()];
-  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
-    out->mVertices[v] = aiVector3D(mesh.positions[v].x, mesh.positions[v].y, mesh.positions[v].z);
-  }
-  if (mesh.has_normals()) {
-    out->mNormals = new aiVector3D[mesh.vertex_count()];
-    for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
-      out->mNormals[v] = aiVector3D(mesh.normals[v].x, mesh.normals[v].y, mesh.normals[v].z);
-    }
-  }
-  if (mesh.has_uvs()) {
-    out->mTextureCoords[0] = new aiVector3D[mesh.vertex_count()];
-    out->mNumUVComponents[0] = 2;
-    for (std::size_t v = 0; v < mesh.vertex_count(); ++v) out->mTextureCoords[0][v] = aiVector3D(mesh.uvs[v].x, mesh.uvs[v].y, 0);
-  }
-  out->mNumFaces = static_cast<unsigned>(mesh.triangle_count());
-  out->mFaces = new aiFace[mesh.triangle_count()];
-  for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
-    out->mFaces[t].mNumIndices = 3;
-    out->mFaces[t].mIndices = new unsigned[3]{mesh.indices[3 * t], mesh.indices[3 * t + 1], mesh.indices[3 * t + 2]};
-  }
-  scene.mNumMeshes = 1;
-  scene.mMeshes = new aiMesh*[1]{out};
-  scene.mNumMaterials = 1;
-  scene.mMaterials = new aiMaterial*[1]{new aiMaterial()};
-  scene.mRootNode = new aiNode("root");
-  auto* node = new aiNode("mesh");
-  node->mNumMeshes = 1;
-  node->mMeshes = new unsigned[1]{0};
-  aiNode* children[] = {node};
-  scene.mRootNode->addChildren(1, children);
-  Assimp::Exporter exporter;
-  if (exporter.Export(&scene, ascii ? "fbxa" : "fbx", path) != AI_SUCCESS) {
-    return Status::io(path + ": Assimp export: " + exporter.GetErrorString());
-  }
-  return Status::ok();
-}
-
 }  // namespace
 
 Status convert_mesh(const std::string& in, const std::string& out) {
@@ -76,7 +29,7 @@ Status convert_mesh(const std::string& in, const std::string& out) {
   LoadStats stats;
   NMBAKE_TRY(load_mesh(in, LoadOptions{}, mesh, stats));
   const std::string extension = lower_extension(out);
-  if (extension == ".fbx") return export_fbx(mesh, out, false);
+  if (extension == ".fbx") return write_fbx_binary(out, mesh, FbxModel{});
   return save_mesh(out, mesh);
 }
 

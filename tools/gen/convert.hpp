@@ -1,5 +1,5 @@
 // nmbake-gen convert IN OUT (OBJ, PLY, glTF, FBX... in; .obj, .ply, .glb,
-// .gltf + .bin, or binary .fbx through Assimp's exporter out) and
+// .gltf + .bin, or binary .fbx (fbx_write.hpp) out) and
 // nmbake-gen load FILE [--low] (load only, prints counts and time).
 #pragma once
 
