@@ -432,6 +432,40 @@ TEST(LoadFormatsModels, BoxTexturedInEveryGltfFlavour) {
   }
 }
 
+TEST(LoadFormatsModels, FbxCubesFromMayaAnd3dsMax) {
+  REQUIRE_TEST_MODELS();
+  struct Case {
+    const char* file;
+    const char* part;
+    glm::vec3 min, max;
+    double unit_meters;
+  };
+  // Maya's unit cube in centimetres (binary), 3ds Max's 1.2 box standing on
+  // its base in metres (ASCII, UnitScaleFactor 100, originally inches),
+  // each a cube of 6 faces of 4 split vertices.
+  for (const Case& c : {Case{"FBX/phong_cube.fbx", "pCube1", {-0.5f, -0.5f, -0.5f}, {0.5f, 0.5f, 0.5f}, 0.01},
+                        Case{"FBX/embedded_ascii/box.FBX", "Box001", {-0.6f, -0.6f, 0.0f}, {0.6f, 0.6f, 1.2f}, 1.0}}) {
+    SCOPED_TRACE(c.file);
+    const Loaded r = load((models / c.file).string());
+    ASSERT_TRUE(r.status.is_ok()) << r.status.message();
+    EXPECT_EQ(r.mesh.vertex_count(), 24u);
+    EXPECT_EQ(r.mesh.triangle_count(), 12u);
+    ASSERT_EQ(r.mesh.parts.size(), 1u);
+    EXPECT_EQ(r.mesh.parts[0].name, c.part);
+    const Bounds b = compute_bounds(r.mesh);
+    expect_near(b.min, c.min, 1e-4f);
+    expect_near(b.max, c.max, 1e-4f);
+    EXPECT_NEAR(r.stats.unit_meters, c.unit_meters, 1e-9);
+  }
+  // UnitScaleFactor 500: a file unit of 5 m.
+  const Loaded settings = load((models / "FBX/global_settings.fbx").string());
+  ASSERT_TRUE(settings.status.is_ok()) << settings.status.message();
+  EXPECT_NEAR(settings.stats.unit_meters, 5.0, 1e-6);
+  // Two models named alike: refused, naming the name.
+  const std::string twins = (models / "FBX/cubes_with_names.fbx").string();
+  expect_bad_input(load(twins), twins, {"two parts are named"});
+}
+
 TEST(LoadFormatsModels, BrokenGltfModelsAreBadInput) {
   REQUIRE_TEST_MODELS();
   for (const char* file : {"glTF2/IndexOutOfRange/IndexOutOfRange.gltf", "glTF2/IndexOutOfRange/AllIndicesOutOfRange.gltf",

@@ -31,8 +31,8 @@
 //     the node tree with every node's matrix applied as for glTF; polygons
 //     fan-triangulated from corner 0 exactly like OBJ (not by Assimp, whose
 //     triangulation starts concave quads at the reflex corner and
-//     ear-clips n-gons); vertices welded by Assimp where every kept
-//     attribute agrees. UV channel uv_set; tangents from the file's
+//     ear-clips n-gons); vertices welded where every kept attribute is
+//     bitwise equal (FBX stores them per polygon corner). UV channel uv_set; tangents from the file's
 //     tangents and bitangents (w = sign of dot(cross(N, T), B)). One
 //     MeshPart per node with meshes, named by the node ("node<N>" if
 //     unnamed). unit_meters = 0.01 * the FBX UnitScaleFactor; positions

@@ -8,15 +8,15 @@
 // its reflex corner and ear-clips larger polygons, so the same asset would
 // get other triangles (and other MikkTSpace tangents) as FBX than as OBJ.
 //
-// Post-processing is limited to what keeps the file's meaning:
-// JoinIdenticalVertices (FBX stores attributes per polygon corner), with the
-// attributes the bake does not keep removed first so that they do not split
-// vertices (a high mesh is not split at UV seams), and
-// ValidateDataStructure, which turns inconsistent files into errors.
+// Assimp's post-processing is limited to RemoveComponent (what the bake does
+// not keep is dropped) and ValidateDataStructure (inconsistent files become
+// errors). Vertices are welded here by the kept attributes only (weld()), so
+// a high mesh is not split at UV seams.
 // Assimp's default logger is a null logger and is never replaced, so it
 // prints nothing; its error string goes into the Status.
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <set>
 #include <string>
 #include <vector>
@@ -65,6 +65,66 @@ double unit_meters(const aiScene& scene) {
   if (scene.mMetaData->Get("UnitScaleFactor", f) && f > 0.0f) return 0.01 * f;
   if (scene.mMetaData->Get("UnitScaleFactor", d) && d > 0.0) return 0.01 * d;
   return 0.0;
+}
+
+// The weld that aiProcess_JoinIdenticalVertices would do, done here: FBX
+// stores attributes per polygon corner, so Assimp hands over one vertex per
+// corner (24M for an 8M-triangle mesh); its own pass took 8.8 of 10.4 s and
+// 3 GB on that mesh (BENCHMARKS.md). Vertices are equal when every kept
+// attribute is bitwise equal; an open-addressing hash table keeps the first
+// of each, in vertex order. Returns the new index of every vertex and puts
+// the old index of each new vertex into `representatives`.
+std::vector<std::uint32_t> weld(const aiMesh& mesh, bool normals, const aiVector3D* uv, bool tangents,
+                                std::vector<std::uint32_t>& representatives) {
+  const unsigned n = mesh.mNumVertices;
+  const auto key = [&](unsigned v, float* k) {
+    int size = 0;
+    const auto put = [&](const aiVector3D& a, int components) {
+      k[size++] = a.x;
+      k[size++] = a.y;
+      if (components == 3) k[size++] = a.z;
+    };
+    put(mesh.mVertices[v], 3);
+    if (normals) put(mesh.mNormals[v], 3);
+    if (uv != nullptr) put(uv[v], 2);
+    if (tangents) {
+      put(mesh.mTangents[v], 3);
+      put(mesh.mBitangents[v], 3);
+    }
+    return size;
+  };
+  std::size_t capacity = 16;
+  while (capacity < 2 * std::size_t{n}) capacity *= 2;
+  constexpr std::uint32_t kEmpty = 0xffffffffu;
+  std::vector<std::uint32_t> slots(capacity, kEmpty);  // new vertex index
+  std::vector<std::uint32_t> remap(n);
+  representatives.clear();
+  float k[14];
+  float other[14];
+  for (unsigned v = 0; v < n; ++v) {
+    const int size = key(v, k);
+    std::uint64_t h = 0x9e3779b97f4a7c15ull;
+    for (int i = 0; i < size; ++i) {
+      std::uint32_t bits;
+      std::memcpy(&bits, &k[i], 4);
+      h = (h ^ bits) * 0xff51afd7ed558ccdull;
+      h ^= h >> 29;
+    }
+    for (std::size_t slot = h & (capacity - 1);; slot = (slot + 1) & (capacity - 1)) {
+      if (slots[slot] == kEmpty) {
+        slots[slot] = static_cast<std::uint32_t>(representatives.size());
+        remap[v] = slots[slot];
+        representatives.push_back(v);
+        break;
+      }
+      key(representatives[slots[slot]], other);
+      if (std::memcmp(k, other, static_cast<std::size_t>(size) * sizeof(float)) == 0) {
+        remap[v] = slots[slot];
+        break;
+      }
+    }
+  }
+  return remap;
 }
 
 class AssimpReader {
@@ -181,14 +241,18 @@ class AssimpReader {
       all_tangents_ = false;
     }
 
-    if (out_.positions.size() + mesh.mNumVertices > 0xffffffffu) return error(part, where + "more than 2^32 vertices in the file");
+    // One vertex per distinct combination of the kept attributes.
+    const aiVector3D* uv = all_uvs_ ? mesh.mTextureCoords[options_.uv_set] : nullptr;
+    std::vector<std::uint32_t> representatives;
+    const std::vector<std::uint32_t> remap = weld(mesh, all_normals_, uv, all_tangents_, representatives);
+    if (out_.positions.size() + representatives.size() > 0xffffffffu) return error(part, where + "more than 2^32 vertices in the file");
     const auto base = static_cast<std::uint32_t>(out_.positions.size());
-    for (unsigned v = 0; v < mesh.mNumVertices; ++v) {
+    for (const std::uint32_t v : representatives) {
       const aiVector3D& p = mesh.mVertices[v];
       out_.positions.emplace_back(glm::vec3(world * glm::dvec4(p.x, p.y, p.z, 1.0)));
     }
     if (all_normals_) {
-      for (unsigned v = 0; v < mesh.mNumVertices; ++v) {
+      for (const std::uint32_t v : representatives) {
         const aiVector3D& n = mesh.mNormals[v];
         out_.normals.emplace_back(glm::vec3(normal_matrix * glm::dvec3(n.x, n.y, n.z)));
       }
@@ -197,12 +261,11 @@ class AssimpReader {
     }
     if (all_uvs_) {
       // Assimp, like FBX and nmbake, puts v = 0 at the bottom of the image.
-      const aiVector3D* uv = mesh.mTextureCoords[options_.uv_set];
-      for (unsigned v = 0; v < mesh.mNumVertices; ++v) out_.uvs.emplace_back(uv[v].x, uv[v].y);
+      for (const std::uint32_t v : representatives) out_.uvs.emplace_back(uv[v].x, uv[v].y);
     }
     if (all_tangents_) {
       const glm::dmat3 linear(world);
-      for (unsigned v = 0; v < mesh.mNumVertices; ++v) {
+      for (const std::uint32_t v : representatives) {
         const aiVector3D& t = mesh.mTangents[v];
         const aiVector3D& b = mesh.mBitangents[v];
         const aiVector3D& n = mesh.mNormals[v];
@@ -232,9 +295,9 @@ class AssimpReader {
         std::uint32_t b = face.mIndices[c];
         std::uint32_t d = face.mIndices[c + 1];
         if (mirrored) std::swap(b, d);  // keep counter-clockwise the front
-        out_.indices.push_back(base + face.mIndices[0]);
-        out_.indices.push_back(base + b);
-        out_.indices.push_back(base + d);
+        out_.indices.push_back(base + remap[face.mIndices[0]]);
+        out_.indices.push_back(base + remap[b]);
+        out_.indices.push_back(base + remap[d]);
       }
     }
     return Status::ok();
@@ -266,16 +329,14 @@ Status load_assimp(const std::string& path, const LoadOptions& options, Mesh& ou
   // Pivots folded into each node's matrix, so a model is one node that
   // carries its own name (not "$AssimpFbx$" helper nodes around it).
   importer.SetPropertyBool(AI_CONFIG_IMPORT_FBX_PRESERVE_PIVOTS, false);
-  // What the bake does not keep must not split vertices in
-  // JoinIdenticalVertices.
+  // What the bake does not keep is not even copied out of Assimp's scene.
   int removed = aiComponent_COLORS | aiComponent_BONEWEIGHTS | aiComponent_ANIMATIONS | aiComponent_LIGHTS |
                 aiComponent_CAMERAS | aiComponent_TEXTURES;
   if (!options.keep_uvs) removed |= aiComponent_TEXCOORDS;
   if (!options.keep_normals) removed |= aiComponent_NORMALS;
   if (!options.keep_tangents) removed |= aiComponent_TANGENTS_AND_BITANGENTS;
   importer.SetPropertyInteger(AI_CONFIG_PP_RVC_FLAGS, removed);
-  const aiScene* scene = importer.ReadFile(
-      path, aiProcess_RemoveComponent | aiProcess_JoinIdenticalVertices | aiProcess_ValidateDataStructure);
+  const aiScene* scene = importer.ReadFile(path, aiProcess_RemoveComponent | aiProcess_ValidateDataStructure);
   if (scene == nullptr) {
     std::string reason = importer.GetErrorString();
     while (!reason.empty() && (reason.back() == '\n' || reason.back() == '\r')) reason.pop_back();
