@@ -212,9 +212,13 @@ std::uint64_t read_index(const unsigned char* p, int component_type) {
 // included: the base view, or zeros without one, then the listed
 // substitutions). `float_only`: integer types are refused (positions,
 // normals, tangents); otherwise normalised integers are accepted too
-// (texture coordinates). An empty string on success, else the reason.
+// (texture coordinates). Each element goes to sink(index, const float*)
+// (a substituted one twice: base value, then the substitute), so a large
+// mesh is decoded straight into its arrays. An empty string on success,
+// else the reason; `count` is the element count.
+template <typename Sink>
 std::string read_accessor(const tinygltf::Model& model, int accessor_index, int components, bool float_only,
-                          std::vector<float>& out, std::size_t& count) {
+                          std::size_t& count, Sink&& sink) {
   if (accessor_index < 0 || static_cast<std::size_t>(accessor_index) >= model.accessors.size()) {
     return "accessor " + std::to_string(accessor_index) + " does not exist";
   }
@@ -236,7 +240,7 @@ std::string read_accessor(const tinygltf::Model& model, int accessor_index, int 
   const std::size_t component_size = component_bytes(a.componentType);
   const std::size_t element_bytes = component_size * static_cast<std::size_t>(components);
   count = a.count;
-  out.assign(count * static_cast<std::size_t>(components), 0.0f);
+  float element_values[4] = {0.0f, 0.0f, 0.0f, 0.0f};
   if (a.bufferView >= 0) {
     Span span;
     const std::size_t stride = static_cast<std::size_t>(
@@ -250,12 +254,16 @@ std::string read_accessor(const tinygltf::Model& model, int accessor_index, int 
     for (std::size_t i = 0; i < count; ++i) {
       const unsigned char* element = span.data + i * span.stride;
       for (int c = 0; c < components; ++c) {
-        out[i * static_cast<std::size_t>(components) + static_cast<std::size_t>(c)] = static_cast<float>(
+        element_values[c] = static_cast<float>(
             read_component(element + static_cast<std::size_t>(c) * component_size, a.componentType, a.normalized));
       }
+      sink(i, element_values);
     }
   } else if (!a.sparse.isSparse) {
     return name + " has no buffer view and is not sparse";
+  } else {
+    // A sparse accessor without a base view starts as zeros.
+    for (std::size_t i = 0; i < count; ++i) sink(i, element_values);
   }
   if (a.sparse.isSparse) {
     const auto sparse_count = static_cast<std::size_t>(std::max(a.sparse.count, 0));
@@ -285,10 +293,11 @@ std::string read_accessor(const tinygltf::Model& model, int accessor_index, int 
                " elements)";
       }
       for (int c = 0; c < components; ++c) {
-        out[target * static_cast<std::uint64_t>(components) + static_cast<std::uint64_t>(c)] =
+        element_values[c] =
             static_cast<float>(read_component(values.data + i * values.stride + static_cast<std::size_t>(c) * component_size,
                                               a.componentType, a.normalized));
       }
+      sink(static_cast<std::size_t>(target), element_values);
     }
   }
   return {};
@@ -487,11 +496,21 @@ class GltfReader {
     };
     const int position_accessor = attribute("POSITION");
     if (position_accessor < 0) return error(part, where + "no POSITION attribute");
-    std::vector<float> positions;
-    std::size_t vertex_count = 0;
-    if (std::string e = read_accessor(model_, position_accessor, 3, true, positions, vertex_count); !e.empty()) {
-      return error(part, where + "POSITION: " + e);
+    if (static_cast<std::size_t>(position_accessor) >= model_.accessors.size()) {
+      return error(part, where + "POSITION: accessor " + std::to_string(position_accessor) + " does not exist");
     }
+    const std::size_t vertex_count = model_.accessors[static_cast<std::size_t>(position_accessor)].count;
+    // Every attribute must have one element per position.
+    const auto check_count = [&](int accessor, const std::string& key) -> std::string {
+      if (accessor < 0 || static_cast<std::size_t>(accessor) >= model_.accessors.size()) {
+        return key + ": accessor " + std::to_string(accessor) + " does not exist";
+      }
+      const std::size_t n = model_.accessors[static_cast<std::size_t>(accessor)].count;
+      if (n != vertex_count) {
+        return key + " has " + std::to_string(n) + " elements, POSITION " + std::to_string(vertex_count);
+      }
+      return {};
+    };
     std::vector<std::uint32_t> indices;
     if (primitive.indices >= 0) {
       if (std::string e = read_indices(model_, primitive.indices, indices); !e.empty()) {
@@ -517,96 +536,101 @@ class GltfReader {
       return Status::ok();
     }
 
-    std::vector<float> normals;
-    std::vector<float> uvs;
-    std::vector<float> tangents;
-    std::size_t count = 0;
+    // Which attributes this primitive brings; an attribute that some
+    // primitives lack is dropped (normals) or an error (UVs, tangents).
     const int normal_accessor = options_.keep_normals ? attribute("NORMAL") : -1;
-    if (normal_accessor >= 0) {
-      if (std::string e = read_accessor(model_, normal_accessor, 3, true, normals, count); !e.empty()) {
-        return error(part, where + "NORMAL: " + e);
-      }
-      if (count != vertex_count) return error(part, where + "NORMAL has " + std::to_string(count) + " elements, POSITION " + std::to_string(vertex_count));
-    } else {
-      all_normals_ = false;
-    }
+    if (normal_accessor < 0) all_normals_ = false;
+    int uv_accessor = -1;
+    const std::string uv_key = "TEXCOORD_" + std::to_string(options_.uv_set);
     if (options_.keep_uvs) {
-      const std::string key = "TEXCOORD_" + std::to_string(options_.uv_set);
-      const int uv_accessor = attribute(key);
+      uv_accessor = attribute(uv_key);
       if (uv_accessor >= 0) {
-        if (std::string e = read_accessor(model_, uv_accessor, 2, false, uvs, count); !e.empty()) {
-          return error(part, where + key + ": " + e);
-        }
-        if (count != vertex_count) return error(part, where + key + " has " + std::to_string(count) + " elements, POSITION " + std::to_string(vertex_count));
+        if (!all_uvs_) return error(part, where + "has " + uv_key + " but an earlier primitive has no UVs");
         any_uvs_ = true;
       } else {
         // A file with no texture coordinates at all is like an OBJ without
         // vt (the low mesh may be unwrapped); asking for a set that is not
         // there, or having it on some primitives only, is an error.
-        const bool has_any_set = list_uv_sets(primitive) != "none";
-        if (options_.uv_set != 0 || has_any_set || any_uvs_) {
-          return error(part, where + "UV set " + std::to_string(options_.uv_set) + " (" + key +
+        if (options_.uv_set != 0 || list_uv_sets(primitive) != "none" || any_uvs_) {
+          return error(part, where + "UV set " + std::to_string(options_.uv_set) + " (" + uv_key +
                                  ") is missing; this primitive has: " + list_uv_sets(primitive));
         }
         all_uvs_ = false;
       }
-      if (any_uvs_ && !all_uvs_) {
-        return error(part, where + "has " + key + " but an earlier primitive has no UVs");
-      }
     } else {
       all_uvs_ = false;
     }
+    int tangent_accessor = -1;
     if (options_.keep_tangents) {
-      const int tangent_accessor = attribute("TANGENT");
+      tangent_accessor = attribute("TANGENT");
+      if (tangent_accessor >= 0 && any_without_tangents_) return error(part, where + "has TANGENT but an earlier primitive has none");
+      if (tangent_accessor < 0 && any_tangents_) return error(part, where + "has no TANGENT but an earlier primitive has");
       if (tangent_accessor >= 0) {
-        if (any_without_tangents_) return error(part, where + "has TANGENT but an earlier primitive has none");
-        if (std::string e = read_accessor(model_, tangent_accessor, 4, true, tangents, count); !e.empty()) {
-          return error(part, where + "TANGENT: " + e);
-        }
-        if (count != vertex_count) return error(part, where + "TANGENT has " + std::to_string(count) + " elements, POSITION " + std::to_string(vertex_count));
         any_tangents_ = true;
       } else {
-        if (any_tangents_) return error(part, where + "has no TANGENT but an earlier primitive has");
         any_without_tangents_ = true;
         all_tangents_ = false;
       }
     } else {
       all_tangents_ = false;
     }
+    for (const auto& [accessor, key] : {std::pair{normal_accessor, std::string("NORMAL")}, std::pair{uv_accessor, uv_key},
+                                        std::pair{tangent_accessor, std::string("TANGENT")}}) {
+      if (accessor < 0) continue;
+      if (std::string e = check_count(accessor, key); !e.empty()) return error(part, where + e);
+    }
 
     // The primitive's vertices, as the file has them (split where the file
-    // splits them), in world space.
+    // splits them), in world space, decoded straight into the mesh.
     if (out_.positions.size() + vertex_count > 0xffffffffu) return error(part, where + "more than 2^32 vertices in the file");
     const auto base = static_cast<std::uint32_t>(out_.positions.size());
-    const glm::dmat3 linear(transform.matrix);
-    for (std::size_t v = 0; v < vertex_count; ++v) {
-      const glm::dvec4 p = transform.matrix * glm::dvec4(positions[3 * v], positions[3 * v + 1], positions[3 * v + 2], 1.0);
-      out_.positions.emplace_back(glm::vec3(p));
+    std::size_t count = 0;
+    out_.positions.resize(base + vertex_count);
+    if (std::string e = read_accessor(model_, position_accessor, 3, true, count, [&](std::size_t v, const float* p) {
+          out_.positions[base + v] = glm::vec3(transform.matrix * glm::dvec4(p[0], p[1], p[2], 1.0));
+        });
+        !e.empty()) {
+      return error(part, where + "POSITION: " + e);
     }
     if (all_normals_) {
-      for (std::size_t v = 0; v < vertex_count; ++v) {
-        const glm::dvec3 n = transform.normal_matrix * glm::dvec3(normals[3 * v], normals[3 * v + 1], normals[3 * v + 2]);
-        out_.normals.emplace_back(glm::vec3(n));
+      out_.normals.resize(base + vertex_count);
+      if (std::string e = read_accessor(model_, normal_accessor, 3, true, count, [&](std::size_t v, const float* n) {
+            out_.normals[base + v] = glm::vec3(transform.normal_matrix * glm::dvec3(n[0], n[1], n[2]));
+          });
+          !e.empty()) {
+        return error(part, where + "NORMAL: " + e);
       }
+    } else {
+      out_.normals.clear();
     }
     if (all_uvs_) {
       // glTF puts the UV origin at the top-left of the image; nmbake (like
       // OBJ, PLY and Blender) at the bottom-left: v' = 1 - v.
-      for (std::size_t v = 0; v < vertex_count; ++v) out_.uvs.emplace_back(uvs[2 * v], 1.0f - uvs[2 * v + 1]);
-    }
-    if (all_tangents_) {
-      for (std::size_t v = 0; v < vertex_count; ++v) {
-        // A tangent is a direction in the surface: it follows the linear
-        // part of the matrix. A mirroring matrix flips the bitangent
-        // w * cross(N, T) relative to the transformed frame, so w flips too.
-        const glm::dvec3 t = linear * glm::dvec3(tangents[4 * v], tangents[4 * v + 1], tangents[4 * v + 2]);
-        const float w = tangents[4 * v + 3] < 0.0f ? -1.0f : 1.0f;
-        out_.tangents.emplace_back(glm::vec3(t), transform.mirrored ? -w : w);
+      out_.uvs.resize(base + vertex_count);
+      if (std::string e = read_accessor(model_, uv_accessor, 2, false, count, [&](std::size_t v, const float* uv) {
+            out_.uvs[base + v] = glm::vec2(uv[0], 1.0f - uv[1]);
+          });
+          !e.empty()) {
+        return error(part, where + uv_key + ": " + e);
       }
     }
-    // Attributes that an earlier primitive had and this one lacks.
-    if (!all_normals_) out_.normals.clear();
-    if (!all_tangents_) out_.tangents.clear();
+    if (all_tangents_) {
+      // A tangent is a direction in the surface: it follows the linear part
+      // of the matrix. A mirroring matrix flips the bitangent
+      // w * cross(N, T) relative to the transformed frame, so w flips too.
+      const glm::dmat3 linear(transform.matrix);
+      out_.tangents.resize(base + vertex_count);
+      if (std::string e = read_accessor(model_, tangent_accessor, 4, true, count, [&](std::size_t v, const float* t) {
+            const float w = t[3] < 0.0f ? -1.0f : 1.0f;
+            out_.tangents[base + v] =
+                glm::vec4(glm::vec3(linear * glm::dvec3(t[0], t[1], t[2])), transform.mirrored ? -w : w);
+          });
+          !e.empty()) {
+        return error(part, where + "TANGENT: " + e);
+      }
+    } else {
+      out_.tangents.clear();
+    }
 
     const auto emit = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
       // A mirroring matrix turns counter-clockwise into clockwise: swap two
