@@ -745,8 +745,14 @@ TEST(LoadFormatsBake, ObjTransformedTwoPartGltfAndFbxBakeTheSameMap) {
   model.rotation_degrees = {0, 0, 90};
   model.scaling = {2, 2, 2};
   ASSERT_TRUE(gen::write_fbx_binary(dir.file("box_low.fbx"), local, model).is_ok());
-  const test::CommandResult fbx = test::run_command(bake_args(dir.file("box_low.fbx"), high, dir.file("fbx.png")));
+  const test::CommandResult fbx = test::run_command(bake_args(dir.file("box_low.fbx"), high, dir.file("fbx.png")) +
+                                                    " --report " + dir.file("fbx.json"));
   ASSERT_EQ(fbx.exit_code, 0) << fbx.output;
+  // The report carries the units: the FBX says centimetres, the PLY nothing.
+  std::ifstream report_file(dir.file("fbx.json"));
+  const json report = json::parse(report_file);
+  EXPECT_DOUBLE_EQ(report["unit_meters"]["low"].get<double>(), 0.01);
+  EXPECT_DOUBLE_EQ(report["unit_meters"]["high"].get<double>(), 0.0);
   const test::CommandResult fbx_diff = test::run_command(test::cli_path() + " diff " + dir.file("obj.png") + " " +
                                                          dir.file("fbx.png") + " --max-max 0.05 --max-mean 0.001");
   EXPECT_EQ(fbx_diff.exit_code, 0) << fbx_diff.output;

@@ -1,5 +1,6 @@
 // `nmbake bake`: one bake from flags, or every bake of a job file.
 #include <charconv>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <string>
@@ -170,6 +171,12 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
         };
         print_load("low", report.low_load);
         print_load("high", report.high_load);
+      }
+      const double low_unit = report.low_load.unit_meters, high_unit = report.high_load.unit_meters;
+      if (low_unit > 0.0 && high_unit > 0.0 && std::abs(low_unit / high_unit - 1.0) > 1e-6) {
+        // Positions are used in file units: a cm FBX against a m glTF is off by 100.
+        std::printf("  note: the low mesh's unit is %g m, the high mesh's %g m; positions are not rescaled\n",
+                    low_unit, high_unit);
       }
       const std::uint64_t fallbacks = report.tangents.fallback_tangents + report.encode.singular_frames +
                                       report.trace.ray_fallbacks + report.encode.zero_high_normals;
