@@ -26,6 +26,7 @@
 #include "nmbake/job.hpp"
 #include "nmbake/load.hpp"
 #include "nmbake/mesh.hpp"
+#include "nmbake/tangents.hpp"
 #include "test_util.hpp"
 
 namespace nmbake {
@@ -340,6 +341,19 @@ TEST(LoadGltf, RejectsBrokenFilesNamingFilePartAndReason) {
   ASSERT_TRUE(load_broken(dir, [](GltfFile&, const Triangle&) {}).status.is_ok());
   expect_bad_input(load_broken(dir, [](GltfFile& f, const Triangle&) { f.doc()["accessors"][4]["count"] = 4; }), path,
                    {"part 'body'", "do not fit"});
+  // A hostile count is refused before anything is sized from it.
+  expect_bad_input(load_broken(dir, [](GltfFile& f, const Triangle&) { f.doc()["accessors"][0]["count"] = 1000000000000; }),
+                   path, {"POSITION", "do not fit"});
+  expect_bad_input(load_broken(dir,
+                               [](GltfFile& f, const Triangle&) {
+                                 f.doc()["accessors"][0].erase("bufferView");
+                                 f.doc()["accessors"][0]["count"] = 1000000000000;
+                                 f.doc()["accessors"][0]["sparse"] = {
+                                     {"count", 1},
+                                     {"indices", {{"bufferView", 4}, {"componentType", 5125}}},
+                                     {"values", {{"bufferView", 0}}}};
+                               }),
+                   path, {"POSITION without a buffer view"});
   {
     GltfFile file;
     const Triangle t = add_triangle(file);
@@ -464,6 +478,34 @@ TEST(LoadFormatsModels, FbxCubesFromMayaAnd3dsMax) {
   // Two models named alike: refused, naming the name.
   const std::string twins = (models / "FBX/cubes_with_names.fbx").string();
   expect_bad_input(load(twins), twins, {"two parts are named"});
+}
+
+TEST(LoadFormatsModels, FbxFileTangentsAreMikkTSpacesWithTheSameSign) {
+  REQUIRE_TEST_MODELS();
+  // Exporters that write MikkTSpace tangents (3ds Max, Blender): read back
+  // through --tangents file they must give MikkTSpace's frame, which checks
+  // the sign taken from the file's (T, B, N) handedness.
+  for (const char* file : {"FBX/embedded_ascii/box.FBX", "FBX/box_orphant_embedded_texture.fbx", "FBX/huesitos.fbx"}) {
+    SCOPED_TRACE(file);
+    LoadOptions options;
+    options.keep_tangents = true;
+    Loaded r = load((models / file).string(), options);
+    ASSERT_TRUE(r.status.is_ok()) << r.status.message();
+    ASSERT_TRUE(r.mesh.has_tangents());
+    MeshStats mesh_stats;
+    prepare_low_normals(r.mesh, mesh_stats);
+    std::vector<glm::vec4> mikk;
+    std::vector<glm::vec4> from_file;
+    TangentStats stats;
+    compute_tangents(r.mesh, mikk, stats);
+    compute_tangents(r.mesh, TangentBasis::file, from_file, stats);
+    EXPECT_EQ(stats.fallback_tangents, 0u);
+    ASSERT_EQ(mikk.size(), from_file.size());
+    for (std::size_t c = 0; c < mikk.size(); ++c) {
+      EXPECT_EQ(mikk[c].w, from_file[c].w) << "corner " << c;
+      EXPECT_GT(glm::dot(glm::vec3(mikk[c]), glm::vec3(from_file[c])), std::cos(0.1 * std::numbers::pi / 180)) << "corner " << c;
+    }
+  }
 }
 
 TEST(LoadFormatsModels, BrokenGltfModelsAreBadInput) {

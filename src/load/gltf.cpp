@@ -216,9 +216,11 @@ std::uint64_t read_index(const unsigned char* p, int component_type) {
 // (a substituted one twice: base value, then the substitute), so a large
 // mesh is decoded straight into its arrays. An empty string on success,
 // else the reason; `count` is the element count.
+// With `validate_only` nothing is decoded: every check that needs no
+// decoding is made (the caller can then size its arrays safely).
 template <typename Sink>
 std::string read_accessor(const tinygltf::Model& model, int accessor_index, int components, bool float_only,
-                          std::size_t& count, Sink&& sink) {
+                          std::size_t& count, Sink&& sink, bool validate_only = false) {
   if (accessor_index < 0 || static_cast<std::size_t>(accessor_index) >= model.accessors.size()) {
     return "accessor " + std::to_string(accessor_index) + " does not exist";
   }
@@ -251,7 +253,7 @@ std::string read_accessor(const tinygltf::Model& model, int accessor_index, int 
         !e.empty()) {
       return name + ": " + e;
     }
-    for (std::size_t i = 0; i < count; ++i) {
+    for (std::size_t i = 0; i < count && !validate_only; ++i) {
       const unsigned char* element = span.data + i * span.stride;
       for (int c = 0; c < components; ++c) {
         element_values[c] = static_cast<float>(
@@ -261,7 +263,7 @@ std::string read_accessor(const tinygltf::Model& model, int accessor_index, int 
     }
   } else if (!a.sparse.isSparse) {
     return name + " has no buffer view and is not sparse";
-  } else {
+  } else if (!validate_only) {
     // A sparse accessor without a base view starts as zeros.
     for (std::size_t i = 0; i < count; ++i) sink(i, element_values);
   }
@@ -286,7 +288,7 @@ std::string read_accessor(const tinygltf::Model& model, int accessor_index, int 
         !e.empty()) {
       return name + ": sparse values: " + e;
     }
-    for (std::size_t i = 0; i < sparse_count; ++i) {
+    for (std::size_t i = 0; i < sparse_count && !validate_only; ++i) {
       const std::uint64_t target = read_index(indices.data + i * indices.stride, index_type);
       if (target >= count) {
         return name + ": sparse index " + std::to_string(target) + " is out of range (" + std::to_string(count) +
@@ -499,7 +501,17 @@ class GltfReader {
     if (static_cast<std::size_t>(position_accessor) >= model_.accessors.size()) {
       return error(part, where + "POSITION: accessor " + std::to_string(position_accessor) + " does not exist");
     }
-    const std::size_t vertex_count = model_.accessors[static_cast<std::size_t>(position_accessor)].count;
+    // POSITION must have real data: its count then cannot exceed what the
+    // file holds, so the arrays sized from it are bounded by the file (a
+    // sparse accessor over zeros could claim any count).
+    if (model_.accessors[static_cast<std::size_t>(position_accessor)].bufferView < 0) {
+      return error(part, where + "POSITION without a buffer view (sparse over zeros) is not supported");
+    }
+    std::size_t vertex_count = 0;
+    const auto ignore = [](std::size_t, const float*) {};
+    if (std::string e = read_accessor(model_, position_accessor, 3, true, vertex_count, ignore, true); !e.empty()) {
+      return error(part, where + "POSITION: " + e);
+    }
     // Every attribute must have one element per position.
     const auto check_count = [&](int accessor, const std::string& key) -> std::string {
       if (accessor < 0 || static_cast<std::size_t>(accessor) >= model_.accessors.size()) {
@@ -579,6 +591,8 @@ class GltfReader {
       if (accessor < 0) continue;
       if (std::string e = check_count(accessor, key); !e.empty()) return error(part, where + e);
     }
+    // Indices were read (and range-checked) from real data; a sparse
+    // attribute's count equals POSITION's, which is bounded the same way.
 
     // The primitive's vertices, as the file has them (split where the file
     // splits them), in world space, decoded straight into the mesh.
