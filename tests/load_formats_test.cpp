@@ -446,6 +446,38 @@ TEST(LoadFormatsModels, BoxTexturedInEveryGltfFlavour) {
   }
 }
 
+TEST(LoadFormatsModels, AssetGeneratorPrimitiveModes) {
+  REQUIRE_TEST_MODELS();
+  // The glTF Asset Generator draws the same unit square facing +z in every
+  // primitive mode, indexed (07-15) or not (00-06): triangle list, strip and
+  // fan must all give two front-facing triangles of total area 1; points
+  // and lines have nothing to bake.
+  const fs::path folder = models / "glTF2/glTF-Asset-Generator/Mesh_PrimitiveMode";
+  for (int n = 0; n <= 15; ++n) {
+    const std::string path = (folder / ("Mesh_PrimitiveMode_" + std::string(n < 10 ? "0" : "") + std::to_string(n) + ".gltf")).string();
+    SCOPED_TRACE(path);
+    const Loaded r = load(path);
+    const bool points_or_lines = (n >= 0 && n <= 3) || (n >= 7 && n <= 10);
+    if (points_or_lines) {
+      expect_bad_input(r, path, {"no triangles"});
+      continue;
+    }
+    ASSERT_TRUE(r.status.is_ok()) << r.status.message();
+    ASSERT_EQ(r.mesh.triangle_count(), 2u);
+    float area = 0.0f;
+    for (std::size_t t = 0; t < 2; ++t) {
+      expect_near(face_normal(r.mesh, t), {0, 0, 1}, 1e-6f);
+      const glm::vec3 a = r.mesh.positions[r.mesh.indices[3 * t]];
+      area += 0.5f * glm::length(glm::cross(r.mesh.positions[r.mesh.indices[3 * t + 1]] - a,
+                                            r.mesh.positions[r.mesh.indices[3 * t + 2]] - a));
+    }
+    EXPECT_NEAR(area, 1.0f, 1e-6f);
+    const Bounds b = compute_bounds(r.mesh);
+    expect_near(b.min, {-0.5f, -0.5f, 0.0f});
+    expect_near(b.max, {0.5f, 0.5f, 0.0f});
+  }
+}
+
 TEST(LoadFormatsModels, FbxCubesFromMayaAnd3dsMax) {
   REQUIRE_TEST_MODELS();
   struct Case {

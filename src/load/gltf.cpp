@@ -367,8 +367,8 @@ class GltfReader {
     }
     NMBAKE_TRY(walk(roots));
     if (out_.indices.empty()) {
-      return Status::bad_input(path_ + ": no triangles (" + std::to_string(node_meshes_) +
-                               " nodes with a mesh; points and lines are skipped)");
+      return Status::bad_input(path_ + ": no triangles (nodes with a mesh: " + std::to_string(node_meshes_) +
+                               "; points and lines are skipped)");
     }
     // Attributes only some primitives had are dropped as a whole (normals:
     // recomputed later) or were an error already (UVs, tangents).
