@@ -334,7 +334,10 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   // load
   timer.start("load");
   Mesh low, high, cage;
-  NMBAKE_TRY(load_mesh(o.low_path, LoadOptions{true, true}, low, r.low_load));
+  LoadOptions low_options{true, true};
+  low_options.uv_set = o.uv_set;
+  low_options.keep_tangents = o.tangent_basis == TangentBasis::file;
+  NMBAKE_TRY(load_mesh(o.low_path, low_options, low, r.low_load));
   const bool smooth_high = o.high_normals == HighNormals::smooth;
   NMBAKE_TRY(load_mesh(o.high_path, LoadOptions{false, smooth_high}, high, r.high_load));
   const bool use_cage_mesh = !o.cage_path.empty();
@@ -367,6 +370,11 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
     const std::filesystem::path first(udim_path(o.outputs.front().path, 1001));
     r.unwrapped_low_path = (first.parent_path() / (first.stem().string() + "_low_uv.obj")).string();
     timer.stop();
+  }
+  if (o.tangent_basis == TangentBasis::file && !low.has_tangents()) {
+    // Checked after unwrap: a mesh unwrapped here has no file tangents either.
+    return Status::bad_input(o.low_path + ": --tangents file, but the low mesh has no tangents (glTF TANGENT or FBX "
+                             "tangents on every part, and UVs)");
   }
   std::vector<int> tiles;
   NMBAKE_TRY(find_udim_tiles(low, o.low_path, udim, tiles));

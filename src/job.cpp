@@ -120,6 +120,11 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
     if (!get_string(text) || !parse_build_quality(text, o.build_quality)) return bad("expected \"low\", \"medium\" or \"high\"");
   } else if (key == "bvh") {
     if (!get_string(text) || !parse_bvh_memory(text, o.bvh_memory)) return bad("expected \"auto\", \"fast\" or \"compact\"");
+  } else if (key == "tangents") {
+    if (!get_string(text) || (text != "mikktspace" && text != "file")) return bad("expected \"mikktspace\" or \"file\"");
+    o.tangent_basis = text == "file" ? TangentBasis::file : TangentBasis::mikktspace;
+  } else if (key == "uv_set") {
+    if (!get_int(o.uv_set) || o.uv_set < 0 || o.uv_set > 7) return bad("expected an integer 0..7");
   } else if (key == "ignore_backfaces") {
     if (auto b = value.value<bool>(); b && value.is_boolean()) o.ignore_backfaces = *b;
     else return bad("expected true or false");

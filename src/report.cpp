@@ -108,6 +108,9 @@ std::string BakeReport::to_json() const {
   j["peak_rss_bytes"] = peak_rss_bytes;
   j["input_bytes"] = {{"low", low_load.bytes}, {"high", high_load.bytes}};
   j["load_mb_per_second"] = {{"low", low_load.mb_per_second()}, {"high", high_load.mb_per_second()}};
+  // Metres per file unit where the file says (FBX UnitScaleFactor, glTF), 0
+  // where it does not (OBJ, PLY); positions are baked in file units.
+  j["unit_meters"] = {{"low", low_load.unit_meters}, {"high", high_load.unit_meters}};
   return j.dump(2) + "\n";
 }
 

@@ -19,6 +19,8 @@ bool parse_tangent_basis(const std::string& text, TangentBasis& out) {
     out = TangentBasis::lengyel;
   } else if (text == "face") {
     out = TangentBasis::face;
+  } else if (text == "file") {
+    out = TangentBasis::file;
   } else {
     return false;
   }
@@ -29,6 +31,7 @@ const char* to_string(TangentBasis basis) {
   switch (basis) {
     case TangentBasis::lengyel: return "lengyel";
     case TangentBasis::face: return "face";
+    case TangentBasis::file: return "file";
     case TangentBasis::mikktspace: break;
   }
   return "mikktspace";
@@ -128,11 +131,35 @@ void compute_tangents_face(const Mesh& mesh, std::vector<glm::vec4>& corner_tang
   }
 }
 
+void compute_tangents_file(const Mesh& mesh, std::vector<glm::vec4>& corner_tangents, TangentStats& stats) {
+  NMBAKE_CHECK(mesh.has_tangents(), "--tangents file needs a mesh with tangents (checked at load)");
+  stats = TangentStats{};
+  corner_tangents.resize(mesh.indices.size());
+  for (std::size_t c = 0; c < mesh.indices.size(); ++c) {
+    const std::uint32_t v = mesh.indices[c];
+    const glm::vec3& n = mesh.normals[v];
+    const glm::vec4& t = mesh.tangents[v];
+    // The stored sign is kept (the file's frame); the orthogonalisation only
+    // repairs the small drift an exporter's rounding leaves. A tangent
+    // parallel to the normal, or zero, gets the fixed fallback.
+    glm::vec4 out;
+    const float sign = t.w < 0.0f ? -1.0f : 1.0f;
+    const glm::vec3 b = sign * glm::cross(n, glm::vec3(t));
+    if (orthogonalize(n, glm::vec3(t), b, out)) {
+      corner_tangents[c] = glm::vec4(glm::vec3(out), sign);
+    } else {
+      corner_tangents[c] = glm::vec4(axis_fallback(n), 1.0f);
+      ++stats.fallback_tangents;
+    }
+  }
+}
+
 void compute_tangents(const Mesh& mesh, TangentBasis basis, std::vector<glm::vec4>& corner_tangents,
                       TangentStats& stats) {
   switch (basis) {
     case TangentBasis::lengyel: compute_tangents_lengyel(mesh, corner_tangents, stats); return;
     case TangentBasis::face: compute_tangents_face(mesh, corner_tangents, stats); return;
+    case TangentBasis::file: compute_tangents_file(mesh, corner_tangents, stats); return;
     case TangentBasis::mikktspace: break;
   }
   compute_tangents(mesh, corner_tangents, stats);

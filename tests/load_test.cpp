@@ -430,11 +430,12 @@ TEST(LoadErrors, MissingFileAndUnknownExtension) {
   EXPECT_EQ(status.code(), StatusCode::bad_input);
   EXPECT_EQ(status.message(), missing + ": cannot open: No such file or directory");
 
-  const std::string stl = dir.file("mesh.stl");
-  write_text(stl, "solid x\n");
-  status = load_mesh(stl, {}, mesh, stats);
+  const std::string xyz = dir.file("mesh.xyz");
+  write_text(xyz, "0 0 0\n");
+  status = load_mesh(xyz, {}, mesh, stats);
   EXPECT_EQ(status.code(), StatusCode::bad_input);
-  EXPECT_EQ(status.message(), stl + ": unknown mesh format '.stl' (expected .obj or .ply)");
+  EXPECT_EQ(status.message(),
+            xyz + ": unknown mesh format '.xyz' (expected .obj, .ply, .gltf, .glb, .fbx, .dae, .3ds or .stl)");
 
   // Extensions are case-insensitive.
   const std::string upper = dir.file("TRI.OBJ");

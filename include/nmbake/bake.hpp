@@ -57,7 +57,8 @@ struct BakeOptions {
   bool ignore_backfaces = false;
   HighNormals high_normals = HighNormals::smooth;
   TangentEncode tangent_encode = TangentEncode::inverse;
-  TangentBasis tangent_basis = TangentBasis::mikktspace;  // others: for the method comparison only
+  TangentBasis tangent_basis = TangentBasis::mikktspace;  // file: the low mesh's own tangents; others: comparison only
+  int uv_set = 0;  // the low mesh's UV set (glTF TEXCOORD_N, FBX UV channel N)
   BuildQuality build_quality = BuildQuality::low;  // measured: 4-6x faster builds than medium, rays as fast (BENCHMARKS.md)
   BvhMemory bvh_memory = BvhMemory::automatic;
   int padding = 16;

@@ -9,6 +9,40 @@
 //     texture_s texture_t (any scalar type); element face with a list property
 //     vertex_indices or vertex_index (polygons fan-triangulated); other
 //     elements and properties skipped.
+//   * glTF 2.0 (.gltf with external or data: URI buffers, .glb; gltf.cpp,
+//     tinygltf): every node with a mesh in the default scene (else scene 0,
+//     else every root node), with its world matrix (the full node
+//     hierarchy) applied to positions, the inverse transpose to normals,
+//     the linear part to TANGENT xyz; a mirroring matrix (determinant < 0)
+//     swaps two corners of each triangle, so counter-clockwise stays the
+//     front, and flips TANGENT w. Primitives TRIANGLES, TRIANGLE_STRIP
+//     (triangles with a repeated vertex skipped, counted in
+//     degenerate_faces) and TRIANGLE_FAN (a fan from vertex 0, like OBJ
+//     polygons), indexed or not; points and lines skipped, each point or
+//     segment counted in degenerate_faces. POSITION, NORMAL, TANGENT float;
+//     TEXCOORD_<uv_set> float or normalized unsigned byte/short; sparse
+//     accessors are applied. glTF's UV origin is the top-left of the image:
+//     v' = 1 - v gives nmbake's bottom-left. Vertices are the file's (split
+//     as the file splits them, also for a high mesh). One MeshPart per node:
+//     the node's name, else its mesh's name when no other node uses that
+//     mesh, else "node<N>". unit_meters = 1. Draco (KHR_draco_mesh_compression)
+//     and meshopt-compressed files are refused with a message that says so.
+//   * FBX (binary, ASCII), Collada .dae, .3ds, .stl (assimp.cpp, Assimp 5.2):
+//     the node tree with every node's matrix applied as for glTF; polygons
+//     fan-triangulated from corner 0 exactly like OBJ (not by Assimp, whose
+//     triangulation starts concave quads at the reflex corner and
+//     ear-clips n-gons); vertices welded where every kept attribute is
+//     bitwise equal (FBX stores them per polygon corner). UV channel uv_set; tangents from the file's
+//     tangents and bitangents (w = sign of dot(cross(N, T), B)). One
+//     MeshPart per node with meshes, named by the node ("node<N>" if
+//     unnamed). unit_meters = 0.01 * the FBX UnitScaleFactor; positions
+//     stay in file units. Collada: Assimp applies the file's up axis and
+//     unit to the root node.
+//   * glTF and Assimp files: two parts with the same name are an error; a
+//     low mesh (keep_uvs) must have UV set uv_set on every primitive, or no
+//     UVs at all with uv_set 0 (then it is unwrapped like an OBJ without vt);
+//     with keep_tangents, tangents on every primitive or on none. OBJ and
+//     PLY have one UV set: uv_set != 0 is an error.
 //
 // Every problem is a Status::bad_input naming the file, the line (text) or
 // byte offset (binary) and the reason: "PATH:LINE: reason",
@@ -79,8 +113,11 @@ struct LoadStats {
 Status load_mesh(const std::string& path, const LoadOptions& options, Mesh& out, LoadStats& stats);
 
 // Writes a mesh as OBJ (v, vt, vn, f, and `o NAME` where each part begins;
-// reals in the shortest form that reads back bit for bit) or PLY (no parts) (binary little endian: float x y z [nx ny nz]
-// [u v], face list uchar uint), by extension. The mesh must pass
+// reals in the shortest form that reads back bit for bit), PLY (binary
+// little endian: float x y z [nx ny nz] [u v], face list uchar uint; no
+// parts), or glTF (.glb, or .gltf with NAME.bin beside it: float POSITION,
+// NORMAL, TEXCOORD_0 with v flipped back to glTF's top-left origin, TANGENT,
+// uint indices; one node per part), by extension. The mesh must pass
 // validate_mesh(). The file is written to a temporary file in the same folder
 // and renamed, so a failure never leaves a half-written mesh (Status::io).
 // Used by the generators and by `nmbake unwrap`.

@@ -58,11 +58,18 @@ void compute_tangents(const Mesh& mesh, std::vector<glm::vec4>& corner_tangents,
 // Same output contract as compute_tangents: 3 per triangle, xyz unit and
 // orthogonal to the corner normal, w = +-1; a corner without a usable
 // tangent gets the same fallback axis and is counted in fallback_tangents.
-enum class TangentBasis : std::uint8_t { mikktspace, lengyel, face };
-bool parse_tangent_basis(const std::string& text, TangentBasis& out);  // mikktspace | lengyel | face
+//   file:    the tangents the mesh file carries (Mesh::tangents: glTF
+//            TANGENT, FBX tangents; the "synced workflow", where the engine
+//            imports tangents instead of computing them): per corner the
+//            vertex's tangent, normalised and made orthogonal to the corner
+//            normal, its sign from w (w < 0: -1, else +1). The mesh must
+//            have tangents (the bake checks first: bad_input).
+enum class TangentBasis : std::uint8_t { mikktspace, lengyel, face, file };
+bool parse_tangent_basis(const std::string& text, TangentBasis& out);  // mikktspace | lengyel | face | file
 const char* to_string(TangentBasis basis);
 void compute_tangents_lengyel(const Mesh& mesh, std::vector<glm::vec4>& corner_tangents, TangentStats& stats);
 void compute_tangents_face(const Mesh& mesh, std::vector<glm::vec4>& corner_tangents, TangentStats& stats);
+void compute_tangents_file(const Mesh& mesh, std::vector<glm::vec4>& corner_tangents, TangentStats& stats);
 // Dispatches on `basis`.
 void compute_tangents(const Mesh& mesh, TangentBasis basis, std::vector<glm::vec4>& corner_tangents,
                       TangentStats& stats);

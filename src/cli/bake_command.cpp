@@ -1,5 +1,6 @@
 // `nmbake bake`: one bake from flags, or every bake of a job file.
 #include <charconv>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <string>
@@ -26,6 +27,8 @@ struct BakeFlags {
   std::string cage_mode = "averaged", high_normals = "smooth", build_quality = "low", encode = "inverse", bvh = "auto";
   std::string format;
   std::string tangent_basis = "mikktspace";
+  std::string tangents = "mikktspace";
+  int uv_set = 0;
   bool ignore_backfaces = false;
   int padding = 16;
   std::string report;
@@ -77,7 +80,10 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
   if (!parse_bvh_memory(f.bvh, o.bvh_memory)) return Status::bad_input("--bvh " + f.bvh + ": expected auto, fast or compact");
   if (!parse_build_quality(f.build_quality, o.build_quality)) return Status::bad_input("--build-quality " + f.build_quality + ": expected low, medium or high");
   if (!parse_tangent_encode(f.encode, o.tangent_encode)) return Status::bad_input("--encode " + f.encode + ": expected inverse or transpose");
-  if (!parse_tangent_basis(f.tangent_basis, o.tangent_basis)) return Status::bad_input("--tangent-basis " + f.tangent_basis + ": expected mikktspace, lengyel or face");
+  if (!parse_tangent_basis(f.tangent_basis, o.tangent_basis)) return Status::bad_input("--tangent-basis " + f.tangent_basis + ": expected mikktspace, lengyel, face or file");
+  if (f.tangents != "mikktspace" && f.tangents != "file") return Status::bad_input("--tangents " + f.tangents + ": expected mikktspace or file");
+  if (f.tangents == "file") o.tangent_basis = TangentBasis::file;
+  o.uv_set = f.uv_set;
   if (!parse_distance(f.front, o.front)) return Status::bad_input("--front " + f.front + ": expected a distance, N% or auto");
   if (!parse_distance(f.back, o.back)) return Status::bad_input("--back " + f.back + ": expected a distance, N% or auto");
   if (!parse_match_mode(f.match, o.match.mode)) return Status::bad_input("--match " + f.match + ": expected auto, name or off");
@@ -236,6 +242,12 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
         print_load("low", report.low_load);
         print_load("high", report.high_load);
       }
+      const double low_unit = report.low_load.unit_meters, high_unit = report.high_load.unit_meters;
+      if (low_unit > 0.0 && high_unit > 0.0 && std::abs(low_unit / high_unit - 1.0) > 1e-6) {
+        // Positions are used in file units: a cm FBX against a m glTF is off by 100.
+        std::printf("  note: the low mesh's unit is %g m, the high mesh's %g m; positions are not rescaled\n",
+                    low_unit, high_unit);
+      }
       const std::uint64_t fallbacks = report.tangents.fallback_tangents + report.encode.singular_frames +
                                       report.trace.ray_fallbacks + report.encode.zero_high_normals;
       if (fallbacks > 0 || report.raster.overlapping_samples > 0) {
@@ -303,6 +315,11 @@ Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--tile", flags->tile, "bake only tile I of N (bands of rows) into a tile file, for nmbake merge");
   cmd->add_option("--tile-file", flags->tile_file, "where --tile writes (default: FIRST_OUTPUT.tile-I-of-N)");
   cmd->add_option("--cache", flags->cache, "content-addressed cache folder: a bake whose key is there is copied, not baked (also NMBAKE_CACHE)");
+  cmd->add_option("--tangents", flags->tangents,
+                  "tangent frame of the map: mikktspace (computed) | file (the low mesh's glTF TANGENT / FBX tangents)")
+      ->default_val("mikktspace");
+  cmd->add_option("--uv-set", flags->uv_set, "the low mesh's UV set: glTF TEXCOORD_N, FBX UV channel N")
+      ->default_val(0)->check(CLI::Range(0, 7));
   cmd->add_option("--debug-dump", flags->debug_dump, "also write PREFIX_coverage.png, PREFIX_misses.png, PREFIX_distance.exr");
   return [flags, &global, cmd]() { return run_bake(*flags, global, *cmd); };
 }

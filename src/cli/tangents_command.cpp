@@ -1,7 +1,18 @@
 // `nmbake tangents low.obj --view frames.png [--uv-view uv.png]`: the low
 // mesh's MikkTSpace frames drawn over the shaded mesh, and its UV layout
 // coloured by tangent with mirrored triangles hatched.
+// `nmbake tangents low.fbx --write low_tangents.glb`: the low mesh with its
+// MikkTSpace tangents as glTF TANGENT, so that an engine that imports
+// tangents gets exactly the frame the map is baked in.
+#include <cctype>
 #include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <map>
+#include <tuple>
+
+#include "nmbake/load.hpp"
+#include "nmbake/tangents.hpp"
 
 #include "commands.hpp"
 #include "nmbake/image.hpp"
@@ -12,7 +23,7 @@ namespace nmbake::cli {
 namespace {
 
 struct TangentFlags {
-  std::string low, view, uv_view;
+  std::string low, view, uv_view, write;
   float length = 0.0f;
   int uv_size = 512;
   ViewFlags camera;
@@ -23,10 +34,70 @@ int fail(const Status& s) {
   return s.code() == StatusCode::internal ? kInternal : kBadInput;
 }
 
-int run_tangents(const TangentFlags& f, const GlobalOptions& global) {
-  if (f.view.empty() && f.uv_view.empty()) {
-    std::fprintf(stderr, "nmbake: error: nothing to draw: give --view FILE.png and/or --uv-view FILE.png\n");
+// MikkTSpace gives a tangent per corner; glTF stores one per vertex. A
+// vertex whose corners got different tangents (where MikkTSpace splits its
+// groups) becomes one vertex per distinct tangent, so the per-vertex
+// attribute is exact. Positions, normals and UVs are copied unchanged.
+Mesh with_vertex_tangents(const Mesh& low, const std::vector<glm::vec4>& corner_tangents) {
+  Mesh out;
+  out.parts = low.parts;
+  std::map<std::tuple<std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t>, std::uint32_t> ids;
+  out.indices.resize(low.indices.size());
+  for (std::size_t c = 0; c < low.indices.size(); ++c) {
+    const std::uint32_t v = low.indices[c];
+    const glm::vec4& t = corner_tangents[c];
+    std::uint32_t bits[4];
+    std::memcpy(bits, &t, sizeof(bits));
+    const auto [it, added] =
+        ids.emplace(std::tuple(v, bits[0], bits[1], bits[2], bits[3]), static_cast<std::uint32_t>(out.positions.size()));
+    if (added) {
+      out.positions.push_back(low.positions[v]);
+      out.normals.push_back(low.normals[v]);
+      out.uvs.push_back(low.uvs[v]);
+      out.tangents.push_back(t);
+    }
+    out.indices[c] = it->second;
+  }
+  return out;
+}
+
+int write_tangents(const TangentFlags& f, const GlobalOptions& global) {
+  std::string extension = std::filesystem::path(f.write).extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (extension != ".gltf" && extension != ".glb") {
+    std::fprintf(stderr, "nmbake: error: %s: tangents are written as glTF (.glb or .gltf)\n", f.write.c_str());
     return kBadInput;
+  }
+  Mesh low;
+  LoadStats load_stats;
+  if (const Status s = load_mesh(f.low, LoadOptions{true, true}, low, load_stats); !s) return fail(s);
+  if (!low.has_uvs()) return fail(Status::bad_input(f.low + ": the low mesh has no UVs: MikkTSpace needs them"));
+  // The normals the bake uses (prepare_low_normals), so the written frame is
+  // the one the map was baked in.
+  MeshStats mesh_stats;
+  prepare_low_normals(low, mesh_stats);
+  std::vector<glm::vec4> corner_tangents;
+  TangentStats tangent_stats;
+  compute_tangents(low, corner_tangents, tangent_stats);
+  const Mesh out = with_vertex_tangents(low, corner_tangents);
+  if (const Status s = save_mesh(f.write, out); !s) return fail(s);
+  if (!global.quiet) {
+    std::printf("tangents: %s: %zu vertices (%zu in %s), %zu triangles, %llu fallback tangents\n", f.write.c_str(),
+                out.vertex_count(), low.vertex_count(), f.low.c_str(), out.triangle_count(),
+                static_cast<unsigned long long>(tangent_stats.fallback_tangents));
+  }
+  return kSuccess;
+}
+
+int run_tangents(const TangentFlags& f, const GlobalOptions& global) {
+  if (f.view.empty() && f.uv_view.empty() && f.write.empty()) {
+    std::fprintf(stderr,
+                 "nmbake: error: nothing to do: give --view FILE.png, --uv-view FILE.png and/or --write FILE.glb\n");
+    return kBadInput;
+  }
+  if (!f.write.empty()) {
+    if (const int code = write_tangents(f, global); code != kSuccess) return code;
+    if (f.view.empty() && f.uv_view.empty()) return kSuccess;
   }
   for (const std::string* path : {&f.view, &f.uv_view}) {
     if (!path->empty() && !format_matches_extension(PixelFormat::png8, *path)) {
@@ -69,8 +140,11 @@ int run_tangents(const TangentFlags& f, const GlobalOptions& global) {
 Runner add_tangents_command(CLI::App& app, const GlobalOptions& global) {
   auto flags = std::make_shared<TangentFlags>();
   CLI::App* cmd = app.add_subcommand(
-      "tangents", "draw a low mesh's tangent frames (T red, B green, N blue) and UV layout");
-  cmd->add_option("low", flags->low, "the low mesh (OBJ, PLY, with UVs)")->required();
+      "tangents",
+      "draw a low mesh's tangent frames (T red, B green, N blue) and UV layout, or write them as glTF TANGENT");
+  cmd->add_option("low", flags->low, "the low mesh (OBJ, PLY, glTF, FBX..., with UVs)")->required();
+  cmd->add_option("--write", flags->write,
+                  "write the low mesh with its MikkTSpace tangents as glTF TANGENT (.glb or .gltf)");
   cmd->add_option("--view", flags->view, "the shaded mesh with its frames (.png)");
   cmd->add_option("--uv-view", flags->uv_view,
                   "the UV layout coloured by tangent, mirrored triangles hatched (.png)");

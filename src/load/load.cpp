@@ -265,15 +265,29 @@ Status load_mesh(const std::string& path, const LoadOptions& options, Mesh& out,
   out = Mesh{};
   stats = LoadStats{};
   const std::string extension = load_detail::lower_extension(path);
-  if (extension != ".obj" && extension != ".ply") {
-    return Status::bad_input(path + ": unknown mesh format '" + extension + "' (expected .obj or .ply)");
+  const bool gltf = extension == ".gltf" || extension == ".glb";
+  const bool assimp = load_detail::is_assimp_extension(extension);
+  if (extension != ".obj" && extension != ".ply" && !gltf && !assimp) {
+    return Status::bad_input(path + ": unknown mesh format '" + extension +
+                             "' (expected .obj, .ply, .gltf, .glb, .fbx, .dae, .3ds or .stl)");
   }
-  load_detail::FileReader reader;
-  NMBAKE_TRY(reader.open(path));
-  stats.bytes = reader.file_size();
-  Status status = extension == ".obj" ? load_detail::load_obj(path, reader, options, out, stats)
-                                      : load_detail::load_ply(path, reader, options, out, stats);
-  if (!reader.read_status().is_ok()) status = reader.read_status();
+  if (!gltf && !assimp && options.uv_set != 0) {
+    return Status::bad_input(path + ": UV set " + std::to_string(options.uv_set) + " asked for, but " +
+                             (extension == ".obj" ? "an OBJ" : "a PLY") + " file has one UV set (0)");
+  }
+  Status status;
+  if (gltf) {
+    status = load_detail::load_gltf(path, options, out, stats);
+  } else if (assimp) {
+    status = load_detail::load_assimp(path, options, out, stats);
+  } else {
+    load_detail::FileReader reader;
+    NMBAKE_TRY(reader.open(path));
+    stats.bytes = reader.file_size();
+    status = extension == ".obj" ? load_detail::load_obj(path, reader, options, out, stats)
+                                 : load_detail::load_ply(path, reader, options, out, stats);
+    if (!reader.read_status().is_ok()) status = reader.read_status();
+  }
   if (!status.is_ok()) {
     out = Mesh{};
     return status;

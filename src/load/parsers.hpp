@@ -147,4 +147,17 @@ Status load_obj(const std::string& path, FileReader& reader, const LoadOptions& 
 Status load_ply(const std::string& path, FileReader& reader, const LoadOptions& options, Mesh& out,
                 LoadStats& stats);
 
+// glTF 2.0 (.gltf, .glb) through tinygltf (gltf.cpp); opens the file itself
+// and sets stats.bytes (the .gltf plus its external buffers).
+Status load_gltf(const std::string& path, const LoadOptions& options, Mesh& out, LoadStats& stats);
+// The mesh as glTF (gltf_save.cpp): with bin_uri empty a .glb in `bytes`;
+// else the .gltf JSON in `bytes`, naming its buffer bin_uri, and the
+// buffer's contents in `bin_bytes`.
+Status encode_gltf(const Mesh& mesh, const std::string& bin_uri, std::string& bytes, std::string& bin_bytes);
+
+// FBX, Collada, 3DS and STL through Assimp (assimp.cpp, in the module
+// libnmbake_assimp.so when it is built as one); opens the file itself.
+bool is_assimp_extension(const std::string& extension);
+Status load_assimp(const std::string& path, const LoadOptions& options, Mesh& out, LoadStats& stats);
+
 }  // namespace nmbake::load_detail

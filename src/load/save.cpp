@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <charconv>
 #include <cstring>
+#include <filesystem>
 #include <string>
 
 #include <fcntl.h>
@@ -162,28 +163,17 @@ void write_ply(Writer& out, const Mesh& mesh) {
   }
 }
 
-}  // namespace
-
-Status save_mesh(const std::string& path, const Mesh& mesh) {
-  const std::string extension = load_detail::lower_extension(path);
-  if (extension != ".obj" && extension != ".ply") {
-    return Status::bad_input(path + ": unknown mesh format '" + extension + "' (expected .obj or .ply)");
-  }
-  NMBAKE_TRY(validate_mesh(mesh, path));
-
-  // Same folder, so the rename cannot cross file systems; O_EXCL and a
-  // process-unique name keep concurrent writers apart.
+// Writes what `body` puts into the writer to a temporary file in the same
+// folder (so the rename cannot cross file systems; O_EXCL and a
+// process-unique name keep concurrent writers apart), then renames it.
+template <typename Body>
+Status write_atomically(const std::string& path, Body&& body) {
   static std::atomic<unsigned> counter{0};
   const std::string temp_path = path + ".tmp" + std::to_string(::getpid()) + "_" + std::to_string(counter++);
   const int fd = ::open(temp_path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
   if (fd < 0) return Status::io(path + ": cannot write: " + std::strerror(errno));
-
   Writer writer(fd);
-  if (extension == ".obj") {
-    write_obj(writer, mesh);
-  } else {
-    write_ply(writer, mesh);
-  }
+  body(writer);
   writer.flush();
   int error = writer.error();
   if (::close(fd) != 0 && error == 0) error = errno;
@@ -193,6 +183,40 @@ Status save_mesh(const std::string& path, const Mesh& mesh) {
     return Status::io(path + ": cannot write: " + std::strerror(error));
   }
   return Status::ok();
+}
+
+}  // namespace
+
+Status save_mesh(const std::string& path, const Mesh& mesh) {
+  const std::string extension = load_detail::lower_extension(path);
+  const bool gltf = extension == ".gltf" || extension == ".glb";
+  if (extension != ".obj" && extension != ".ply" && !gltf) {
+    return Status::bad_input(path + ": unknown mesh format '" + extension + "' (expected .obj, .ply, .gltf or .glb)");
+  }
+  NMBAKE_TRY(validate_mesh(mesh, path));
+  if (extension == ".glb") {
+    std::string bytes;
+    std::string unused;
+    NMBAKE_TRY(load_detail::encode_gltf(mesh, "", bytes, unused));
+    return write_atomically(path, [&](Writer& w) { w.text(bytes); });
+  }
+  if (extension == ".gltf") {
+    // The buffer beside the .gltf, as DCC tools write it; written first, so
+    // that a .gltf never names a .bin that is not there yet.
+    const std::filesystem::path bin = std::filesystem::path(path).replace_extension(".bin");
+    std::string json_text;
+    std::string bin_bytes;
+    NMBAKE_TRY(load_detail::encode_gltf(mesh, bin.filename().string(), json_text, bin_bytes));
+    NMBAKE_TRY(write_atomically(bin.string(), [&](Writer& w) { w.text(bin_bytes); }));
+    return write_atomically(path, [&](Writer& w) { w.text(json_text); });
+  }
+  return write_atomically(path, [&](Writer& w) {
+    if (extension == ".obj") {
+      write_obj(w, mesh);
+    } else {
+      write_ply(w, mesh);
+    }
+  });
 }
 
 }  // namespace nmbake

@@ -9,6 +9,8 @@
 //   nmbake-gen eval SCENE --map M --low L [--cage C] [--samples N] [--space tangent|object]
 //              [--cage-mode averaged|interpolated] [--front F --back B | --report bake_report.json]
 //              [--json out.json] [--floors]
+//   nmbake-gen convert IN OUT     (mesh formats, for the loading benchmarks)
+//   nmbake-gen load FILE [--low]  (load only, for /usr/bin/time)
 // Every scene but the moon also gets <scene>_cage.obj: the low mesh pushed
 // out along averaged normals by the lab's front distance (lab_scenes.hpp).
 //
@@ -27,6 +29,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "convert.hpp"
 #include "eval.hpp"
 #include "lab_scenes.hpp"
 #include "nmbake/image.hpp"
@@ -304,6 +307,15 @@ int main(int argc, char** argv) {
   score_cmd->add_option("--size", options.heightfield.size, "heightfield: side of the square");
   score_cmd->add_option("--radius", options.sphere.radius, "sphere: radius");
 
+  std::string convert_in, convert_out, load_file;
+  bool load_low = false;
+  CLI::App* convert_cmd = app.add_subcommand("convert", "Convert a mesh: .obj .ply .glb .gltf(+.bin) .fbx (Assimp)");
+  convert_cmd->add_option("in", convert_in, "input mesh")->required();
+  convert_cmd->add_option("out", convert_out, "output mesh, format by extension")->required();
+  CLI::App* load_cmd = app.add_subcommand("load", "Load a mesh and print its counts and load time");
+  load_cmd->add_option("file", load_file, "mesh file")->required();
+  load_cmd->add_flag("--low", load_low, "load as a low mesh (with UVs)");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -316,6 +328,15 @@ int main(int argc, char** argv) {
     if (options.threads > 0) {
       thread_limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                            static_cast<std::size_t>(options.threads));
+    }
+    if (convert_cmd->parsed() || load_cmd->parsed()) {
+      const nmbake::Status st = convert_cmd->parsed() ? nmbake::gen::convert_mesh(convert_in, convert_out)
+                                                      : nmbake::gen::load_only(load_file, load_low);
+      if (!st) {
+        std::fprintf(stderr, "nmbake-gen: %s\n", st.message().c_str());
+        return st.code() == nmbake::StatusCode::internal ? 3 : 2;
+      }
+      return 0;
     }
     if (score_cmd->parsed()) {
       nmbake::Image map;

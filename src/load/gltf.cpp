@@ -1,0 +1,755 @@
+// glTF 2.0 (Khronos, "glTF 2.0 Specification", 2021): .gltf with external
+// or embedded (data: URI) buffers and binary .glb, through tinygltf.
+//
+// tinygltf parses the JSON and reads the buffers; everything a bake depends
+// on is checked here, because tinygltf leaves most of it to its caller:
+// every accessor, buffer view and index is range-checked before it is read,
+// node hierarchies are walked with an explicit stack and cycle detection,
+// and each failure names the file, the part and the reason.
+//
+// What is read (load.hpp has the contract): every node with a mesh in the
+// scene (the default scene, else scene 0, else every root node), in
+// depth-first order, with its world matrix applied; one MeshPart per node.
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <glm/gtc/matrix_inverse.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <glm/gtc/type_ptr.hpp>
+#include <glm/mat3x3.hpp>
+#include <glm/mat4x4.hpp>
+
+#include "load/parsers.hpp"
+#include "load/tinygltf.hpp"
+
+namespace nmbake::load_detail {
+
+namespace {
+
+constexpr int kModeTriangles = TINYGLTF_MODE_TRIANGLES;
+
+// The world-space transform of one node, with what normals and tangents need.
+struct NodeTransform {
+  glm::dmat4 matrix{1.0};
+  glm::dmat3 normal_matrix{1.0};  // inverse transpose of the upper 3x3
+  bool mirrored = false;          // determinant < 0: winding and tangent sign flip
+};
+
+NodeTransform make_transform(const glm::dmat4& matrix) {
+  NodeTransform t;
+  t.matrix = matrix;
+  const glm::dmat3 linear(matrix);
+  const double det = glm::determinant(linear);
+  t.mirrored = det < 0.0;
+  // A singular matrix (scale 0 on an axis) has no inverse; its normals are
+  // then as undefined as the flattened geometry, and normalize_normals()
+  // replaces the zero-length ones it leaves.
+  t.normal_matrix = det != 0.0 ? glm::inverseTranspose(linear) : glm::dmat3(0.0);
+  return t;
+}
+
+glm::dmat4 local_matrix(const tinygltf::Node& node) {
+  if (node.matrix.size() == 16) return glm::make_mat4(node.matrix.data());  // column-major, as glTF stores it
+  glm::dmat4 m(1.0);
+  if (node.translation.size() == 3) {
+    m = glm::translate(m, glm::dvec3(node.translation[0], node.translation[1], node.translation[2]));
+  }
+  if (node.rotation.size() == 4) {
+    // glTF stores x, y, z, w; glm's constructor takes w first.
+    const glm::dquat q(node.rotation[3], node.rotation[0], node.rotation[1], node.rotation[2]);
+    m = m * glm::mat4_cast(glm::normalize(q));
+  }
+  if (node.scale.size() == 3) m = glm::scale(m, glm::dvec3(node.scale[0], node.scale[1], node.scale[2]));
+  return m;
+}
+
+std::size_t component_bytes(int component_type) {
+  switch (component_type) {
+    case TINYGLTF_COMPONENT_TYPE_BYTE:
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
+      return 1;
+    case TINYGLTF_COMPONENT_TYPE_SHORT:
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT:
+      return 2;
+    case TINYGLTF_COMPONENT_TYPE_INT:
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT:
+    case TINYGLTF_COMPONENT_TYPE_FLOAT:
+      return 4;
+    default:
+      return 0;
+  }
+}
+
+const char* component_name(int component_type) {
+  switch (component_type) {
+    case TINYGLTF_COMPONENT_TYPE_BYTE:
+      return "byte";
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
+      return "unsigned byte";
+    case TINYGLTF_COMPONENT_TYPE_SHORT:
+      return "short";
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT:
+      return "unsigned short";
+    case TINYGLTF_COMPONENT_TYPE_INT:
+      return "int";
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT:
+      return "unsigned int";
+    case TINYGLTF_COMPONENT_TYPE_FLOAT:
+      return "float";
+    case TINYGLTF_COMPONENT_TYPE_DOUBLE:
+      return "double";
+    default:
+      return "unknown component type";
+  }
+}
+
+// Bytes [first, first + stride * (count - 1) + element) of a buffer view,
+// checked against the view and the buffer.
+struct Span {
+  const unsigned char* data = nullptr;
+  std::size_t stride = 0;
+};
+
+std::string locate_view(const tinygltf::Model& model, int view_index, std::size_t offset, std::size_t count,
+                        std::size_t element_bytes, std::size_t explicit_stride, Span& out) {
+  if (view_index < 0 || static_cast<std::size_t>(view_index) >= model.bufferViews.size()) {
+    return "buffer view " + std::to_string(view_index) + " does not exist";
+  }
+  const tinygltf::BufferView& view = model.bufferViews[static_cast<std::size_t>(view_index)];
+  if (view.buffer < 0 || static_cast<std::size_t>(view.buffer) >= model.buffers.size()) {
+    return "buffer view " + std::to_string(view_index) + " names buffer " + std::to_string(view.buffer) +
+           ", which does not exist";
+  }
+  const std::vector<unsigned char>& data = model.buffers[static_cast<std::size_t>(view.buffer)].data;
+  if (view.byteOffset > data.size() || view.byteLength > data.size() - view.byteOffset) {
+    return "buffer view " + std::to_string(view_index) + " (bytes " + std::to_string(view.byteOffset) + "+" +
+           std::to_string(view.byteLength) + ") lies outside buffer " + std::to_string(view.buffer) + " (" +
+           std::to_string(data.size()) + " bytes)";
+  }
+  const std::size_t stride = explicit_stride != 0 ? explicit_stride : element_bytes;
+  if (stride < element_bytes) {
+    return "buffer view " + std::to_string(view_index) + " has a byte stride of " + std::to_string(stride) +
+           ", less than its " + std::to_string(element_bytes) + "-byte elements";
+  }
+  if (count > 0) {
+    // Divided, not multiplied, so that a hostile count cannot overflow.
+    const std::size_t available = view.byteLength >= offset ? view.byteLength - offset : 0;
+    if (available < element_bytes || (count - 1) > (available - element_bytes) / stride) {
+      return std::to_string(count) + " elements of " + std::to_string(element_bytes) + " bytes at offset " +
+             std::to_string(offset) + " do not fit in buffer view " + std::to_string(view_index) + " (" +
+             std::to_string(view.byteLength) + " bytes)";
+    }
+  }
+  out.data = data.data() + view.byteOffset + offset;
+  out.stride = stride;
+  return {};
+}
+
+double read_component(const unsigned char* p, int component_type, bool normalized) {
+  // Normalised integers map to [0, 1] or [-1, 1] as the specification's
+  // "Animations" / "Meshes" sections define (signed: max(c / MAX, -1)).
+  switch (component_type) {
+    case TINYGLTF_COMPONENT_TYPE_FLOAT: {
+      float f;
+      std::memcpy(&f, p, 4);
+      return f;
+    }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
+      return normalized ? p[0] / 255.0 : p[0];
+    case TINYGLTF_COMPONENT_TYPE_BYTE: {
+      const auto v = static_cast<std::int8_t>(p[0]);
+      return normalized ? std::max(v / 127.0, -1.0) : v;
+    }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
+      std::uint16_t v;
+      std::memcpy(&v, p, 2);
+      return normalized ? v / 65535.0 : v;
+    }
+    case TINYGLTF_COMPONENT_TYPE_SHORT: {
+      std::int16_t v;
+      std::memcpy(&v, p, 2);
+      return normalized ? std::max(v / 32767.0, -1.0) : v;
+    }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: {
+      std::uint32_t v;
+      std::memcpy(&v, p, 4);
+      return v;
+    }
+    case TINYGLTF_COMPONENT_TYPE_INT: {
+      std::int32_t v;
+      std::memcpy(&v, p, 4);
+      return v;
+    }
+    default:
+      return 0.0;
+  }
+}
+
+std::uint64_t read_index(const unsigned char* p, int component_type) {
+  switch (component_type) {
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
+      return p[0];
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
+      std::uint16_t v;
+      std::memcpy(&v, p, 2);
+      return v;
+    }
+    default: {
+      std::uint32_t v;
+      std::memcpy(&v, p, 4);
+      return v;
+    }
+  }
+}
+
+// Reads an accessor of `components` reals per element (sparse accessors
+// included: the base view, or zeros without one, then the listed
+// substitutions). `float_only`: integer types are refused (positions,
+// normals, tangents); otherwise normalised integers are accepted too
+// (texture coordinates). Each element goes to sink(index, const float*)
+// (a substituted one twice: base value, then the substitute), so a large
+// mesh is decoded straight into its arrays. An empty string on success,
+// else the reason; `count` is the element count.
+// With `validate_only` nothing is decoded: every check that needs no
+// decoding is made (the caller can then size its arrays safely).
+template <typename Sink>
+std::string read_accessor(const tinygltf::Model& model, int accessor_index, int components, bool float_only,
+                          std::size_t& count, Sink&& sink, bool validate_only = false) {
+  if (accessor_index < 0 || static_cast<std::size_t>(accessor_index) >= model.accessors.size()) {
+    return "accessor " + std::to_string(accessor_index) + " does not exist";
+  }
+  const tinygltf::Accessor& a = model.accessors[static_cast<std::size_t>(accessor_index)];
+  const std::string name = "accessor " + std::to_string(accessor_index);
+  const int type_components = tinygltf::GetNumComponentsInType(static_cast<std::uint32_t>(a.type));
+  if (type_components != components) {
+    return name + " has " + std::to_string(std::max(type_components, 0)) + " components per element, expected " +
+           std::to_string(components);
+  }
+  const bool is_float = a.componentType == TINYGLTF_COMPONENT_TYPE_FLOAT;
+  const bool integer_ok = !float_only && a.normalized && a.componentType != TINYGLTF_COMPONENT_TYPE_INT &&
+                          a.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
+  if (!is_float && !integer_ok) {
+    return name + ": component type " + std::string(component_name(a.componentType)) +
+           (a.normalized ? " (normalized)" : "") + " is not supported here (expected float" +
+           (float_only ? "" : ", or normalized unsigned byte or short") + ")";
+  }
+  const std::size_t component_size = component_bytes(a.componentType);
+  const std::size_t element_bytes = component_size * static_cast<std::size_t>(components);
+  count = a.count;
+  float element_values[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+  if (a.bufferView >= 0) {
+    Span span;
+    const std::size_t stride = static_cast<std::size_t>(
+        a.bufferView < static_cast<int>(model.bufferViews.size())
+            ? model.bufferViews[static_cast<std::size_t>(a.bufferView)].byteStride
+            : 0);
+    if (std::string e = locate_view(model, a.bufferView, a.byteOffset, count, element_bytes, stride, span);
+        !e.empty()) {
+      return name + ": " + e;
+    }
+    for (std::size_t i = 0; i < count && !validate_only; ++i) {
+      const unsigned char* element = span.data + i * span.stride;
+      for (int c = 0; c < components; ++c) {
+        element_values[c] = static_cast<float>(
+            read_component(element + static_cast<std::size_t>(c) * component_size, a.componentType, a.normalized));
+      }
+      sink(i, element_values);
+    }
+  } else if (!a.sparse.isSparse) {
+    return name + " has no buffer view and is not sparse";
+  } else if (!validate_only) {
+    // A sparse accessor without a base view starts as zeros.
+    for (std::size_t i = 0; i < count; ++i) sink(i, element_values);
+  }
+  if (a.sparse.isSparse) {
+    const auto sparse_count = static_cast<std::size_t>(std::max(a.sparse.count, 0));
+    const int index_type = a.sparse.indices.componentType;
+    if (index_type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE && index_type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+        index_type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT) {
+      return name + ": sparse indices of type " + component_name(index_type) + " are not supported";
+    }
+    Span indices;
+    Span values;
+    if (std::string e = locate_view(model, a.sparse.indices.bufferView,
+                                    static_cast<std::size_t>(std::max(a.sparse.indices.byteOffset, 0)), sparse_count,
+                                    component_bytes(index_type), 0, indices);
+        !e.empty()) {
+      return name + ": sparse indices: " + e;
+    }
+    if (std::string e = locate_view(model, a.sparse.values.bufferView,
+                                    static_cast<std::size_t>(std::max(a.sparse.values.byteOffset, 0)), sparse_count,
+                                    element_bytes, 0, values);
+        !e.empty()) {
+      return name + ": sparse values: " + e;
+    }
+    for (std::size_t i = 0; i < sparse_count && !validate_only; ++i) {
+      const std::uint64_t target = read_index(indices.data + i * indices.stride, index_type);
+      if (target >= count) {
+        return name + ": sparse index " + std::to_string(target) + " is out of range (" + std::to_string(count) +
+               " elements)";
+      }
+      for (int c = 0; c < components; ++c) {
+        element_values[c] =
+            static_cast<float>(read_component(values.data + i * values.stride + static_cast<std::size_t>(c) * component_size,
+                                              a.componentType, a.normalized));
+      }
+      sink(static_cast<std::size_t>(target), element_values);
+    }
+  }
+  return {};
+}
+
+std::string read_indices(const tinygltf::Model& model, int accessor_index, std::vector<std::uint32_t>& out) {
+  if (accessor_index < 0 || static_cast<std::size_t>(accessor_index) >= model.accessors.size()) {
+    return "index accessor " + std::to_string(accessor_index) + " does not exist";
+  }
+  const tinygltf::Accessor& a = model.accessors[static_cast<std::size_t>(accessor_index)];
+  const std::string name = "index accessor " + std::to_string(accessor_index);
+  if (a.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
+      a.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+      a.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT) {
+    return name + ": component type " + std::string(component_name(a.componentType)) +
+           " is not an index type (unsigned byte, short or int)";
+  }
+  if (a.type != TINYGLTF_TYPE_SCALAR) return name + " is not SCALAR";
+  if (a.sparse.isSparse) return name + " is sparse, which indices may not be";
+  Span span;
+  const std::size_t element_bytes = component_bytes(a.componentType);
+  const std::size_t stride = a.bufferView >= 0 && a.bufferView < static_cast<int>(model.bufferViews.size())
+                                 ? model.bufferViews[static_cast<std::size_t>(a.bufferView)].byteStride
+                                 : 0;
+  if (std::string e = locate_view(model, a.bufferView, a.byteOffset, a.count, element_bytes, stride, span);
+      !e.empty()) {
+    return name + ": " + e;
+  }
+  out.resize(a.count);
+  for (std::size_t i = 0; i < a.count; ++i) {
+    const std::uint64_t v = read_index(span.data + i * span.stride, a.componentType);
+    out[i] = static_cast<std::uint32_t>(std::min<std::uint64_t>(v, 0xffffffffu));
+  }
+  return {};
+}
+
+std::string list_uv_sets(const tinygltf::Primitive& primitive) {
+  std::string sets;
+  for (const auto& [attribute, accessor] : primitive.attributes) {
+    (void)accessor;
+    if (attribute.rfind("TEXCOORD_", 0) == 0) sets += (sets.empty() ? "" : ", ") + attribute;
+  }
+  return sets.empty() ? std::string("none") : sets;
+}
+
+// Reads everything of the file the bake needs, node by node.
+class GltfReader {
+ public:
+  GltfReader(const std::string& path, const tinygltf::Model& model, const LoadOptions& options, Mesh& out,
+             LoadStats& stats)
+      : path_(path), model_(model), options_(options), out_(out), stats_(stats) {}
+
+  Status read() {
+    for (const std::string& extension : model_.extensionsRequired) {
+      NMBAKE_TRY(check_extension(extension, "the file"));
+    }
+    std::vector<int> roots;
+    NMBAKE_TRY(scene_roots(roots));
+    // How many nodes instance each mesh: a shared mesh's name cannot name a part.
+    mesh_users_.assign(model_.meshes.size(), 0);
+    for (const tinygltf::Node& node : model_.nodes) {
+      if (node.mesh >= 0 && static_cast<std::size_t>(node.mesh) < model_.meshes.size()) {
+        ++mesh_users_[static_cast<std::size_t>(node.mesh)];
+      }
+    }
+    NMBAKE_TRY(walk(roots));
+    if (out_.indices.empty()) {
+      return Status::bad_input(path_ + ": no triangles (nodes with a mesh: " + std::to_string(node_meshes_) +
+                               "; points and lines are skipped)");
+    }
+    // Attributes only some primitives had are dropped as a whole (normals:
+    // recomputed later) or were an error already (UVs, tangents).
+    if (!all_normals_) out_.normals.clear();
+    if (!all_uvs_) out_.uvs.clear();
+    if (!all_tangents_) out_.tangents.clear();
+    stats_.triangles = out_.triangle_count();
+    stats_.polygons = stats_.triangles;
+    return Status::ok();
+  }
+
+ private:
+  Status error(const std::string& part, const std::string& reason) const {
+    return Status::bad_input(path_ + ": " + (part.empty() ? "" : "part '" + part + "': ") + reason);
+  }
+
+  Status check_extension(const std::string& extension, const std::string& where) const {
+    if (extension == "KHR_draco_mesh_compression") {
+      return Status::bad_input(path_ + ": " + where + " uses KHR_draco_mesh_compression: Draco-compressed meshes are not supported");
+    }
+    if (extension == "EXT_meshopt_compression" || extension == "KHR_meshopt_compression") {
+      return Status::bad_input(path_ + ": " + where + " uses " + extension + ": compressed buffers are not supported");
+    }
+    return Status::ok();
+  }
+
+  Status scene_roots(std::vector<int>& roots) const {
+    if (!model_.scenes.empty()) {
+      const int scene = model_.defaultScene >= 0 ? model_.defaultScene : 0;
+      if (static_cast<std::size_t>(scene) >= model_.scenes.size()) {
+        return Status::bad_input(path_ + ": the default scene " + std::to_string(scene) + " does not exist");
+      }
+      roots = model_.scenes[static_cast<std::size_t>(scene)].nodes;
+      return Status::ok();
+    }
+    // No scene: every node that is nobody's child is a root, as viewers do.
+    std::vector<bool> is_child(model_.nodes.size(), false);
+    for (const tinygltf::Node& node : model_.nodes) {
+      for (int child : node.children) {
+        if (child >= 0 && static_cast<std::size_t>(child) < is_child.size()) is_child[static_cast<std::size_t>(child)] = true;
+      }
+    }
+    for (std::size_t n = 0; n < model_.nodes.size(); ++n) {
+      if (!is_child[n]) roots.push_back(static_cast<int>(n));
+    }
+    return Status::ok();
+  }
+
+  // Depth first with an explicit stack: a hostile file may nest nodes deeper
+  // than the call stack would survive. A node reached twice (a cycle, or two
+  // parents, which glTF forbids) is an error.
+  Status walk(const std::vector<int>& roots) {
+    struct Entry {
+      int node;
+      glm::dmat4 parent;
+    };
+    std::vector<bool> visited(model_.nodes.size(), false);
+    std::vector<Entry> stack;
+    for (auto it = roots.rbegin(); it != roots.rend(); ++it) stack.push_back({*it, glm::dmat4(1.0)});
+    while (!stack.empty()) {
+      const Entry entry = stack.back();
+      stack.pop_back();
+      if (entry.node < 0 || static_cast<std::size_t>(entry.node) >= model_.nodes.size()) {
+        return Status::bad_input(path_ + ": node " + std::to_string(entry.node) + " does not exist");
+      }
+      const auto n = static_cast<std::size_t>(entry.node);
+      if (visited[n]) {
+        return Status::bad_input(path_ + ": node " + std::to_string(entry.node) +
+                                 " is reached twice in the node hierarchy (a cycle, or two parents)");
+      }
+      visited[n] = true;
+      const tinygltf::Node& node = model_.nodes[n];
+      const glm::dmat4 world = entry.parent * local_matrix(node);
+      if (node.mesh >= 0) NMBAKE_TRY(read_node_mesh(entry.node, make_transform(world)));
+      for (auto it = node.children.rbegin(); it != node.children.rend(); ++it) stack.push_back({*it, world});
+    }
+    return Status::ok();
+  }
+
+  std::string part_name(int node_index) const {
+    const tinygltf::Node& node = model_.nodes[static_cast<std::size_t>(node_index)];
+    if (!node.name.empty()) return node.name;
+    const tinygltf::Mesh& mesh = model_.meshes[static_cast<std::size_t>(node.mesh)];
+    if (!mesh.name.empty() && mesh_users_[static_cast<std::size_t>(node.mesh)] == 1) return mesh.name;
+    return "node" + std::to_string(node_index);
+  }
+
+  Status read_node_mesh(int node_index, const NodeTransform& transform) {
+    const tinygltf::Node& node = model_.nodes[static_cast<std::size_t>(node_index)];
+    if (static_cast<std::size_t>(node.mesh) >= model_.meshes.size()) {
+      return Status::bad_input(path_ + ": node " + std::to_string(node_index) + " names mesh " +
+                               std::to_string(node.mesh) + ", which does not exist");
+    }
+    ++node_meshes_;
+    const std::string name = part_name(node_index);
+    if (!part_names_.emplace(name, node_index).second) {
+      return Status::bad_input(path_ + ": two parts are named '" + name + "' (nodes " +
+                               std::to_string(part_names_[name]) + " and " + std::to_string(node_index) +
+                               "): part names must be unique");
+    }
+    const std::size_t first_triangle = out_.triangle_count();
+    const tinygltf::Mesh& mesh = model_.meshes[static_cast<std::size_t>(node.mesh)];
+    for (std::size_t p = 0; p < mesh.primitives.size(); ++p) {
+      NMBAKE_TRY(read_primitive(name, mesh.primitives[p], p, transform));
+    }
+    const std::size_t triangle_count = out_.triangle_count() - first_triangle;
+    if (triangle_count > 0) {
+      out_.parts.push_back(MeshPart{name, static_cast<std::uint32_t>(first_triangle),
+                                    static_cast<std::uint32_t>(triangle_count)});
+    }
+    return Status::ok();
+  }
+
+  Status read_primitive(const std::string& part, const tinygltf::Primitive& primitive, std::size_t index,
+                        const NodeTransform& transform) {
+    const std::string where = "primitive " + std::to_string(index) + ": ";
+    for (const auto& [extension, value] : primitive.extensions) {
+      (void)value;
+      NMBAKE_TRY(check_extension(extension, "part '" + part + "' " + where.substr(0, where.size() - 2)));
+    }
+    const int mode = primitive.mode < 0 ? kModeTriangles : primitive.mode;
+    const bool triangles = mode == TINYGLTF_MODE_TRIANGLES || mode == TINYGLTF_MODE_TRIANGLE_STRIP ||
+                           mode == TINYGLTF_MODE_TRIANGLE_FAN;
+    const auto attribute = [&](const std::string& key) {
+      const auto it = primitive.attributes.find(key);
+      return it == primitive.attributes.end() ? -1 : it->second;
+    };
+    const int position_accessor = attribute("POSITION");
+    if (position_accessor < 0) return error(part, where + "no POSITION attribute");
+    if (static_cast<std::size_t>(position_accessor) >= model_.accessors.size()) {
+      return error(part, where + "POSITION: accessor " + std::to_string(position_accessor) + " does not exist");
+    }
+    // POSITION must have real data: its count then cannot exceed what the
+    // file holds, so the arrays sized from it are bounded by the file (a
+    // sparse accessor over zeros could claim any count).
+    if (model_.accessors[static_cast<std::size_t>(position_accessor)].bufferView < 0) {
+      return error(part, where + "POSITION without a buffer view (sparse over zeros) is not supported");
+    }
+    std::size_t vertex_count = 0;
+    const auto ignore = [](std::size_t, const float*) {};
+    if (std::string e = read_accessor(model_, position_accessor, 3, true, vertex_count, ignore, true); !e.empty()) {
+      return error(part, where + "POSITION: " + e);
+    }
+    // Every attribute must have one element per position.
+    const auto check_count = [&](int accessor, const std::string& key) -> std::string {
+      if (accessor < 0 || static_cast<std::size_t>(accessor) >= model_.accessors.size()) {
+        return key + ": accessor " + std::to_string(accessor) + " does not exist";
+      }
+      const std::size_t n = model_.accessors[static_cast<std::size_t>(accessor)].count;
+      if (n != vertex_count) {
+        return key + " has " + std::to_string(n) + " elements, POSITION " + std::to_string(vertex_count);
+      }
+      return {};
+    };
+    std::vector<std::uint32_t> indices;
+    if (primitive.indices >= 0) {
+      if (std::string e = read_indices(model_, primitive.indices, indices); !e.empty()) {
+        return error(part, where + e);
+      }
+      for (std::size_t i = 0; i < indices.size(); ++i) {
+        if (indices[i] >= vertex_count) {
+          return error(part, where + "index " + std::to_string(i) + " is " + std::to_string(indices[i]) +
+                                 ", out of range (" + std::to_string(vertex_count) + " vertices)");
+        }
+      }
+    } else {
+      indices.resize(vertex_count);
+      for (std::size_t i = 0; i < vertex_count; ++i) indices[i] = static_cast<std::uint32_t>(i);
+    }
+    if (!triangles) {
+      // Points and lines have no surface to bake: skipped, counted per element.
+      const std::size_t n = indices.size();
+      std::size_t elements = n;
+      if (mode == TINYGLTF_MODE_LINE) elements = n / 2;
+      if (mode == TINYGLTF_MODE_LINE_STRIP) elements = n > 0 ? n - 1 : 0;
+      stats_.degenerate_faces += elements;
+      return Status::ok();
+    }
+
+    // Which attributes this primitive brings; an attribute that some
+    // primitives lack is dropped (normals) or an error (UVs, tangents).
+    const int normal_accessor = options_.keep_normals ? attribute("NORMAL") : -1;
+    if (normal_accessor < 0) all_normals_ = false;
+    int uv_accessor = -1;
+    const std::string uv_key = "TEXCOORD_" + std::to_string(options_.uv_set);
+    if (options_.keep_uvs) {
+      uv_accessor = attribute(uv_key);
+      if (uv_accessor >= 0) {
+        if (!all_uvs_) return error(part, where + "has " + uv_key + " but an earlier primitive has no UVs");
+        any_uvs_ = true;
+      } else {
+        // A file with no texture coordinates at all is like an OBJ without
+        // vt (the low mesh may be unwrapped); asking for a set that is not
+        // there, or having it on some primitives only, is an error.
+        if (options_.uv_set != 0 || list_uv_sets(primitive) != "none" || any_uvs_) {
+          return error(part, where + "UV set " + std::to_string(options_.uv_set) + " (" + uv_key +
+                                 ") is missing; this primitive has: " + list_uv_sets(primitive));
+        }
+        all_uvs_ = false;
+      }
+    } else {
+      all_uvs_ = false;
+    }
+    int tangent_accessor = -1;
+    if (options_.keep_tangents) {
+      tangent_accessor = attribute("TANGENT");
+      if (tangent_accessor >= 0 && any_without_tangents_) return error(part, where + "has TANGENT but an earlier primitive has none");
+      if (tangent_accessor < 0 && any_tangents_) return error(part, where + "has no TANGENT but an earlier primitive has");
+      if (tangent_accessor >= 0) {
+        any_tangents_ = true;
+      } else {
+        any_without_tangents_ = true;
+        all_tangents_ = false;
+      }
+    } else {
+      all_tangents_ = false;
+    }
+    for (const auto& [accessor, key] : {std::pair{normal_accessor, std::string("NORMAL")}, std::pair{uv_accessor, uv_key},
+                                        std::pair{tangent_accessor, std::string("TANGENT")}}) {
+      if (accessor < 0) continue;
+      if (std::string e = check_count(accessor, key); !e.empty()) return error(part, where + e);
+    }
+    // Indices were read (and range-checked) from real data; a sparse
+    // attribute's count equals POSITION's, which is bounded the same way.
+
+    // The primitive's vertices, as the file has them (split where the file
+    // splits them), in world space, decoded straight into the mesh.
+    if (out_.positions.size() + vertex_count > 0xffffffffu) return error(part, where + "more than 2^32 vertices in the file");
+    const auto base = static_cast<std::uint32_t>(out_.positions.size());
+    std::size_t count = 0;
+    out_.positions.resize(base + vertex_count);
+    if (std::string e = read_accessor(model_, position_accessor, 3, true, count, [&](std::size_t v, const float* p) {
+          out_.positions[base + v] = glm::vec3(transform.matrix * glm::dvec4(p[0], p[1], p[2], 1.0));
+        });
+        !e.empty()) {
+      return error(part, where + "POSITION: " + e);
+    }
+    if (all_normals_) {
+      out_.normals.resize(base + vertex_count);
+      if (std::string e = read_accessor(model_, normal_accessor, 3, true, count, [&](std::size_t v, const float* n) {
+            out_.normals[base + v] = glm::vec3(transform.normal_matrix * glm::dvec3(n[0], n[1], n[2]));
+          });
+          !e.empty()) {
+        return error(part, where + "NORMAL: " + e);
+      }
+    } else {
+      out_.normals.clear();
+    }
+    if (all_uvs_) {
+      // glTF puts the UV origin at the top-left of the image; nmbake (like
+      // OBJ, PLY and Blender) at the bottom-left: v' = 1 - v.
+      out_.uvs.resize(base + vertex_count);
+      if (std::string e = read_accessor(model_, uv_accessor, 2, false, count, [&](std::size_t v, const float* uv) {
+            out_.uvs[base + v] = glm::vec2(uv[0], 1.0f - uv[1]);
+          });
+          !e.empty()) {
+        return error(part, where + uv_key + ": " + e);
+      }
+    }
+    if (all_tangents_) {
+      // A tangent is a direction in the surface: it follows the linear part
+      // of the matrix. A mirroring matrix flips the bitangent
+      // w * cross(N, T) relative to the transformed frame, so w flips too.
+      const glm::dmat3 linear(transform.matrix);
+      out_.tangents.resize(base + vertex_count);
+      if (std::string e = read_accessor(model_, tangent_accessor, 4, true, count, [&](std::size_t v, const float* t) {
+            const float w = t[3] < 0.0f ? -1.0f : 1.0f;
+            out_.tangents[base + v] =
+                glm::vec4(glm::vec3(linear * glm::dvec3(t[0], t[1], t[2])), transform.mirrored ? -w : w);
+          });
+          !e.empty()) {
+        return error(part, where + "TANGENT: " + e);
+      }
+    } else {
+      out_.tangents.clear();
+    }
+
+    const auto emit = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
+      // A mirroring matrix turns counter-clockwise into clockwise: swap two
+      // corners so the front stays the front.
+      if (transform.mirrored) std::swap(b, c);
+      out_.indices.push_back(base + a);
+      out_.indices.push_back(base + b);
+      out_.indices.push_back(base + c);
+    };
+    const std::size_t n = indices.size();
+    if (mode == TINYGLTF_MODE_TRIANGLES) {
+      if (n % 3 != 0) return error(part, where + std::to_string(n) + " indices is not a multiple of 3");
+      for (std::size_t i = 0; i + 2 < n; i += 3) emit(indices[i], indices[i + 1], indices[i + 2]);
+    } else if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
+      // Every other triangle reversed, as the specification orders strips;
+      // triangles with a repeated vertex only join strips: skipped, counted.
+      for (std::size_t i = 0; i + 2 < n; ++i) {
+        const std::uint32_t a = indices[i];
+        const std::uint32_t b = indices[i + 1 + (i % 2)];
+        const std::uint32_t c = indices[i + 2 - (i % 2)];
+        if (a == b || b == c || a == c) {
+          ++stats_.degenerate_faces;
+          continue;
+        }
+        emit(a, b, c);
+      }
+    } else {
+      // A fan around vertex 0, like the OBJ loader's polygons.
+      for (std::size_t i = 1; i + 1 < n; ++i) emit(indices[0], indices[i], indices[i + 1]);
+    }
+    return Status::ok();
+  }
+
+  const std::string& path_;
+  const tinygltf::Model& model_;
+  const LoadOptions& options_;
+  Mesh& out_;
+  LoadStats& stats_;
+  std::vector<int> mesh_users_;
+  std::map<std::string, int> part_names_;
+  std::size_t node_meshes_ = 0;
+  bool all_normals_ = true;
+  bool all_uvs_ = true;
+  bool any_uvs_ = false;
+  bool all_tangents_ = true;
+  bool any_tangents_ = false;
+  bool any_without_tangents_ = false;
+};
+
+// Geometry only: images are neither decoded nor, being external, read
+// (TINYGLTF_NO_EXTERNAL_IMAGE); an embedded one is skipped unread.
+bool skip_image(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int, void*) {
+  return true;
+}
+
+// Whether the JSON of a file tinygltf refused names the Draco extension: the
+// first 16 MiB (a .glb's JSON chunk comes first) are searched.
+bool mentions_draco(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string head(std::size_t{16} << 20, '\0');
+  in.read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<std::size_t>(in.gcount()));
+  return head.find("\"KHR_draco_mesh_compression\"") != std::string::npos;
+}
+
+std::string first_line(std::string text) {
+  while (!text.empty() && (text.back() == '\n' || text.back() == '\r')) text.pop_back();
+  std::replace(text.begin(), text.end(), '\n', ';');
+  return text;
+}
+
+}  // namespace
+
+Status load_gltf(const std::string& path, const LoadOptions& options, Mesh& out, LoadStats& stats) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) {
+    return Status::bad_input(path + ": cannot open: " + (fs::exists(path, ec) ? "not a regular file" : "no such file"));
+  }
+  tinygltf::TinyGLTF parser;
+  parser.SetImageLoader(skip_image, nullptr);
+  tinygltf::Model model;
+  std::string error_text;
+  std::string warning_text;
+  const bool binary = lower_extension(path) == ".glb";
+  const bool loaded = binary ? parser.LoadBinaryFromFile(&model, &error_text, &warning_text, path)
+                             : parser.LoadASCIIFromFile(&model, &error_text, &warning_text, path);
+  if (!loaded) {
+    if (error_text.empty()) error_text = "cannot be read as glTF";
+    // tinygltf (built without Draco) stops at a Draco file's accessors,
+    // which have no buffer view; say what the file really is.
+    if (mentions_draco(path)) {
+      return Status::bad_input(path + ": the file uses KHR_draco_mesh_compression: Draco-compressed meshes are not supported");
+    }
+    return Status::bad_input(path + ": glTF: " + first_line(error_text));
+  }
+  stats.unit_meters = 1.0;  // glTF positions are metres by definition
+  stats.bytes = static_cast<std::uint64_t>(fs::file_size(path, ec));
+  for (const tinygltf::Buffer& buffer : model.buffers) {
+    // External buffers count into the bytes read; a .glb's own and data:
+    // URIs are inside the file already.
+    if (!buffer.uri.empty() && buffer.uri.rfind("data:", 0) != 0) stats.bytes += buffer.data.size();
+  }
+  GltfReader reader(path, model, options, out, stats);
+  return reader.read();
+}
+
+}  // namespace nmbake::load_detail

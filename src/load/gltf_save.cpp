@@ -1,0 +1,132 @@
+// glTF 2.0 writer (tinygltf): positions, normals, UVs (TEXCOORD_0), tangents
+// (TANGENT) and indices of a Mesh as .glb, or as .gltf JSON with its buffer
+// for a .bin beside it; save_mesh() writes each to a temporary name and
+// renames it.
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "load/parsers.hpp"
+#include "load/tinygltf.hpp"
+
+namespace nmbake::load_detail {
+
+namespace {
+
+// Appends `bytes` to the buffer as a new, 4-byte aligned buffer view and
+// returns its index.
+int add_view(tinygltf::Model& model, const void* bytes, std::size_t size, int target) {
+  std::vector<unsigned char>& data = model.buffers[0].data;
+  while (data.size() % 4 != 0) data.push_back(0);
+  tinygltf::BufferView view;
+  view.buffer = 0;
+  view.byteOffset = data.size();
+  view.byteLength = size;
+  view.target = target;
+  const auto* first = static_cast<const unsigned char*>(bytes);
+  data.insert(data.end(), first, first + size);
+  model.bufferViews.push_back(view);
+  return static_cast<int>(model.bufferViews.size()) - 1;
+}
+
+int add_accessor(tinygltf::Model& model, int view, int component_type, int type, std::size_t count) {
+  tinygltf::Accessor accessor;
+  accessor.bufferView = view;
+  accessor.byteOffset = 0;
+  accessor.componentType = component_type;
+  accessor.type = type;
+  accessor.count = count;
+  model.accessors.push_back(accessor);
+  return static_cast<int>(model.accessors.size()) - 1;
+}
+
+}  // namespace
+
+Status encode_gltf(const Mesh& mesh, const std::string& bin_uri, std::string& bytes, std::string& bin_bytes) {
+  const bool binary = bin_uri.empty();
+  tinygltf::Model model;
+  model.asset.version = "2.0";
+  model.asset.generator = "nmbake";
+  model.buffers.emplace_back();
+
+  const std::size_t vertex_count = mesh.vertex_count();
+  const int position_view =
+      add_view(model, mesh.positions.data(), vertex_count * sizeof(glm::vec3), TINYGLTF_TARGET_ARRAY_BUFFER);
+  const int position = add_accessor(model, position_view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, vertex_count);
+  // The specification requires POSITION's bounds.
+  const Bounds bounds = compute_bounds(mesh);
+  model.accessors[static_cast<std::size_t>(position)].minValues = {bounds.min.x, bounds.min.y, bounds.min.z};
+  model.accessors[static_cast<std::size_t>(position)].maxValues = {bounds.max.x, bounds.max.y, bounds.max.z};
+  std::map<std::string, int> attributes{{"POSITION", position}};
+  if (mesh.has_normals()) {
+    const int view = add_view(model, mesh.normals.data(), vertex_count * sizeof(glm::vec3), TINYGLTF_TARGET_ARRAY_BUFFER);
+    attributes["NORMAL"] = add_accessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, vertex_count);
+  }
+  if (mesh.has_uvs()) {
+    // Back to glTF's top-left UV origin (the loader's v' = 1 - v, undone).
+    std::vector<glm::vec2> flipped(mesh.uvs);
+    for (glm::vec2& uv : flipped) uv.y = 1.0f - uv.y;
+    const int view = add_view(model, flipped.data(), vertex_count * sizeof(glm::vec2), TINYGLTF_TARGET_ARRAY_BUFFER);
+    attributes["TEXCOORD_0"] = add_accessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC2, vertex_count);
+  }
+  if (mesh.has_tangents()) {
+    const int view = add_view(model, mesh.tangents.data(), vertex_count * sizeof(glm::vec4), TINYGLTF_TARGET_ARRAY_BUFFER);
+    attributes["TANGENT"] = add_accessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC4, vertex_count);
+  }
+  const int index_view = add_view(model, mesh.indices.data(), mesh.indices.size() * sizeof(std::uint32_t),
+                                  TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+
+  // One node per part (a mesh without parts is one unnamed node), each
+  // drawing its range of the shared index buffer, so a reload gives back the
+  // same parts with the same names.
+  std::vector<MeshPart> parts = mesh.parts;
+  if (parts.empty()) parts.push_back(MeshPart{"", 0, static_cast<std::uint32_t>(mesh.triangle_count())});
+  tinygltf::Scene scene;
+  for (const MeshPart& part : parts) {
+    const int indices = add_accessor(model, index_view, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR,
+                                     std::size_t{part.triangle_count} * 3);
+    model.accessors[static_cast<std::size_t>(indices)].byteOffset = std::size_t{part.first_triangle} * 3 * sizeof(std::uint32_t);
+    tinygltf::Primitive primitive;
+    primitive.attributes = attributes;
+    primitive.indices = indices;
+    primitive.mode = TINYGLTF_MODE_TRIANGLES;
+    tinygltf::Mesh gltf_mesh;
+    gltf_mesh.name = part.name;
+    gltf_mesh.primitives.push_back(primitive);
+    model.meshes.push_back(gltf_mesh);
+    tinygltf::Node node;
+    node.name = part.name;
+    node.mesh = static_cast<int>(model.meshes.size()) - 1;
+    model.nodes.push_back(node);
+    scene.nodes.push_back(static_cast<int>(model.nodes.size()) - 1);
+  }
+  model.scenes.push_back(scene);
+  model.defaultScene = 0;
+  model.buffers[0].data.resize((model.buffers[0].data.size() + 3) / 4 * 4, 0);
+
+  std::vector<unsigned char> buffer;
+  if (!binary) {
+    // tinygltf's stream writer embeds buffers as base64; the data is taken
+    // out here and the buffer's uri and length set in the JSON after.
+    buffer.swap(model.buffers[0].data);
+  }
+  std::ostringstream stream;
+  tinygltf::TinyGLTF writer;
+  if (!writer.WriteGltfSceneToStream(&model, stream, /*prettyPrint=*/!binary, binary)) {
+    return Status::internal("glTF writer failed");
+  }
+  bytes = std::move(stream).str();
+  if (!binary) {
+    nlohmann::json doc = nlohmann::json::parse(bytes, nullptr, /*allow_exceptions=*/false);
+    if (doc.is_discarded() || !doc.contains("buffers")) return Status::internal("glTF writer: unexpected JSON");
+    doc["buffers"][0]["uri"] = bin_uri;
+    doc["buffers"][0]["byteLength"] = buffer.size();
+    bytes = doc.dump(2);
+    bin_bytes.assign(reinterpret_cast<const char*>(buffer.data()), buffer.size());
+  }
+  return Status::ok();
+}
+
+}  // namespace nmbake::load_detail
