@@ -12,19 +12,15 @@
 
 #include <nlohmann/json.hpp>
 
+#include "strings.hpp"
+
 #include "nmbake/udim.hpp"
 
 namespace nmbake {
 
 namespace fs = std::filesystem;
 
-// Joins pieces; GCC 12 warns falsely (-Wrestrict) on "literal" + std::string.
-template <typename... Pieces>
-std::string concat(const Pieces&... pieces) {
-  std::string out;
-  (out.append(pieces), ...);
-  return out;
-}
+using detail::concat;
 
 std::string resolve_cache_dir(const std::string& flag) {
   if (!flag.empty()) return flag;

@@ -11,6 +11,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "strings.hpp"
+
 #include "nmbake/task.hpp"
 #include "nmbake/udim.hpp"
 
@@ -18,13 +20,7 @@ namespace nmbake {
 
 namespace fs = std::filesystem;
 
-// Joins pieces; GCC 12 warns falsely (-Wrestrict) on "literal" + std::string.
-template <typename... Pieces>
-std::string concat(const Pieces&... pieces) {
-  std::string out;
-  (out.append(pieces), ...);
-  return out;
-}
+using detail::concat;
 
 std::string shell_command(const std::vector<std::string>& argv) {
   std::string line;

@@ -189,6 +189,17 @@ void put(std::string& out, const T& value) {
   out.append(reinterpret_cast<const char*>(&value), sizeof value);
 }
 
+// XXH3-64 of the header and the tile's arrays: the trailer of a tile file.
+std::uint64_t tile_checksum(const std::string& header, const TileData& tile) {
+  std::unique_ptr<XXH3_state_t, decltype(&XXH3_freeState)> state(XXH3_createState(), &XXH3_freeState);
+  NMBAKE_CHECK(state != nullptr, "xxHash state");
+  XXH3_64bits_reset(state.get());
+  XXH3_64bits_update(state.get(), header.data(), header.size());
+  XXH3_64bits_update(state.get(), tile.pixels.data(), tile.pixels.size() * sizeof(float));
+  XXH3_64bits_update(state.get(), tile.coverage.data(), tile.coverage.size());
+  return XXH3_64bits_digest(state.get());
+}
+
 }  // namespace
 
 Status write_tile(const std::string& path, const TileData& tile) {
@@ -207,14 +218,7 @@ Status write_tile(const std::string& path, const TileData& tile) {
     put(header, static_cast<std::uint32_t>(out.path.size()));
     header += out.path;
   }
-  XXH3_state_t* state = XXH3_createState();
-  NMBAKE_CHECK(state != nullptr, "xxHash state");
-  XXH3_64bits_reset(state);
-  XXH3_64bits_update(state, header.data(), header.size());
-  XXH3_64bits_update(state, tile.pixels.data(), tile.pixels.size() * sizeof(float));
-  XXH3_64bits_update(state, tile.coverage.data(), tile.coverage.size());
-  const std::uint64_t check = XXH3_64bits_digest(state);
-  XXH3_freeState(state);
+  const std::uint64_t check = tile_checksum(header, tile);
 
   const std::string temp = path + ".tmp" + std::to_string(::getpid());
   {
@@ -294,15 +298,7 @@ Status read_tile(const std::string& path, TileData& tile) {
   in.read(reinterpret_cast<char*>(tile.coverage.data()), static_cast<std::streamsize>(texels));
   in.read(reinterpret_cast<char*>(&check), sizeof check);
   if (!in) return bad("too short");
-  XXH3_state_t* state = XXH3_createState();
-  NMBAKE_CHECK(state != nullptr, "xxHash state");
-  XXH3_64bits_reset(state);
-  XXH3_64bits_update(state, header.data(), header.size());
-  XXH3_64bits_update(state, tile.pixels.data(), tile.pixels.size() * sizeof(float));
-  XXH3_64bits_update(state, tile.coverage.data(), tile.coverage.size());
-  const std::uint64_t actual = XXH3_64bits_digest(state);
-  XXH3_freeState(state);
-  if (actual != check) return bad("its checksum does not match (a torn or altered file)");
+  if (tile_checksum(header, tile) != check) return bad("its checksum does not match (a torn or altered file)");
   for (const std::uint8_t c : tile.coverage) {
     if (c > 1) return bad("coverage values other than 0 and 1");
   }
