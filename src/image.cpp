@@ -11,6 +11,8 @@
 #include "image_oiio.hpp"
 #include "image_exr.hpp"
 #include "image_png.hpp"
+#include "nmbake/budget.hpp"
+#include "nmbake/cleanup.hpp"
 
 #include <dlfcn.h>
 #include <unistd.h>
@@ -134,6 +136,29 @@ Status write_with_oiio(const Image& image, const std::string& path, const fs::pa
   return module_status(outcome, "cannot write '" + path + "': " + reason);
 }
 
+// The header's size against what the file can hold and what memory allows.
+// A PNG's pixels are deflated, and deflate expands at most 1032:1, so a PNG
+// of N bytes holds at most about 1032 N bytes of rows (each row a filter
+// byte and at least one bit a sample: OpenImageIO reports 1-, 2- and 4-bit
+// PNGs as uint8). Other formats are bounded by memory only.
+Status check_image_header(const std::string& path, const ImageFileInfo& info) {
+  const std::uint64_t width = static_cast<std::uint64_t>(std::max(0, info.width));
+  const std::uint64_t height = static_cast<std::uint64_t>(std::max(0, info.height));
+  const std::uint64_t channels = static_cast<std::uint64_t>(std::max(0, info.channels));
+  if (info.file_format == "png") {
+    std::error_code ec;
+    const std::uintmax_t file_bytes = fs::file_size(path, ec);
+    const std::uint64_t bits = info.data_type == "uint16" ? 16 : 1;
+    const double least_raw = static_cast<double>(height) * (1.0 + std::ceil(static_cast<double>(width) * static_cast<double>(channels * bits) / 8.0));
+    if (!ec && least_raw > 1032.0 * static_cast<double>(file_bytes) + 65536.0) {
+      return Status::bad_input("cannot read '" + path + "': its header says " + std::to_string(width) + "x" +
+                               std::to_string(height) + ", which a PNG of " + std::to_string(file_bytes) +
+                               " bytes cannot hold (deflate expands at most 1032:1): a broken or truncated file");
+    }
+  }
+  return check_image_memory(path, width, height, channels);
+}
+
 }  // namespace
 
 const char* to_string(PixelFormat format) {
@@ -236,6 +261,7 @@ Status write_image(const Image& image, const std::string& path, PixelFormat form
   }
 
   const fs::path temp = temp_path_for(target.parent_path().empty() ? fs::path(".") / target : target);
+  const TempFileGuard guard(temp.string());  // removed if a signal ends the process meanwhile
   Status status;
   switch (format) {
     case PixelFormat::png8:
@@ -284,6 +310,13 @@ Status read_image(const std::string& path, Image& out) {
   std::string reason;
   const oiio_module::Api* api = image_module(reason);
   if (!api) return Status::internal("cannot read '" + path + "': " + reason);
+  // The header first: a file that claims 1,000,000^2 pixels must be refused
+  // before the pixels are allocated (it made std::bad_alloc, or took 4.7 GB
+  // for 20000^2 before failing on the missing data).
+  ImageFileInfo info;
+  const oiio_module::Outcome header = api->read_info(path, info, reason);
+  if (header != oiio_module::Outcome::ok) return module_status(header, "cannot read '" + path + "': " + reason);
+  NMBAKE_TRY(check_image_header(path, info));
   Image image;
   const oiio_module::Outcome outcome = api->read(path, image, reason);
   if (outcome != oiio_module::Outcome::ok) return module_status(outcome, "cannot read '" + path + "': " + reason);

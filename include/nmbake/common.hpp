@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <utility>
 
 namespace nmbake {
@@ -39,6 +40,13 @@ class [[nodiscard]] Status {
   StatusCode code_ = StatusCode::ok;
   std::string message_;
 };
+
+// `text` safe to print to a terminal: every byte that could control it is
+// written as \xNN (NUL and the other C0 controls, DEL, the C1 controls
+// U+0080-U+009F, and any byte that is not part of valid UTF-8); other UTF-8
+// is kept. Messages pass file content and paths through it, so a broken or
+// hostile file cannot send escape codes, and a NUL cannot cut a message.
+std::string printable_text(std::string_view text);
 
 [[noreturn]] void check_failed(const char* expression, const char* file, int line, const char* message);
 

@@ -13,7 +13,7 @@
 //
 // Keys of [defaults] and [[bake]]: size, width, height, samples, space,
 // green, front, back, hit, cage_mode, ignore_backfaces, high_normals, padding,
-// build_quality, bvh, cage; [[bake]] alone: name, low, high, outputs, report,
+// build_quality, bvh, cage, max_memory (bytes or "8G"); [[bake]] alone: name, low, high, outputs, report,
 // debug_dump. Unknown keys are errors (a typo must not silently bake with a
 // default).
 #pragma once

@@ -15,6 +15,7 @@
 
 #include "load/parsers.hpp"
 #include "nmbake/load.hpp"
+#include "nmbake/cleanup.hpp"
 
 namespace nmbake {
 namespace {
@@ -167,6 +168,7 @@ Status save_mesh(const std::string& path, const Mesh& mesh) {
   // process-unique name keep concurrent writers apart.
   static std::atomic<unsigned> counter{0};
   const std::string temp_path = path + ".tmp" + std::to_string(::getpid()) + "_" + std::to_string(counter++);
+  const TempFileGuard guard(temp_path);  // removed if a signal ends the process meanwhile
   const int fd = ::open(temp_path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
   if (fd < 0) return Status::io(path + ": cannot write: " + std::strerror(errno));
 

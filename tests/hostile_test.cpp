@@ -1,0 +1,418 @@
+// Hostile input (issue 15): whatever a broken exporter, a script or a
+// hostile user feeds nmbake, it exits 2 with a message naming the file and
+// the reason, writes nothing, and never aborts, hangs or eats the machine.
+// The CLI cases run the built binary; memory cases run it under `ulimit -v`
+// so that the old behaviour (gigabytes, then std::bad_alloc, exit 3) fails.
+#include <sys/mount.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <csignal>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <thread>
+
+#include <gtest/gtest.h>
+#include <glm/geometric.hpp>
+
+#include "nmbake/bake.hpp"
+#include "nmbake/budget.hpp"
+#include "nmbake/cleanup.hpp"
+#include "nmbake/trace.hpp"
+#include "test_util.hpp"
+
+namespace nmbake {
+namespace {
+
+namespace fs = std::filesystem;
+using test::run_command;
+using test::TempDir;
+using test::write_text;
+
+std::string quoted(const std::string& path) { return "'" + path + "'"; }
+std::string cli() { return quoted(test::cli_path()); }
+
+// A 2 x 2 plane at z = 0.01 made of 8 x 8 quads: the high mesh of every case.
+std::string high_plane_obj() {
+  std::string text;
+  const int n = 8;
+  for (int j = 0; j <= n; ++j) {
+    for (int i = 0; i <= n; ++i) {
+      text += "v " + std::to_string(2.0 * i / n - 1) + " " + std::to_string(2.0 * j / n - 1) + " 0.01\n";
+    }
+  }
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const int a = j * (n + 1) + i + 1, b = a + 1, c = a + n + 1, d = c + 1;
+      text += "f " + std::to_string(a) + " " + std::to_string(b) + " " + std::to_string(d) + "\n";
+      text += "f " + std::to_string(a) + " " + std::to_string(d) + " " + std::to_string(c) + "\n";
+    }
+  }
+  return text;
+}
+
+const char* kLowQuadObj =
+    "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n"
+    "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+    "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n";
+
+// Files every case needs: high.obj and low.obj (a quad with UVs).
+struct Scene {
+  TempDir dir;
+  std::string high = dir.file("high.obj"), low = dir.file("low.obj");
+  Scene() {
+    write_text(high, high_plane_obj());
+    write_text(low, kLowQuadObj);
+  }
+  std::string bake(const std::string& low_path, const std::string& output, const std::string& extra = "") const {
+    return cli() + " bake --low " + quoted(low_path) + " --high " + quoted(high) + " -o " + quoted(output) +
+           " " + extra;
+  }
+};
+
+bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+// ---------------------------------------------------------------- Embree
+
+// A UV-less low mesh with one vertex at 5e29 made the distance estimate's
+// rtcIntersect1 abort inside Embree (signal 6).
+TEST(Hostile, FarVertexIsRefusedBeforeEmbree) {
+  Scene s;
+  const std::string low = s.dir.file("far.obj");
+  write_text(low, "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nv 5e29 0 0\nf 1 2 3\nf 1 3 4\nf 2 5 3\n");
+  const std::string out = s.dir.file("far.png");
+  const test::CommandResult r = run_command(s.bake(low, out, "--size 64"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(contains(r.output, low + ": vertex 4 at (5e+29, 0, 0) is too far from the origin")) << r.output;
+  EXPECT_FALSE(fs::exists(out));
+}
+
+// --front 1e20 (or front = 1e30 in a job) made rtcIntersect16 abort.
+TEST(Hostile, HugeFrontDistanceIsRefused) {
+  Scene s;
+  const std::string out = s.dir.file("front.png");
+  test::CommandResult r = run_command(s.bake(s.low, out, "--size 64 --front 1e20"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(contains(r.output, "front distance 1e+20 is out of range: at most 1e+12 scene units")) << r.output;
+  // Within the absolute cap, but 35,000 diagonals: refused with the diagonal.
+  r = run_command(s.bake(s.low, out, "--size 64 --back 1e5"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(contains(r.output, "back distance 100000 is out of range: at most 1000 times the low mesh's diagonal 2.82843"))
+      << r.output;
+  EXPECT_FALSE(fs::exists(out));
+
+  const std::string job = s.dir.file("job.toml");
+  write_text(job, "[[bake]]\nlow = \"low.obj\"\nhigh = \"high.obj\"\noutputs = [\"front.png\"]\nsize = 64\nfront = 1e30\n");
+  r = run_command(cli() + " bake " + quoted(job));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(contains(r.output, "front distance 1e+30 is out of range")) << r.output;
+  EXPECT_FALSE(fs::exists(out));
+}
+
+// The last guard, below the limits: a ray Embree would not take is not
+// traced but counted, whatever route built it (queued SIMD lanes, single
+// rays for `nearest`, the distance estimate).
+TEST(Hostile, RaysEmbreeWouldRefuseAreMissesNotAborts) {
+  LowSurface s;
+  const glm::vec3 p[4] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+  for (int c : {0, 1, 2, 0, 2, 3}) {
+    s.position.push_back(p[c]);
+    s.uv.push_back({p[c].x, p[c].y});
+    s.normal.push_back({0, 0, 1});
+    s.cage_normal.push_back({0, 0, 1});
+    s.tangent.push_back({1, 0, 0, 1});
+  }
+  Mesh high;
+  high.positions = {{-5, -5, 0.1f}, {5, -5, 0.1f}, {5, 5, 0.1f}, {-5, 5, 0.1f}};
+  high.indices = {0, 1, 2, 0, 2, 3};
+  pad_for_embree(high);
+  HighScene scene;
+  ASSERT_TRUE(HighScene::build(high, BuildQuality::low, false, scene).is_ok());
+  TexelSamples t;
+  t.width = 20;
+  t.height = 3;
+  t.samples = 1;
+  for (int i = 0; i < t.width * t.height; ++i) {
+    t.triangle.push_back(i % 2);
+    t.bary.push_back({0.25f, 0.25f});
+  }
+  t.coverage.assign(t.triangle.size(), 1);
+  for (const HitRule rule : {HitRule::first, HitRule::nearest}) {
+    RayOptions o;
+    o.hit = rule;
+    o.front = 3e38f;  // the origin overflows to infinity
+    o.back = 1.0f;
+    Hits hits;
+    TraceStats stats;
+    trace(scene, s, t, o, hits, stats);
+    EXPECT_EQ(stats.samples, t.triangle.size());
+    EXPECT_EQ(stats.misses, t.triangle.size());
+    EXPECT_GE(stats.ray_fallbacks, t.triangle.size());
+  }
+  // The estimate's probes start on the low surface: one far corner makes
+  // their origins (and reach) too large for Embree.
+  s.position[1] = {2e30f, 0, 0};
+  const DistanceEstimate e = estimate_distances(scene, s, 4e30f);
+  EXPECT_GT(e.probes, 0u);
+  EXPECT_EQ(e.probe_misses, e.probes);
+}
+
+// ---------------------------------------------------------------- memory
+
+// A UV-less low mesh with a needle to one far vertex made the unwrap's
+// packer rasterize a chart gigabytes wide: 7.6 GB and 94 s, then bad_alloc
+// (exit 3) under an 8 GB limit. Now the chart is refused at once.
+TEST(Hostile, NeedleChartDoesNotEatMemory) {
+  Scene s;
+  const std::string low = s.dir.file("needle.obj");
+  write_text(low, "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nv 1e6 1 0\nv 1e6 1.001 0\nf 1 2 3\nf 1 3 4\nf 3 5 6\n");
+  const std::string out = s.dir.file("needle.png");
+  const auto begin = std::chrono::steady_clock::now();
+  const test::CommandResult r = run_command("ulimit -v 2000000; " + s.bake(low, out));
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(contains(r.output, low + ": the low mesh has no UVs; unwrap: 2 charts do not fit")) << r.output;
+  EXPECT_LT(seconds, 30.0);
+  EXPECT_FALSE(fs::exists(out));
+}
+
+TEST(Hostile, HugeMapIsRefusedWithTheNumbers) {
+  Scene s;
+  const std::string out = s.dir.file("big.png");
+  test::CommandResult r = run_command(s.bake(s.low, out, "--size 32768 --max-memory 8G"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(contains(r.output, "a 32768x32768 map at 4 spp needs about 16.")) << r.output;
+  EXPECT_TRUE(contains(r.output, "8.6 GB are available (--max-memory)")) << r.output;
+  // Without --max-memory, under `ulimit -v`: the limit is found.
+  r = run_command("ulimit -v 4000000; " + s.bake(s.low, out, "--size 32768"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(contains(r.output, "are available (RLIMIT_AS (ulimit -v))")) << r.output;
+  EXPECT_FALSE(fs::exists(out));
+  // A job key does the same.
+  const std::string job = s.dir.file("job.toml");
+  write_text(job, "[[bake]]\nlow = \"low.obj\"\nhigh = \"high.obj\"\noutputs = [\"big.png\"]\nsize = 16384\nmax_memory = \"1G\"\n");
+  r = run_command(cli() + " bake " + quoted(job));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(contains(r.output, "a 16384x16384 map at 4 spp needs about")) << r.output;
+  EXPECT_FALSE(fs::exists(out));
+}
+
+TEST(Hostile, MemorySizesParse) {
+  std::uint64_t b = 0;
+  EXPECT_TRUE(parse_memory_size("4096", b));
+  EXPECT_EQ(b, 4096u);
+  EXPECT_TRUE(parse_memory_size("512M", b));
+  EXPECT_EQ(b, 512u << 20);
+  EXPECT_TRUE(parse_memory_size("8GiB", b));
+  EXPECT_EQ(b, std::uint64_t{8} << 30);
+  EXPECT_TRUE(parse_memory_size("1.5g", b));
+  EXPECT_EQ(b, std::uint64_t{3} << 29);
+  for (const char* bad : {"", "G", "-1G", "0", "8X", "1e30T", "nan"}) EXPECT_FALSE(parse_memory_size(bad, b)) << bad;
+  const MemoryLimit limit = available_memory();
+  EXPECT_GT(limit.bytes, 0u);
+  EXPECT_FALSE(limit.source.empty());
+}
+
+// A PNG header claiming 1,000,000^2 (bad_alloc, exit 3) or 20000^2 (4.7 GB,
+// then exit 2) in a file of a few dozen bytes.
+void write_png_header(const std::string& path, std::uint32_t width, std::uint32_t height) {
+  // Signature, IHDR (8-bit RGB), an empty IDAT and IEND; CRCs are those of
+  // the chunks (zlib's crc32 of type + data), computed below.
+  std::string data = "\x89PNG\r\n\x1a\n";
+  const auto crc = [](const std::string& bytes) {
+    std::uint32_t c = 0xffffffffu;
+    for (const char ch : bytes) {
+      c ^= static_cast<unsigned char>(ch);
+      for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0xedb88320u & (0u - (c & 1u)));
+    }
+    return ~c;
+  };
+  const auto be32 = [](std::uint32_t v) {
+    return std::string{static_cast<char>(v >> 24), static_cast<char>(v >> 16), static_cast<char>(v >> 8),
+                       static_cast<char>(v)};
+  };
+  const auto chunk = [&](const std::string& type, const std::string& body) {
+    data += be32(static_cast<std::uint32_t>(body.size())) + type + body + be32(crc(type + body));
+  };
+  chunk("IHDR", be32(width) + be32(height) + std::string("\x08\x02\x00\x00\x00", 5));
+  chunk("IDAT", std::string("\x78\x9c\x03\x00\x00\x00\x00\x01", 8));
+  chunk("IEND", "");
+  write_text(path, data);
+}
+
+TEST(Hostile, ImageHeadersAreCheckedBeforeThePixels) {
+  TempDir dir;
+  const std::string huge = dir.file("huge.png"), big = dir.file("big.png");
+  write_png_header(huge, 1000000, 1000000);
+  write_png_header(big, 20000, 20000);
+  for (const std::string& image : {huge, big}) {
+    const std::string out = dir.file("out.png");
+    for (const std::string& command : {" height2normal " + quoted(image) + " -o " + quoted(out),
+                                       " preview --map " + quoted(image) + " -o " + quoted(out),
+                                       " diff " + quoted(image) + " " + quoted(image)}) {
+      const test::CommandResult r = run_command("ulimit -v 2000000; " + cli() + command);
+      EXPECT_EQ(r.exit_code, 2) << command << "\n" << r.output;
+      EXPECT_TRUE(contains(r.output, "cannot read '" + image + "': its header says")) << command << "\n" << r.output;
+      EXPECT_FALSE(fs::exists(out));
+    }
+  }
+  Image image;
+  const Status st = read_image(big, image);
+  EXPECT_EQ(st.code(), StatusCode::bad_input);
+  EXPECT_TRUE(contains(st.message(), "which a PNG of 65 bytes cannot hold")) << st.message();
+  // Within what the file can hold but not what memory can: the budget.
+  EXPECT_EQ(check_image_memory(big, 1u << 30, 1u << 30, 4).code(), StatusCode::bad_input);
+  EXPECT_TRUE(check_image_memory(big, 64, 64, 3).is_ok());
+}
+
+// A mesh that is an endless stream with no newline (a link to /dev/zero)
+// grew one line buffer until memory ran out (1 GB under a 2 GB limit, then
+// bad_alloc). The bake refuses it before loading (not a regular file); the
+// loader itself stops at 64 MiB.
+TEST(Hostile, EndlessLineIsCapped) {
+  Scene s;
+  const std::string zero = s.dir.file("zero.obj");
+  fs::create_symlink("/dev/zero", zero);
+  const std::string out = s.dir.file("zero.png");
+  const test::CommandResult r = run_command("ulimit -v 2000000; " + s.bake(zero, out));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(contains(r.output, zero + ": the low mesh is not a regular file")) << r.output;
+  Mesh mesh;
+  LoadStats stats;
+  const Status st = load_mesh(zero, LoadOptions{}, mesh, stats);
+  EXPECT_EQ(st.code(), StatusCode::bad_input);
+  EXPECT_EQ(st.message(), zero + ":1: line longer than 64 MiB (no line end): not a mesh file");
+}
+
+
+// ---------------------------------------------------------------- jobs
+
+std::string read_bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+std::string job_bake(const std::string& name, const std::string& low, const std::string& output) {
+  return "[[bake]]\nname = \"" + name + "\"\nlow = \"" + low + "\"\nhigh = \"high.obj\"\noutputs = [\"" + output +
+         "\"]\nsize = 32\n";
+}
+
+// A later bake's missing, empty, ill-named or NUL-holding mesh path is found
+// before the first bake writes anything.
+TEST(Hostile, JobInputsAreCheckedBeforeTheFirstBake) {
+  Scene s;
+  write_text(s.dir.file("text.ply"), "this is not a ply file\n");
+  write_text(s.dir.file("binary.obj"), std::string("v 0 0 0\n\0\0\0\0", 12));
+  write_text(s.dir.file("empty.obj"), "");
+  fs::create_directory(s.dir.file("folder.obj"));
+  const std::string job = s.dir.file("job.toml");
+  const std::pair<std::string, std::string> cases[] = {
+      {"missing.obj", "missing.obj: the low mesh does not exist"},
+      {"", "job.toml:9: low: expected a path"},
+      {"low.fbx", "low.fbx: unknown mesh format '.fbx' (expected .obj or .ply)"},
+      {"lo\\u0000w.obj", "lo\\x00w.obj: the low mesh path holds a NUL byte"},
+      {"text.ply", "text.ply: not a PLY file"},
+      {"binary.obj", "binary.obj: not an OBJ file (a NUL byte"},
+      {"empty.obj", "empty.obj: the low mesh is empty"},
+      {"folder.obj", "folder.obj: the low mesh is not a regular file"},
+  };
+  for (const auto& [low, message] : cases) {
+    write_text(job, job_bake("first", "low.obj", "first.png") + job_bake("second", low, "second.png"));
+    const test::CommandResult r = run_command(cli() + " bake " + quoted(job));
+    EXPECT_EQ(r.exit_code, 2) << low << "\n" << r.output;
+    EXPECT_TRUE(contains(r.output, message)) << low << "\n" << r.output;
+    EXPECT_FALSE(fs::exists(s.dir.file("first.png"))) << low;
+  }
+}
+
+// A failure that only shows during a bake (a mesh broken halfway) stops the
+// job, saying which bakes finished and what they wrote; --keep-going runs the
+// rest; --job-report lists every bake's status.
+TEST(Hostile, FailedBakeStopsTheJobAndSaysWhatFinished) {
+  Scene s;
+  std::string broken = kLowQuadObj;
+  broken += "f 1/1 2/2 99/3\n";  // passes the up-front sniff, fails in the load
+  write_text(s.dir.file("broken.obj"), broken);
+  const std::string job = s.dir.file("job.toml");
+  write_text(job, job_bake("one", "low.obj", "one.png") + job_bake("two", "broken.obj", "two.png") +
+                      job_bake("three", "low.obj", "three.png"));
+  const std::string report = s.dir.file("job.json");
+  test::CommandResult r = run_command(cli() + " bake -q " + quoted(job) + " --job-report " + quoted(report));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(contains(r.output, "two: " + s.dir.file("broken.obj") + ":11:")) << r.output;
+  EXPECT_TRUE(contains(r.output, "one: done, wrote " + s.dir.file("one.png"))) << r.output;
+  EXPECT_TRUE(contains(r.output, "two: failed: ")) << r.output;
+  EXPECT_TRUE(contains(r.output, "three: not run")) << r.output;
+  EXPECT_TRUE(fs::exists(s.dir.file("one.png")));
+  EXPECT_FALSE(fs::exists(s.dir.file("two.png")));
+  EXPECT_FALSE(fs::exists(s.dir.file("three.png")));
+  const std::string json = read_bytes(report);
+  EXPECT_TRUE(contains(json, "{\"name\": \"one\", \"status\": \"done\", \"outputs\": [\"" + s.dir.file("one.png") + "\"]}"))
+      << json;
+  EXPECT_TRUE(contains(json, "{\"name\": \"three\", \"status\": \"not run\", \"outputs\": []}")) << json;
+
+  r = run_command(cli() + " bake -q --keep-going " + quoted(job) + " --job-report " + quoted(report));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(contains(r.output, "three: done, wrote " + s.dir.file("three.png"))) << r.output;
+  EXPECT_TRUE(fs::exists(s.dir.file("three.png")));
+  EXPECT_FALSE(fs::exists(s.dir.file("two.png")));
+  EXPECT_TRUE(contains(read_bytes(report), "\"name\": \"two\", \"status\": \"failed\", \"error\": ")) << read_bytes(report);
+}
+
+// ---------------------------------------------------------------- messages
+
+TEST(Hostile, MessagesNameThePathOnceAndEscapeFileBytes) {
+  Scene s;
+  // The output path was printed twice ("/dev/full: /dev/full: ...").
+  test::CommandResult r = run_command(s.bake(s.low, "/dev/full", "--format png8"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(contains(r.output, "nmbake: error: /dev/full: format png8 cannot be written")) << r.output;
+  EXPECT_FALSE(contains(r.output, "/dev/full: /dev/full")) << r.output;
+
+  // Bytes of a broken file reach the terminal escaped.
+  const std::string obj = s.dir.file("escape.obj");
+  write_text(obj, "v 1 \x1b[31mred 0\n");
+  r = run_command(s.bake(obj, s.dir.file("e.png")));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(contains(r.output, obj + ":1: bad number '\\x1b[31mred'")) << r.output;
+  EXPECT_FALSE(contains(r.output, "\x1b")) << r.output;
+  const std::string ply = s.dir.file("escape.ply");
+  write_text(ply, "ply\nformat \x1b]0;title\x07 1.0\nend_header\n");
+  r = run_command(s.bake(ply, s.dir.file("e.png")));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(contains(r.output, "unknown format '\\x1b]0;title\\x07'")) << r.output;
+  EXPECT_FALSE(contains(r.output, "\x1b")) << r.output;
+  const std::string job = s.dir.file("escape.toml");
+  write_text(job, "[[bake]]\n\"k\\u001b[2J\" = 1\n");
+  r = run_command(cli() + " bake " + quoted(job));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_FALSE(contains(r.output, "\x1b")) << r.output;
+  EXPECT_TRUE(contains(r.output, "\\x1b")) << r.output;
+
+  EXPECT_EQ(printable_text("a\x01" "b\x7f\xc3\xa9\xc2\x9b\xff"), "a\\x01b\\x7f\xc3\xa9\\xc2\\x9b\\xff");
+}
+
+// A map side under 16 was refused as "unwrap gutter 4 is out of range" even
+// when nothing is unwrapped.
+TEST(Hostile, SmallMapOfAMeshWithUvsIsNotAnUnwrapError) {
+  Scene s;
+  const std::string out = s.dir.file("small.png");
+  test::CommandResult r = run_command(s.bake(s.low, out, "--size 8 -q"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(out));
+  const std::string bare = s.dir.file("bare.obj");
+  write_text(bare, "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nf 1 2 3\n");
+  r = run_command(s.bake(bare, s.dir.file("bare.png"), "--size 8"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(contains(r.output, bare + ": the low mesh has no UVs and a 8x8 map is too small to unwrap it into"))
+      << r.output;
+  // The unwrap command names its input in an unwrap error.
+  r = run_command(cli() + " unwrap " + quoted(bare) + " -o " + quoted(s.dir.file("u.obj")) + " --size 8 --gutter 3");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(contains(r.output, bare + ": unwrap: ")) << r.output;
+}
+
+}  // namespace
+}  // namespace nmbake
