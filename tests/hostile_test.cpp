@@ -8,6 +8,8 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
+#include <cstring>
 #include <csignal>
 #include <filesystem>
 #include <fstream>
@@ -16,6 +18,7 @@
 
 #include <gtest/gtest.h>
 #include <glm/geometric.hpp>
+#include <tbb/global_control.h>
 
 #include "nmbake/bake.hpp"
 #include "nmbake/budget.hpp"
@@ -412,6 +415,263 @@ TEST(Hostile, SmallMapOfAMeshWithUvsIsNotAnUnwrapError) {
   r = run_command(cli() + " unwrap " + quoted(bare) + " -o " + quoted(s.dir.file("u.obj")) + " --size 8 --gutter 3");
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_TRUE(contains(r.output, bare + ": unwrap: ")) << r.output;
+}
+
+
+// ---------------------------------------------------------------- faults
+
+// Files of `folder` whose name holds `part` (temp files: "nmbake-tmp", ".tmp").
+std::vector<std::string> files_with(const std::string& folder, const std::string& part) {
+  std::vector<std::string> found;
+  for (const auto& entry : fs::directory_iterator(folder)) {
+    const std::string name = entry.path().filename().string();
+    if (name.find(part) != std::string::npos) found.push_back(name);
+  }
+  return found;
+}
+
+// The registry itself: a child registers a temp file, creates it and gets
+// SIGTERM; the handler removes the file and exits 143.
+TEST(Hostile, SignalRemovesRegisteredTempFiles) {
+  TempDir dir;
+  for (const int signal_number : {SIGTERM, SIGINT}) {
+    const std::string temp = dir.file("map.nmbake-tmp-1.png");
+    const pid_t child = ::fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) {
+      install_signal_cleanup();
+      const TempFileGuard guard(temp);
+      write_text(temp, "half a map");
+      ::raise(signal_number);
+      ::_exit(0);  // not reached
+    }
+    int status = 0;
+    ASSERT_EQ(::waitpid(child, &status, 0), child);
+    ASSERT_TRUE(WIFEXITED(status));
+    EXPECT_EQ(WEXITSTATUS(status), 128 + signal_number);
+    EXPECT_FALSE(fs::exists(temp));
+  }
+}
+
+// A real bake interrupted while it writes its map: no output, no temp file,
+// exit 128 + signal. The process is stopped the moment its temp file shows,
+// then signalled, so the signal lands inside the write stage.
+TEST(Hostile, InterruptedBakeLeavesNothing) {
+  Scene s;
+  const std::string out = s.dir.file("big.exr");
+  bool caught_writing = false;
+  for (int attempt = 0; attempt < 3 && !caught_writing; ++attempt) {
+    const pid_t child = ::fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) {
+      ::execl(test::cli_path().c_str(), "nmbake", "bake", "-q", "--low", s.low.c_str(), "--high", s.high.c_str(),
+              "-o", out.c_str(), "--size", "4096", "--samples", "1", "--format", "exr-float", nullptr);
+      ::_exit(127);
+    }
+    int status = 0;
+    for (;;) {
+      if (!files_with(s.dir.path().string(), "nmbake-tmp").empty()) {
+        ::kill(child, SIGSTOP);
+        caught_writing = true;
+        ::kill(child, SIGTERM);
+        ::kill(child, SIGCONT);
+        break;
+      }
+      if (::waitpid(child, &status, WNOHANG) == child) break;  // finished before we saw it
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
+    if (!caught_writing) {
+      fs::remove(out);
+      continue;
+    }
+    ASSERT_EQ(::waitpid(child, &status, 0), child);
+    ASSERT_TRUE(WIFEXITED(status));
+    EXPECT_EQ(WEXITSTATUS(status), 143);
+    EXPECT_FALSE(fs::exists(out));
+    EXPECT_TRUE(files_with(s.dir.path().string(), "nmbake-tmp").empty());
+  }
+  EXPECT_TRUE(caught_writing) << "the bake never showed its temp file in 3 attempts";
+}
+
+// A small tmpfs mounted in the test's folder (needs root; skipped otherwise).
+class Mount {
+ public:
+  Mount(const std::string& folder, const char* options) : folder_(folder) {
+    fs::create_directory(folder);
+    mounted_ = ::mount("tmpfs", folder.c_str(), "tmpfs", 0, options) == 0;
+    if (!mounted_) reason_ = std::string("cannot mount a tmpfs: ") + std::strerror(errno);
+  }
+  ~Mount() {
+    if (mounted_) ::umount2(folder_.c_str(), MNT_DETACH);
+  }
+  bool mounted() const { return mounted_; }
+  const std::string& reason() const { return reason_; }
+
+ private:
+  std::string folder_, reason_;
+  bool mounted_ = false;
+};
+
+// A noisy high surface, so the map does not compress to nothing.
+void write_bumpy_high(const std::string& path) {
+  std::string text;
+  const int n = 40;
+  for (int j = 0; j <= n; ++j) {
+    for (int i = 0; i <= n; ++i) {
+      const double x = 2.0 * i / n - 1, y = 2.0 * j / n - 1;
+      text += "v " + std::to_string(x) + " " + std::to_string(y) + " " +
+              std::to_string(0.05 + 0.03 * std::sin(37.0 * x * y + 11.0 * x)) + "\n";
+    }
+  }
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const int a = j * (n + 1) + i + 1, b = a + 1, c = a + n + 1, d = c + 1;
+      text += "f " + std::to_string(a) + " " + std::to_string(b) + " " + std::to_string(d) + "\nf " +
+              std::to_string(a) + " " + std::to_string(d) + " " + std::to_string(c) + "\n";
+    }
+  }
+  write_text(path, text);
+}
+
+TEST(Hostile, FullDiskGivesExit2AndNoFile) {
+  Scene s;
+  write_bumpy_high(s.high);
+  const std::string folder = s.dir.file("small");
+  const Mount mount(folder, "size=64k");
+  if (!mount.mounted()) GTEST_SKIP() << mount.reason();
+  for (const char* name : {"map.png", "map.exr", "map.tif"}) {
+    const std::string out = folder + "/" + name;
+    const test::CommandResult r = run_command(s.bake(s.low, out, "--size 512 --samples 1 -q"));
+    EXPECT_EQ(r.exit_code, 2) << name << "\n" << r.output;
+    EXPECT_TRUE(contains(r.output, "cannot write '" + out + "'")) << name << "\n" << r.output;
+    // Our PNG and EXR writers give the system's reason; OpenImageIO's TIFF
+    // writer its own ("TIFFWriteScanline failed").
+    if (fs::path(out).extension() != ".tif") {
+      EXPECT_TRUE(contains(r.output, "No space left on device")) << name << "\n" << r.output;
+    }
+    EXPECT_TRUE(fs::is_empty(folder)) << name;
+  }
+  // The report and an unwrapped mesh too.
+  const test::CommandResult r =
+      run_command(s.bake(s.low, s.dir.file("ok.png"), "--size 64 -q --report " + quoted(folder + "/r.json")));
+  EXPECT_EQ(r.exit_code, 0) << r.output;  // a small report fits
+  fs::remove(folder + "/r.json");
+  // `ulimit -f` (the file-size limit) fails the write the same way (EFBIG),
+  // without the mount: SIGXFSZ is ignored.
+  const test::CommandResult f = run_command("ulimit -f 64; " + s.bake(s.low, s.dir.file("limited.exr"),
+                                                                        "--size 512 --samples 1 -q"));
+  EXPECT_EQ(f.exit_code, 2) << f.output;
+  EXPECT_TRUE(contains(f.output, "File too large")) << f.output;
+  EXPECT_TRUE(files_with(s.dir.path().string(), "limited").empty());
+}
+
+TEST(Hostile, ReadOnlyFolderGivesExit2AndNoFile) {
+  Scene s;
+  const std::string folder = s.dir.file("ro");
+  const Mount mount(folder, "size=1m");
+  if (!mount.mounted()) GTEST_SKIP() << mount.reason();
+  ASSERT_EQ(::mount(nullptr, folder.c_str(), nullptr, MS_REMOUNT | MS_RDONLY, nullptr), 0) << std::strerror(errno);
+  for (const char* name : {"map.png", "map.exr", "map.tif"}) {
+    const std::string out = folder + "/" + name;
+    const test::CommandResult r = run_command(s.bake(s.low, out, "--size 64 -q"));
+    EXPECT_EQ(r.exit_code, 2) << name << "\n" << r.output;
+    EXPECT_TRUE(contains(r.output, "cannot write '" + out + "'")) << name << "\n" << r.output;
+    if (fs::path(out).extension() != ".tif") {  // OpenImageIO: "Could not open"
+      EXPECT_TRUE(contains(r.output, "Read-only file system")) << name << "\n" << r.output;
+    }
+    EXPECT_TRUE(fs::is_empty(folder)) << name;
+  }
+}
+
+// Two bakes writing the same map (and report) at once: the file is always
+// one of the two whole maps, never a mix.
+TEST(Hostile, ConcurrentWritersNeverTearTheFile) {
+  Scene s;
+  write_bumpy_high(s.high);
+  const std::string a = s.dir.file("a.png"), b = s.dir.file("b.png"), shared = s.dir.file("shared.png");
+  ASSERT_EQ(run_command(s.bake(s.low, a, "--size 300 --samples 1 -q")).exit_code, 0);
+  ASSERT_EQ(run_command(s.bake(s.low, b, "--size 301 --samples 1 -q")).exit_code, 0);
+  const std::string bytes_a = read_bytes(a), bytes_b = read_bytes(b);
+  const std::string report = s.dir.file("shared.json");
+  for (int round = 0; round < 4; ++round) {
+    const test::CommandResult r = run_command(
+        "(" + s.bake(s.low, shared, "--size 300 --samples 1 -q --report " + quoted(report)) + ") & (" +
+        s.bake(s.low, shared, "--size 301 --samples 1 -q --report " + quoted(report)) + "); wait");
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    const std::string got = read_bytes(shared);
+    EXPECT_TRUE(got == bytes_a || got == bytes_b) << "round " << round << ": a torn file of " << got.size() << " bytes";
+    const std::string json = read_bytes(report);
+    EXPECT_TRUE(contains(json, "\"width\": 300") != contains(json, "\"width\": 301")) << json;
+    EXPECT_TRUE(files_with(s.dir.path().string(), "tmp").empty());
+  }
+}
+
+
+// ---------------------------------------------------------------- determinism
+
+// The same bytes for any thread count and any band size, on a scene with
+// degenerate triangles (zero area, a repeated corner, collapsed UVs) and
+// huge ones (a low triangle a million units long in a corner of the atlas,
+// high triangles out to 1e8), whose rays take every fallback.
+TEST(Hostile, SameBytesForEveryThreadCountAndBandSize) {
+  Scene s;
+  std::string low;
+  const int n = 6;
+  for (int j = 0; j <= n; ++j) {
+    for (int i = 0; i <= n; ++i) {
+      low += "v " + std::to_string(2.0 * i / n - 1) + " " + std::to_string(2.0 * j / n - 1) + " 0\n";
+      low += "vt " + std::to_string(0.7 * i / n) + " " + std::to_string(0.7 * j / n) + "\n";
+    }
+  }
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const int a = j * (n + 1) + i + 1, b = a + 1, c = a + n + 1, d = c + 1;
+      low += "f " + std::to_string(a) + "/" + std::to_string(a) + " " + std::to_string(b) + "/" + std::to_string(b) +
+             " " + std::to_string(d) + "/" + std::to_string(d) + "\n";
+      low += "f " + std::to_string(a) + "/" + std::to_string(a) + " " + std::to_string(d) + "/" + std::to_string(d) +
+             " " + std::to_string(c) + "/" + std::to_string(c) + "\n";
+    }
+  }
+  const int v = (n + 1) * (n + 1);
+  const auto corner = [](int position, int uv) { return " " + std::to_string(position) + "/" + std::to_string(uv); };
+  low += "v 0 0 0\nv 0.5 0.5 0\nv 1 1 0\n";           // collinear: zero area
+  low += "v 1e6 0 0\nv 1e6 1 0.5\nv 0 1e6 0\n";       // huge
+  low += "vt 0.8 0.8\nvt 0.9 0.85\nvt 0.95 0.95\nvt 0.75 0.95\nvt 0.99 0.75\nvt 0.85 0.99\nvt 0.9 0.9\n";
+  const int p = v + 1, t = v + 1;
+  low += "f" + corner(p, t) + corner(p + 1, t + 1) + corner(p + 2, t + 2) + "\n";
+  low += "f" + corner(p + 3, t + 3) + corner(p + 4, t + 4) + corner(p + 5, t + 5) + "\n";
+  low += "f" + corner(1, t + 6) + corner(2, t + 6) + corner(9, t + 6) + "\n";  // collapsed UVs
+  low += "f" + corner(1, t + 1) + corner(1, t + 2) + corner(2, t + 3) + "\n";  // a repeated corner
+  write_text(s.low, low);
+  std::string high = high_plane_obj();
+  high += "v -1e8 -1e8 -5\nv 1e8 -1e8 -5\nv 0 1e8 -5\nv 3 3 3\nv 3 3 3\nv 3 3 3\n";
+  high += "f 82 83 84\nf 85 86 87\nf 1 1 2\n";
+  write_text(s.high, high);
+
+  BakeOptions o;
+  o.low_path = s.low;
+  o.high_path = s.high;
+  o.width = 96;
+  o.height = 80;
+  o.samples = 4;
+  o.padding = 3;
+  std::string reference;
+  for (const int threads : {1, 2, 3, 7}) {
+    for (const std::size_t band : {std::size_t{0}, std::size_t{1001}, std::size_t{4097}, std::size_t{12345}}) {
+      SCOPED_TRACE(testing::Message() << threads << " threads, band " << band);
+      const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+      o.band_samples = band;
+      const std::string out = s.dir.file("map_" + std::to_string(threads) + "_" + std::to_string(band) + ".exr");
+      o.outputs = {{out, PixelFormat::exr_float}};
+      BakeReport report;
+      const Status st = bake(o, report);
+      ASSERT_TRUE(st.is_ok()) << st.message();
+      EXPECT_GT(report.low_mesh.zero_area_triangles + report.raster.degenerate_uv_triangles, 0u);
+      const std::string bytes = read_bytes(out);
+      if (reference.empty()) reference = bytes;
+      EXPECT_EQ(bytes, reference);
+    }
+  }
 }
 
 }  // namespace
