@@ -114,6 +114,7 @@ Status validate_options(const BakeOptions& o) {
     if (out.path.find('\0') != std::string::npos) {
       return Status::bad_input(printable_text(out.path) + ": the output path holds a NUL byte");
     }
+    if (const Status target = check_output_target(out.path); !target) return Status::bad_input(target.message());
     if (!format_matches_extension(out.format, out.path)) {
       return Status::bad_input(out.path + ": format " + to_string(out.format) + " cannot be written to a file with this extension");
     }

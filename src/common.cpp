@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <cstdint>
 #include <cstdlib>
+#include <filesystem>
 
 namespace nmbake {
 
@@ -50,6 +51,15 @@ std::string printable_text(std::string_view text) {
     i += static_cast<std::size_t>(length);
   }
   return out;
+}
+
+Status check_output_target(const std::string& path) {
+  std::error_code ec;
+  const std::filesystem::file_status status = std::filesystem::symlink_status(path, ec);
+  if (ec || !std::filesystem::exists(status)) return Status::ok();
+  if (std::filesystem::is_regular_file(status) || std::filesystem::is_symlink(status)) return Status::ok();
+  return Status::io("cannot write '" + printable_text(path) +
+                    "': not a regular file (a device, folder, FIFO or socket is never replaced)");
 }
 
 void check_failed(const char* expression, const char* file, int line, const char* message) {

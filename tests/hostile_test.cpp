@@ -4,6 +4,7 @@
 // The CLI cases run the built binary; memory cases run it under `ulimit -v`
 // so that the old behaviour (gigabytes, then std::bad_alloc, exit 3) fails.
 #include <sys/mount.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -84,6 +85,11 @@ struct Scene {
            " " + extra;
   }
 };
+
+std::string read_bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
 
 bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
@@ -276,10 +282,35 @@ TEST(Hostile, ImageHeadersAreCheckedBeforeThePixels) {
   Image image;
   const Status st = read_image(big, image);
   EXPECT_EQ(st.code(), StatusCode::bad_input);
-  EXPECT_TRUE(contains(st.message(), "which a PNG of 65 bytes cannot hold")) << st.message();
+  EXPECT_TRUE(contains(st.message(), "which a png file of 65 bytes cannot hold")) << st.message();
+  // Found by tests/fuzz (fuzz_image): a 25-byte Targa claiming 19789 x 15104
+  // took 1.2 GB and over 10 s. The fuzzer's input (its first byte picks the
+  // extension) is committed; the rest is the file.
+  std::string tga = read_bytes(test::source_dir() + "/tests/fuzz/regressions/image/targa-header-19789x15104.bin");
+  ASSERT_EQ(tga.size(), 26u);
+  const std::string tga_path = dir.file("header.tif");
+  write_text(tga_path, tga.substr(1));
+  const Status targa = read_image(tga_path, image);
+  EXPECT_EQ(targa.code(), StatusCode::bad_input);
+  EXPECT_TRUE(contains(targa.message(), "its header says 19789x15104, which a targa file of 25 bytes cannot hold"))
+      << targa.message();
   // Within what the file can hold but not what memory can: the budget.
   EXPECT_EQ(check_image_memory(big, 1u << 30, 1u << 30, 4).code(), StatusCode::bad_input);
   EXPECT_TRUE(check_image_memory(big, 64, 64, 3).is_ok());
+}
+
+// OpenImageIO tried reader after reader on a device that never ends
+// (`preview --map /dev/full` hung); only regular files are read.
+TEST(Hostile, DevicesAreNotReadAsImages) {
+  TempDir dir;
+  const std::string out = dir.file("out.png");
+  for (const std::string& command : {" preview --map /dev/full -o " + quoted(out), std::string(" diff /dev/zero /dev/zero"),
+                                     " height2normal /dev/zero -o " + quoted(out)}) {
+    const test::CommandResult r = run_command("timeout 60 " + cli() + command);
+    EXPECT_EQ(r.exit_code, 2) << command << "\n" << r.output;
+    EXPECT_TRUE(contains(r.output, "not a regular file")) << command << "\n" << r.output;
+    EXPECT_FALSE(fs::exists(out));
+  }
 }
 
 // A mesh that is an endless stream with no newline (a link to /dev/zero)
@@ -303,11 +334,6 @@ TEST(Hostile, EndlessLineIsCapped) {
 
 
 // ---------------------------------------------------------------- jobs
-
-std::string read_bytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
 
 std::string job_bake(const std::string& name, const std::string& low, const std::string& output) {
   return "[[bake]]\nname = \"" + name + "\"\nlow = \"" + low + "\"\nhigh = \"high.obj\"\noutputs = [\"" + output +
@@ -381,10 +407,27 @@ TEST(Hostile, FailedBakeStopsTheJobAndSaysWhatFinished) {
 TEST(Hostile, MessagesNameThePathOnceAndEscapeFileBytes) {
   Scene s;
   // The output path was printed twice ("/dev/full: /dev/full: ...").
-  test::CommandResult r = run_command(s.bake(s.low, "/dev/full", "--format png8"));
+  const std::string txt = s.dir.file("map.txt");
+  test::CommandResult r = run_command(s.bake(s.low, txt, "--format png8"));
   EXPECT_EQ(r.exit_code, 2) << r.output;
-  EXPECT_TRUE(contains(r.output, "nmbake: error: /dev/full: format png8 cannot be written")) << r.output;
-  EXPECT_FALSE(contains(r.output, "/dev/full: /dev/full")) << r.output;
+  EXPECT_TRUE(contains(r.output, "nmbake: error: " + txt + ": format png8 cannot be written")) << r.output;
+  EXPECT_FALSE(contains(r.output, txt + ": " + txt)) << r.output;
+  r = run_command(s.bake(s.low, "/dev/full", "--format png8"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(contains(r.output, "nmbake: error: cannot write '/dev/full': not a regular file")) << r.output;
+  // A device is never replaced by an output (as root, a rename over it
+  // replaced /dev/full with the report); checked on a FIFO of our own.
+  const std::string fifo = s.dir.file("fifo.png");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  r = run_command(s.bake(s.low, fifo, "--size 16"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(contains(r.output, "cannot write '" + fifo + "': not a regular file")) << r.output;
+  const std::string fifo_report = s.dir.file("fifo.json");
+  ASSERT_EQ(::mkfifo(fifo_report.c_str(), 0600), 0);
+  r = run_command(s.bake(s.low, s.dir.file("ok.png"), "--size 16 -q --report " + quoted(fifo_report)));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(contains(r.output, "cannot write '" + fifo_report + "': not a regular file")) << r.output;
+  EXPECT_TRUE(fs::is_fifo(fifo) && fs::is_fifo(fifo_report));
 
   // Bytes of a broken file reach the terminal escaped.
   const std::string obj = s.dir.file("escape.obj");

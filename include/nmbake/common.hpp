@@ -48,6 +48,13 @@ class [[nodiscard]] Status {
 // hostile file cannot send escape codes, and a NUL cannot cut a message.
 std::string printable_text(std::string_view text);
 
+// Outputs are written to a temp file and renamed over the target, which
+// replaces whatever the target is: as root, `--report /dev/full` replaced the
+// device with a regular file. io "cannot write 'PATH': not a regular file"
+// when PATH exists as anything but a regular file or a symlink (a symlink
+// itself is replaced, never what it points to); ok otherwise.
+Status check_output_target(const std::string& path);
+
 [[noreturn]] void check_failed(const char* expression, const char* file, int line, const char* message);
 
 }  // namespace nmbake

@@ -107,6 +107,7 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
 Status write_text(const std::string& path, const std::string& text) {
   // The pid keeps two processes writing the same report apart (one shared
   // temp name let them tear each other's file).
+  NMBAKE_TRY(check_output_target(path));
   const std::string tmp = path + ".tmp" + std::to_string(::getpid());
   const TempFileGuard guard(tmp);
   {

@@ -28,6 +28,7 @@ int fail(const Status& s) {
 
 Status write_text_atomically(const std::string& path, const std::string& text) {
   // The pid keeps two processes writing the same report apart.
+  NMBAKE_TRY(check_output_target(path));
   const std::string tmp = path + ".tmp" + std::to_string(::getpid());
   const TempFileGuard guard(tmp);
   {

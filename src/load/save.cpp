@@ -163,6 +163,7 @@ Status save_mesh(const std::string& path, const Mesh& mesh) {
     return Status::bad_input(path + ": unknown mesh format '" + extension + "' (expected .obj or .ply)");
   }
   NMBAKE_TRY(validate_mesh(mesh, path));
+  NMBAKE_TRY(check_output_target(path));
 
   // Same folder, so the rename cannot cross file systems; O_EXCL and a
   // process-unique name keep concurrent writers apart.
