@@ -4,10 +4,15 @@
 #include "nmbake/bake.hpp"
 
 #include "huge_pages.hpp"
+#include "nmbake/budget.hpp"
 #include "nmbake/task.hpp"
 #include "nmbake/udim.hpp"
 
+#include <cctype>
+#include <cerrno>
 #include <charconv>
+#include <cstdio>
+#include <cstring>
 #include <chrono>
 #include <cmath>
 #include <algorithm>
@@ -52,6 +57,26 @@ std::string to_string(const Distance& distance) {
   return std::to_string(distance.value);
 }
 
+namespace {
+
+std::string number_text(double value) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", value);
+  return text;
+}
+
+// Resolved distances against the low mesh's diagonal (kMaxDistanceDiagonals).
+// A zero diagonal (every low vertex in one place) has only kMaxDistance.
+Status check_distance(const char* name, const Distance& d, float diagonal) {
+  const double limit = static_cast<double>(kMaxDistanceDiagonals) * diagonal;
+  if (d.kind != Distance::Kind::absolute || diagonal <= 0.0f || d.value <= limit) return Status::ok();
+  return Status::bad_input(std::string(name) + " distance " + number_text(d.value) + " is out of range: at most " +
+                           number_text(kMaxDistanceDiagonals) + " times the low mesh's diagonal " +
+                           number_text(diagonal) + " = " + number_text(limit) + " scene units");
+}
+
+}  // namespace
+
 Status validate_options(const BakeOptions& o) {
   if (o.low_path.empty()) return Status::bad_input("no low mesh given (--low)");
   if (o.high_path.empty()) return Status::bad_input("no high mesh given (--high)");
@@ -64,13 +89,34 @@ Status validate_options(const BakeOptions& o) {
   if (!is_supported_sample_count(o.samples)) {
     return Status::bad_input("--samples " + std::to_string(o.samples) + " is not supported: use 1, 4, 16 or 64");
   }
-  if (o.unwrap_gutter < 0 || o.unwrap_gutter > std::min(o.width, o.height) / 4) {
+  // Against the map size only when an unwrap happens (bake()): a small map
+  // of a mesh with UVs must not be refused for a gutter it never uses.
+  if (o.unwrap_gutter < 0) {
     return Status::bad_input("unwrap gutter " + std::to_string(o.unwrap_gutter) + " is out of range (0 to size / 4)");
   }
+  const auto check_limit = [](const char* name, const Distance& d) {
+    if (d.kind == Distance::Kind::absolute && !(d.value <= kMaxDistance)) {
+      return Status::bad_input(std::string(name) + " distance " + number_text(d.value) +
+                               " is out of range: at most " + number_text(kMaxDistance) + " scene units");
+    }
+    if (d.kind == Distance::Kind::percent && !(d.value <= 100.0f * kMaxDistanceDiagonals)) {
+      return Status::bad_input(std::string(name) + " distance " + number_text(d.value) +
+                               "% is out of range: at most " + number_text(100.0f * kMaxDistanceDiagonals) +
+                               "% of the low mesh's diagonal");
+    }
+    return Status::ok();
+  };
+  NMBAKE_TRY(check_limit("front", o.front));
+  NMBAKE_TRY(check_limit("back", o.back));
   if (o.padding < 0 || o.padding > 4096) {
     return Status::bad_input("--padding " + std::to_string(o.padding) + " is out of range (0 to 4096)");
   }
   for (const OutputSpec& out : o.outputs) {
+    // The file system would see the path cut at the NUL: another file.
+    if (out.path.find('\0') != std::string::npos) {
+      return Status::bad_input(printable_text(out.path) + ": the output path holds a NUL byte");
+    }
+    if (const Status target = check_output_target(out.path); !target) return Status::bad_input(target.message());
     if (!format_matches_extension(out.format, out.path)) {
       return Status::bad_input(out.path + ": format " + to_string(out.format) + " cannot be written to a file with this extension");
     }
@@ -89,6 +135,49 @@ Status validate_options(const BakeOptions& o) {
 }
 
 namespace {
+
+// `path` for a message: a path from a job file may hold any byte.
+std::string shown(const std::string& path) { return printable_text(path); }
+
+Status check_mesh_input(const char* what, const std::string& path) {
+  if (path.empty()) return Status::bad_input(std::string("the ") + what + " mesh path is empty");
+  if (path.find('\0') != std::string::npos) {
+    return Status::bad_input(shown(path) + ": the " + what + " mesh path holds a NUL byte");
+  }
+  std::string extension = std::filesystem::path(path).extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (!mesh_extension_supported(path)) {
+    return Status::bad_input(shown(path) + ": unknown mesh format '" + shown(extension) + "' (expected " +
+                             supported_mesh_extensions() + ")");
+  }
+  std::error_code ec;
+  const std::filesystem::file_status status = std::filesystem::status(path, ec);
+  if (ec || !std::filesystem::exists(status)) {
+    return Status::bad_input(shown(path) + ": the " + what + " mesh does not exist");
+  }
+  // A FIFO would block and a device (a link to /dev/zero) never ends.
+  if (!std::filesystem::is_regular_file(status)) {
+    return Status::bad_input(shown(path) + ": the " + what + " mesh is not a regular file");
+  }
+  std::FILE* file = std::fopen(path.c_str(), "rb");
+  if (!file) return Status::bad_input(shown(path) + ": cannot open the " + what + " mesh: " + std::strerror(errno));
+  char head[4096];
+  const std::size_t got = std::fread(head, 1, sizeof head, file);
+  std::fclose(file);
+  const std::string_view bytes(head, got);
+  if (got == 0) return Status::bad_input(shown(path) + ": the " + what + " mesh is empty");
+  if (extension == ".ply" && bytes.substr(0, 3) != "ply") {
+    return Status::bad_input(shown(path) + ": not a PLY file (it does not start with \"ply\")");
+  }
+  if (extension == ".glb" && bytes.substr(0, 4) != "glTF") {
+    return Status::bad_input(shown(path) + ": not a binary glTF file (it does not start with \"glTF\")");
+  }
+  if (extension == ".obj" && bytes.find('\0') != std::string_view::npos) {
+    return Status::bad_input(shown(path) + ": not an OBJ file (a NUL byte in its first " + std::to_string(got) +
+                             " bytes: binary data)");
+  }
+  return Status::ok();
+}
 
 using Clock = std::chrono::steady_clock;
 
@@ -203,6 +292,16 @@ struct DebugImages {
 // BENCHMARKS.md). With the trace no longer split into progress batches
 // without a listener, a band costs little: at 2048^2 16 spp, 64 bands of 1M
 // bake as fast as 16 of 4M, with 84 MB less peak memory.
+Status check_bake_inputs(const BakeOptions& o) {
+  NMBAKE_TRY(check_mesh_input("low", o.low_path));
+  NMBAKE_TRY(check_mesh_input("high", o.high_path));
+  if (!o.cage_path.empty()) NMBAKE_TRY(check_mesh_input("cage", o.cage_path));
+  if (o.debug_dump_prefix.find('\0') != std::string::npos) {
+    return Status::bad_input(shown(o.debug_dump_prefix) + ": the debug-dump path holds a NUL byte");
+  }
+  return Status::ok();
+}
+
 int band_rows(int width, int height, int samples, std::size_t band_samples) {
   if (band_samples == 0) band_samples = std::size_t{1} << 20;
   const std::size_t per_row = static_cast<std::size_t>(width) * static_cast<std::size_t>(samples);
@@ -331,6 +430,10 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   r.threads = tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
   StageTimer timer(r, progress);
 
+  // The map's own buffers first (no file needed), then with the meshes'
+  // sizes once they are loaded, before the BVH and the map are allocated.
+  NMBAKE_TRY(check_bake_memory(o, MeshSize{}, MeshSize{}));
+
   // load
   timer.start("load");
   Mesh low, high, cage;
@@ -347,6 +450,18 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
     NMBAKE_TRY(order_cage_by_parts(low, o.match, o.cage_path, cage));
     NMBAKE_TRY(check_cage_topology(low, cage, o.cage_path));
   }
+  // Every derived value (diagonal, normals, ray origins) stays finite only
+  // within these bounds; Embree aborts on a ray that is not.
+  NMBAKE_TRY(check_coordinate_range(low, o.low_path));
+  NMBAKE_TRY(check_coordinate_range(high, o.high_path));
+  if (use_cage_mesh) NMBAKE_TRY(check_coordinate_range(cage, o.cage_path));
+  NMBAKE_TRY(check_bake_memory(o, MeshSize{low.vertex_count(), low.triangle_count()},
+                                MeshSize{high.vertex_count(), high.triangle_count()}));
+  {
+    const float diagonal = compute_bounds(low).diagonal();
+    NMBAKE_TRY(check_distance("front", o.front, diagonal));
+    NMBAKE_TRY(check_distance("back", o.back, diagonal));
+  }
   timer.stop();
   // Parts into groups before anything is baked: a naming mistake is found in
   // a second, not after the unwrap.
@@ -355,6 +470,13 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   const bool udim = std::any_of(o.outputs.begin(), o.outputs.end(),
                                 [](const OutputSpec& out) { return has_udim_token(out.path); });
   if (!low.has_uvs()) {
+    const int side = std::min(o.width, o.height);
+    if (o.unwrap_gutter > side / 4) {
+      return Status::bad_input(o.low_path + ": the low mesh has no UVs and a " + std::to_string(o.width) + "x" +
+                               std::to_string(o.height) + " map is too small to unwrap it into: unwrap gutter " +
+                               std::to_string(o.unwrap_gutter) + " is out of range (0 to size / 4 = " +
+                               std::to_string(side / 4) + ")");
+    }
     timer.start("unwrap");
     // No UV layout: make one; the map is useless without the mesh, so it is
     // written beside the map (in the write stage, with the maps). The unwrap

@@ -11,6 +11,8 @@
 #include "image_oiio.hpp"
 #include "image_exr.hpp"
 #include "image_png.hpp"
+#include "nmbake/budget.hpp"
+#include "nmbake/cleanup.hpp"
 
 #include <dlfcn.h>
 #include <unistd.h>
@@ -134,6 +136,53 @@ Status write_with_oiio(const Image& image, const std::string& path, const fs::pa
   return module_status(outcome, "cannot write '" + path + "': " + reason);
 }
 
+// OpenImageIO tries reader after reader on a device or a FIFO and never
+// finishes one that does not end (`preview --map /dev/full` hung): only a
+// regular file goes in.
+Status check_regular_file(const std::string& path) {
+  std::error_code ec;
+  const fs::file_status status = fs::status(path, ec);
+  if (ec || !fs::exists(status)) return Status::bad_input("cannot read '" + path + "': no such file");
+  if (!fs::is_regular_file(status)) return Status::bad_input("cannot read '" + path + "': not a regular file");
+  return Status::ok();
+}
+
+// The header's size against what the file can hold and what memory allows.
+// Formats whose compression has a known largest ratio bound the pixels by
+// the file's size: a PNG's rows are deflated, and deflate expands at most
+// 1032:1 (each row a filter byte and at least one bit a sample: OpenImageIO
+// reports 1-, 2- and 4-bit PNGs as uint8); a Targa, BMP, SGI or Radiance HDR
+// run covers at most 128 pixels per byte of file (their RLE packets), a PNM
+// holds at least a bit a pixel. Other formats (EXR, TIFF, ...) are bounded by
+// memory only. (A 25-byte Targa claiming 19789 x 15104 took 1.2 GB and
+// seconds; found by tests/fuzz.)
+Status check_image_header(const std::string& path, const ImageFileInfo& info) {
+  const std::uint64_t width = static_cast<std::uint64_t>(std::max(0, info.width));
+  const std::uint64_t height = static_cast<std::uint64_t>(std::max(0, info.height));
+  const std::uint64_t channels = static_cast<std::uint64_t>(std::max(0, info.channels));
+  std::error_code ec;
+  const std::uintmax_t file_bytes = fs::file_size(path, ec);
+  const double pixels = static_cast<double>(width) * static_cast<double>(height);
+  double most = -1.0;  // the most pixels the file can hold; < 0: not bounded
+  double needed = pixels;
+  if (info.file_format == "png") {
+    const double bits = info.data_type == "uint16" ? 16.0 : 1.0;
+    needed = static_cast<double>(height) * (1.0 + std::ceil(static_cast<double>(width) * static_cast<double>(channels) * bits / 8.0));
+    most = 1032.0 * static_cast<double>(file_bytes);  // bytes of rows
+  } else if (info.file_format == "targa" || info.file_format == "bmp" || info.file_format == "sgi" ||
+             info.file_format == "hdr") {
+    most = 128.0 * static_cast<double>(file_bytes);
+  } else if (info.file_format == "pnm") {
+    most = 8.0 * static_cast<double>(file_bytes);
+  }
+  if (!ec && most >= 0.0 && needed > most + 65536.0) {
+    return Status::bad_input("cannot read '" + path + "': its header says " + std::to_string(width) + "x" +
+                             std::to_string(height) + ", which a " + info.file_format + " file of " +
+                             std::to_string(file_bytes) + " bytes cannot hold: a broken or truncated file");
+  }
+  return check_image_memory(path, width, height, channels);
+}
+
 }  // namespace
 
 const char* to_string(PixelFormat format) {
@@ -235,7 +284,9 @@ Status write_image(const Image& image, const std::string& path, PixelFormat form
     return Status::io("cannot write '" + path + "': folder '" + folder.string() + "' does not exist");
   }
 
+  NMBAKE_TRY(check_output_target(path));
   const fs::path temp = temp_path_for(target.parent_path().empty() ? fs::path(".") / target : target);
+  const TempFileGuard guard(temp.string());  // removed if a signal ends the process meanwhile
   Status status;
   switch (format) {
     case PixelFormat::png8:
@@ -273,6 +324,7 @@ Status check_image_writer(PixelFormat format) {
 }
 
 Status read_image_info(const std::string& path, ImageFileInfo& out) {
+  NMBAKE_TRY(check_regular_file(path));
   std::string reason;
   const oiio_module::Api* api = image_module(reason);
   if (!api) return Status::internal("cannot read '" + path + "': " + reason);
@@ -281,9 +333,17 @@ Status read_image_info(const std::string& path, ImageFileInfo& out) {
 }
 
 Status read_image(const std::string& path, Image& out) {
+  NMBAKE_TRY(check_regular_file(path));
   std::string reason;
   const oiio_module::Api* api = image_module(reason);
   if (!api) return Status::internal("cannot read '" + path + "': " + reason);
+  // The header first: a file that claims 1,000,000^2 pixels must be refused
+  // before the pixels are allocated (it made std::bad_alloc, or took 4.7 GB
+  // for 20000^2 before failing on the missing data).
+  ImageFileInfo info;
+  const oiio_module::Outcome header = api->read_info(path, info, reason);
+  if (header != oiio_module::Outcome::ok) return module_status(header, "cannot read '" + path + "': " + reason);
+  NMBAKE_TRY(check_image_header(path, info));
   Image image;
   const oiio_module::Outcome outcome = api->read(path, image, reason);
   if (outcome != oiio_module::Outcome::ok) return module_status(outcome, "cannot read '" + path + "': " + reason);

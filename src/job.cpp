@@ -1,5 +1,6 @@
 // Job files (TOML, through toml++) and the option words shared with the CLI.
 #include "nmbake/job.hpp"
+#include "nmbake/budget.hpp"
 
 #include <filesystem>
 #include <set>
@@ -139,13 +140,20 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
       return bad("expected a number, \"N%\" or \"auto\"");
     }
     (key == "front" ? o.front : o.back) = d;
+  } else if (key == "max_memory") {
+    if (auto i = value.value<std::int64_t>(); i && value.is_integer() && *i > 0) {
+      o.max_memory_bytes = static_cast<std::uint64_t>(*i);
+    } else if (!get_string(text) || !parse_memory_size(text, o.max_memory_bytes)) {
+      return bad("expected bytes, or a string such as \"8G\"");
+    }
   } else if (key == "cage") {
-    if (!get_string(text)) return bad("expected a path");
+    if (!get_string(text) || text.empty()) return bad("expected a path");
     o.cage_path = resolve_path(folder, text);
   } else if (in_bake && key == "name") {
     if (!get_string(job.name)) return bad("expected a string");
   } else if (in_bake && (key == "low" || key == "high" || key == "report" || key == "debug_dump")) {
-    if (!get_string(text)) return bad("expected a path");
+    // "" would resolve to the job file's folder: caught here, by name.
+    if (!get_string(text) || text.empty()) return bad("expected a path");
     const std::string p = resolve_path(folder, text);
     if (key == "low") o.low_path = p;
     else if (key == "high") o.high_path = p;
@@ -217,7 +225,7 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
       o.outputs.push_back(out);
     }
   } else {
-    return Status::bad_input(where(file, value) + ": unknown key \"" + key + "\"" +
+    return Status::bad_input(where(file, value) + ": unknown key \"" + printable_text(key) + "\"" +
                              (in_bake ? std::string() : std::string(" in [defaults]")));
   }
   return Status::ok();
@@ -232,7 +240,8 @@ Status load_job_file(const std::string& path, std::vector<BakeJob>& jobs) {
     root = toml::parse_file(path);
   } catch (const toml::parse_error& e) {
     const auto& src = e.source();
-    std::string message(e.description());
+    // toml++ quotes the offending bytes of the file: escaped before printing.
+    const std::string message = printable_text(e.description());
     if (src.begin.line == 0) return Status::bad_input(path + ": cannot read the job file: " + message);
     return Status::bad_input(path + ":" + std::to_string(src.begin.line) + ": " + message);
   }
@@ -242,7 +251,8 @@ Status load_job_file(const std::string& path, std::vector<BakeJob>& jobs) {
   for (const auto& [key, value] : root) {
     const std::string k(key.str());
     if (k != "defaults" && k != "bake") {
-      return Status::bad_input(where(path, value) + ": unknown top-level key \"" + k + "\" (expected [defaults] and [[bake]])");
+      return Status::bad_input(where(path, value) + ": unknown top-level key \"" + printable_text(k) +
+                               "\" (expected [defaults] and [[bake]])");
     }
   }
   if (const toml::node_view d = root["defaults"]) {

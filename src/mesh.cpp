@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <numeric>
 #include <string>
@@ -136,6 +137,24 @@ std::size_t first_failing(std::size_t count, const Failing& failing) {
 
 }  // namespace
 
+Status check_coordinate_range(const Mesh& mesh, const std::string& name) {
+  const auto beyond = [](float c) { return !(std::fabs(c) <= kMaxCoordinate); };
+  const std::size_t count = mesh.positions.size();
+  if (const std::size_t i = first_failing(count, [&](std::size_t k) {
+        const glm::vec3& p = mesh.positions[k];
+        return beyond(p.x) || beyond(p.y) || beyond(p.z);
+      });
+      i < count) {
+    const glm::vec3& p = mesh.positions[i];
+    char text[160];
+    std::snprintf(text, sizeof text, " at (%g, %g, %g) is too far from the origin: coordinates must be within +-%g",
+                  static_cast<double>(p.x), static_cast<double>(p.y), static_cast<double>(p.z),
+                  static_cast<double>(kMaxCoordinate));
+    return Status::bad_input(name + ": vertex " + std::to_string(i) + text + " (move or scale the mesh)");
+  }
+  return Status::ok();
+}
+
 Status validate_mesh(const Mesh& mesh, const std::string& name) {
   const std::size_t vertex_count = mesh.vertex_count();
   if (mesh.indices.size() % 3 != 0) {
@@ -193,7 +212,7 @@ Status validate_mesh(const Mesh& mesh, const std::string& name) {
   std::uint64_t next_triangle = 0;
   for (const MeshPart& part : mesh.parts) {
     if (part.first_triangle != next_triangle || part.triangle_count == 0) {
-      return Status::bad_input(name + ": part '" + part.name + "' (triangles " + std::to_string(part.first_triangle) +
+      return Status::bad_input(name + ": part '" + printable_text(part.name) + "' (triangles " + std::to_string(part.first_triangle) +
                                " + " + std::to_string(part.triangle_count) + ") does not follow the part before it");
     }
     next_triangle += part.triangle_count;

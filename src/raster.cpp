@@ -25,6 +25,7 @@
 #include "nmbake/raster.hpp"
 
 #include "huge_pages.hpp"
+#include "shuffle_compat.hpp"
 
 #include <algorithm>
 #include <bit>

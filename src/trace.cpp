@@ -75,6 +75,18 @@ void backface_filter(const RTCFilterFunctionNArguments* args) {
   }
 }
 
+// Embree 3 asserts (Debian keeps its assertions on: an abort) that a ray's
+// origin and direction components are within FLT_LARGE (1.844e18) and its
+// range finite. The bake's limits (kMaxCoordinate, kMaxDistance) keep every
+// ray well inside; this is the last guard: a ray outside is not traced.
+bool embree_accepts(const glm::vec3& origin, const glm::vec3& direction, float tfar) {
+  constexpr float kLargest = 1.8e18f;
+  const auto within = [](const glm::vec3& v) {
+    return std::fabs(v.x) <= kLargest && std::fabs(v.y) <= kLargest && std::fabs(v.z) <= kLargest;
+  };
+  return within(origin) && within(direction) && tfar >= 0.0f && tfar <= kLargest;
+}
+
 [[gnu::always_inline]] inline glm::vec3 interpolate(const std::vector<glm::vec3>& corner, std::size_t base,
                                                     glm::vec2 b) {
   return corner[base] * (1.0f - b.x - b.y) + corner[base + 1] * b.x + corner[base + 2] * b.y;
@@ -260,7 +272,8 @@ void reset_packet(Packet& p) {
   for (int i = 0; i < kPacket; ++i) p.valid[i] = 0;
 }
 
-void add_ray(Packet& p, std::size_t sample, const glm::vec3& origin, const glm::vec3& direction, float tfar,
+// False (the lane left invalid: a miss) for a ray Embree would not take.
+bool add_ray(Packet& p, std::size_t sample, const glm::vec3& origin, const glm::vec3& direction, float tfar,
              float t_surface, float sign) {
   const int i = p.count++;
   RTCRay16& r = p.rayhit.ray;
@@ -278,10 +291,11 @@ void add_ray(Packet& p, std::size_t sample, const glm::vec3& origin, const glm::
   r.flags[i] = 0;
   p.rayhit.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
   p.rayhit.hit.primID[i] = RTC_INVALID_GEOMETRY_ID;
-  p.valid[i] = -1;
+  p.valid[i] = embree_accepts(origin, direction, tfar) ? -1 : 0;
   p.sample[i] = sample;
   p.t_surface[i] = t_surface;
   p.sign[i] = sign;
+  return p.valid[i] != 0;
 }
 
 // The common case (first hit, averaged or interpolated cage): samples are
@@ -485,7 +499,10 @@ std::uint64_t build_queued_rays(Packet& p, const LowSurface& surface, const RayO
   for (int i = 0; i < kPacket; ++i) {
     r.tfar[i] = tfar;
     p.rayhit.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
-    p.valid[i] = i < n ? -1 : 0;
+    const bool accepted = i < n && embree_accepts(glm::vec3(r.org_x[i], r.org_y[i], r.org_z[i]),
+                                                  glm::vec3(r.dir_x[i], r.dir_y[i], r.dir_z[i]), tfar);
+    fallbacks += i < n && !accepted ? 1 : 0;  // not traced: a miss
+    p.valid[i] = accepted ? -1 : 0;
   }
   return fallbacks;
 }
@@ -644,15 +661,17 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
       bool fallback = false;
       const Ray ray = build_ray(surface, tri, samples.bary[s], *ray_options, fallback);
       counts.fallbacks += fallback ? 1 : 0;
+      // A ray Embree would not take is not traced (add_ray): a miss, counted.
       if (options.hit == HitRule::first) {
         if (packet.count == kPacket) flush();
-        add_ray(packet, s, ray.origin, ray.direction, ray.tfar, ray.t_surface, 1.0f);
+        counts.fallbacks += add_ray(packet, s, ray.origin, ray.direction, ray.tfar, ray.t_surface, 1.0f) ? 0 : 1;
         packet.rayhit.ray.mask[packet.count - 1] = mask;
       } else {
         if (packet.count > kPacket - 2) flush();
         // Outwards from P up to the cage, and inwards up to `back`.
-        add_ray(packet, s, ray.surface_point, -ray.direction, ray.t_surface, 0.0f, -1.0f);
-        add_ray(packet, s, ray.surface_point, ray.direction, ray.tfar - ray.t_surface, 0.0f, 1.0f);
+        counts.fallbacks += add_ray(packet, s, ray.surface_point, -ray.direction, ray.t_surface, 0.0f, -1.0f) ? 0 : 1;
+        counts.fallbacks +=
+            add_ray(packet, s, ray.surface_point, ray.direction, ray.tfar - ray.t_surface, 0.0f, 1.0f) ? 0 : 1;
         packet.rayhit.ray.mask[packet.count - 2] = mask;
         packet.rayhit.ray.mask[packet.count - 1] = mask;
       }
@@ -747,6 +766,7 @@ DistanceEstimate estimate_distances(const HighScene& scene, const LowSurface& su
       bool any = false;
       for (int side = 0; side < 2; ++side) {
         const glm::vec3 dir = side == 0 ? -ray.direction : ray.direction;  // outwards, then inwards
+        if (!embree_accepts(ray.surface_point, dir, reach)) continue;  // not traced: a probe miss
         RTCRayHit rh;
         rh.ray.org_x = ray.surface_point.x;
         rh.ray.org_y = ray.surface_point.y;

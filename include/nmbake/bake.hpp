@@ -31,6 +31,14 @@ struct Distance {
   Kind kind = Kind::automatic;
   float value = 0.0f;
 };
+// Limits of a ray distance (README, "Limits"): front and back are each at
+// most kMaxDistance scene units and at most kMaxDistanceDiagonals times the
+// low mesh's bounding-box diagonal. With kMaxCoordinate (mesh.hpp) this keeps
+// every ray origin and range finite and far inside what Embree accepts
+// (1.8e18); a longer ray could only find surfaces the low mesh does not bake.
+constexpr float kMaxDistance = 1e12f;
+constexpr float kMaxDistanceDiagonals = 1000.0f;
+
 // "auto", "0.05", "2%". Returns false on anything else (negative, NaN, junk).
 bool parse_distance(const std::string& text, Distance& out);
 std::string to_string(const Distance& distance);
@@ -79,10 +87,26 @@ struct BakeOptions {
   int tile_index = 0;
   int tile_count = 0;
   std::string tile_path;
+  // Memory the bake may use (budget.hpp): refused up front, with the numbers,
+  // when its estimate is larger. 0: the memory available to the process.
+  std::uint64_t max_memory_bytes = 0;
 };
 
-// Checks options that need no file: sizes, sample count, outputs and formats.
+// Checks options that need no file: sizes, sample count, outputs and formats,
+// distances against kMaxDistance (and percentages against
+// kMaxDistanceDiagonals). The unwrap gutter is checked by bake() when the low
+// mesh turns out to need an unwrap; distances against the diagonal once the
+// low mesh is loaded.
 Status validate_options(const BakeOptions& options);
+
+// Checks what can be known of the input files without loading them, so a
+// job finds a bad path in its last bake before the first bake runs: every
+// mesh path is non-empty, has no NUL byte, names a regular file with a
+// supported extension (.obj, .ply) that can be opened, and starts as its
+// format must (PLY: "ply"; OBJ: text, no NUL byte in its first 4 KiB); every
+// output, report and debug-dump path has no NUL byte. bad_input naming the
+// path (through printable_text) and the reason.
+Status check_bake_inputs(const BakeOptions& options);
 
 struct StageTime {
   std::string name;

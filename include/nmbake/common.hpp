@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <utility>
 
 namespace nmbake {
@@ -39,6 +40,20 @@ class [[nodiscard]] Status {
   StatusCode code_ = StatusCode::ok;
   std::string message_;
 };
+
+// `text` safe to print to a terminal: every byte that could control it is
+// written as \xNN (NUL and the other C0 controls, DEL, the C1 controls
+// U+0080-U+009F, and any byte that is not part of valid UTF-8); other UTF-8
+// is kept. Messages pass file content and paths through it, so a broken or
+// hostile file cannot send escape codes, and a NUL cannot cut a message.
+std::string printable_text(std::string_view text);
+
+// Outputs are written to a temp file and renamed over the target, which
+// replaces whatever the target is: as root, `--report /dev/full` replaced the
+// device with a regular file. io "cannot write 'PATH': not a regular file"
+// when PATH exists as anything but a regular file or a symlink (a symlink
+// itself is replaced, never what it points to); ok otherwise.
+Status check_output_target(const std::string& path);
 
 [[noreturn]] void check_failed(const char* expression, const char* file, int line, const char* message);
 

@@ -112,6 +112,11 @@ struct LoadStats {
 
 Status load_mesh(const std::string& path, const LoadOptions& options, Mesh& out, LoadStats& stats);
 
+// Whether load_mesh() reads files with this path's extension (case-insensitive),
+// and the list for messages: ".obj, .ply, .gltf, .glb, .fbx, .dae, .3ds or .stl".
+bool mesh_extension_supported(const std::string& path);
+const char* supported_mesh_extensions();
+
 // Writes a mesh as OBJ (v, vt, vn, f, and `o NAME` where each part begins;
 // reals in the shortest form that reads back bit for bit), PLY (binary
 // little endian: float x y z [nx ny nz] [u v], face list uchar uint; no

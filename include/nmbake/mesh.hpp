@@ -63,6 +63,17 @@ struct MeshStats {
 // do not tile the triangles. `name` is used in the message (the file path).
 Status validate_mesh(const Mesh& mesh, const std::string& name);
 
+// The largest |coordinate| a baked or unwrapped mesh may hold (README,
+// "Limits"). Below it any two points are at most 3.5e9 apart, and an edge
+// length to the fourth power (a squared cross product, as tangents, normals
+// and areas compute in float) stays below FLT_MAX, so every derived length,
+// area and ray stays finite; Embree aborts on a ray that is not (Debian
+// builds it with assertions on). load_mesh() reads any finite float; bake()
+// and unwrap check this on top.
+constexpr float kMaxCoordinate = 1e9f;
+// bad_input naming `name`, the first vertex beyond kMaxCoordinate and the limit.
+Status check_coordinate_range(const Mesh& mesh, const std::string& name);
+
 // Area-weighted vertex normals (the cross product of two edges, unnormalised,
 // summed over the triangles around the vertex). A vertex whose sum has zero
 // length (only degenerate triangles around it) gets (0, 0, 1) and is counted.

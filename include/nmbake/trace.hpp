@@ -125,7 +125,9 @@ struct TraceStats {
   std::uint64_t samples = 0;  // samples traced (a `nearest` sample issues two rays)
   std::uint64_t hits = 0;
   std::uint64_t misses = 0;
-  std::uint64_t ray_fallbacks = 0;  // zero-length interpolated normal: face normal used
+  // Zero-length interpolated normal: face normal used; or a ray Embree would
+  // not take (a component beyond 1.8e18 or not finite): not traced, a miss.
+  std::uint64_t ray_fallbacks = 0;
 };
 
 // Traces every sample with triangle >= 0. Parallel over tiles of texels;

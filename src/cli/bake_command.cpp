@@ -1,4 +1,5 @@
 // `nmbake bake`: one bake from flags, or every bake of a job file.
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -6,9 +7,13 @@
 #include <string>
 #include <vector>
 
+#include <unistd.h>
+
 #include "commands.hpp"
 #include "nmbake/bake.hpp"
 #include "nmbake/cache.hpp"
+#include "nmbake/budget.hpp"
+#include "nmbake/cleanup.hpp"
 #include "nmbake/job.hpp"
 #include "nmbake/task.hpp"
 #include "progress.hpp"
@@ -37,15 +42,18 @@ struct BakeFlags {
   std::string match = "auto", unmatched = "error", low_suffix = "_low", high_suffix = "_high", cage_suffix = "_cage";
   int groups_per_scene = 0;
   std::string only, tile, tile_file, cache;
+  bool keep_going = false;      // a job: run the other bakes after one fails
+  std::string job_report;       // a job: write each bake's status here (JSON)
+  std::string max_memory;       // empty: the memory available to the process
 };
 
 int fail(const Status& status) {
-  std::fprintf(stderr, "nmbake: error: %s\n", status.message().c_str());
+  print_error(status.message());
   return status.code() == StatusCode::internal ? kInternal : kBadInput;
 }
 
 int usage_error(const std::string& message) {
-  std::fprintf(stderr, "nmbake: error: %s\n", message.c_str());
+  print_error(message);
   return kBadInput;
 }
 
@@ -97,6 +105,9 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
   o.ignore_backfaces = f.ignore_backfaces;
   o.padding = f.padding;
   o.debug_dump_prefix = f.debug_dump;
+  if (!f.max_memory.empty() && !parse_memory_size(f.max_memory, o.max_memory_bytes)) {
+    return Status::bad_input("--max-memory " + f.max_memory + ": expected bytes, or a number with K, M, G or T");
+  }
   for (const std::string& path : f.outputs) {
     OutputSpec out;
     out.path = path;
@@ -112,13 +123,21 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
   return Status::ok();
 }
 
-Status write_report(const std::string& path, const BakeReport& report) {
-  const std::string tmp = path + ".tmp";
+Status write_text(const std::string& path, const std::string& text) {
+  // The pid keeps two processes writing the same report apart (one shared
+  // temp name let them tear each other's file).
+  NMBAKE_TRY(check_output_target(path));
+  const std::string tmp = path + ".tmp" + std::to_string(::getpid());
+  const TempFileGuard guard(tmp);
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) return Status::io(path + ": cannot write the report");
-    out << report.to_json();
-    if (!out.flush()) return Status::io(path + ": cannot write the report");
+    out << text;
+    if (!out.flush()) {
+      out.close();
+      std::remove(tmp.c_str());  // a full disk must not leave half a report
+      return Status::io(path + ": cannot write the report");
+    }
   }
   if (std::rename(tmp.c_str(), path.c_str()) != 0) {
     std::remove(tmp.c_str());
@@ -149,6 +168,70 @@ Status bake_or_fetch(const BakeJob& job, const std::string& cache_dir, BakeRepor
   report.key = key.hex();
   NMBAKE_TRY(cache_store(cache_dir, key, job.options, report, report.to_json()));
   return Status::ok();
+}
+
+Status write_report(const std::string& path, const BakeReport& report) { return write_text(path, report.to_json()); }
+
+// What became of each bake of a job.
+struct JobOutcome {
+  enum class State { not_run, done, failed };
+  std::string name;
+  State state = State::not_run;
+  std::string message;               // failed: why
+  std::vector<std::string> outputs;  // done: every file it wrote
+};
+
+const char* state_name(JobOutcome::State state) {
+  switch (state) {
+    case JobOutcome::State::done: return "done";
+    case JobOutcome::State::failed: return "failed";
+    case JobOutcome::State::not_run: break;
+  }
+  return "not run";
+}
+
+void print_outcomes(const std::vector<JobOutcome>& outcomes) {
+  std::fprintf(stderr, "nmbake: job summary:\n");
+  for (const JobOutcome& o : outcomes) {
+    std::string line = o.name + ": " + state_name(o.state);
+    if (o.state == JobOutcome::State::failed) line += ": " + o.message;
+    for (std::size_t i = 0; i < o.outputs.size(); ++i) line += (i == 0 ? ", wrote " : ", ") + o.outputs[i];
+    std::fprintf(stderr, "  %s\n", printable_text(line).c_str());
+  }
+}
+
+// A JSON string: quotes, backslashes and control bytes escaped (any other
+// byte as it is: the names and paths come from the job file).
+std::string json_string(const std::string& text) {
+  std::string out = "\"";
+  for (const char c : text) {
+    const auto byte = static_cast<unsigned char>(c);
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += c;
+    } else if (byte < 0x20 || byte == 0x7f) {
+      char escaped[8];
+      std::snprintf(escaped, sizeof escaped, "\\u%04x", byte);
+      out += escaped;
+    } else {
+      out += c;
+    }
+  }
+  return out + "\"";
+}
+
+std::string outcomes_json(const std::vector<JobOutcome>& outcomes) {
+  std::string out = "{\n  \"bakes\": [";
+  for (std::size_t i = 0; i < outcomes.size(); ++i) {
+    const JobOutcome& o = outcomes[i];
+    out += i == 0 ? "\n" : ",\n";
+    out += "    {\"name\": " + json_string(o.name) + ", \"status\": \"" + state_name(o.state) + "\"";
+    if (o.state == JobOutcome::State::failed) out += ", \"error\": " + json_string(o.message);
+    out += ", \"outputs\": [";
+    for (std::size_t k = 0; k < o.outputs.size(); ++k) out += (k == 0 ? "" : ", ") + json_string(o.outputs[k]);
+    out += "]}";
+  }
+  return out + "\n  ]\n}\n";
 }
 
 int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& command) {
@@ -202,15 +285,28 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
   // Check every job before the first one runs: a typo in the last bake of a
   // job file must not be found after an hour of baking.
   for (const BakeJob& job : jobs) {
-    const Status s = validate_options(job.options);
-    // An environment failure (the image module missing) stays internal.
+    Status s = validate_options(job.options);
+    if (s) s = check_bake_inputs(job.options);
+    // An environment failure (the image module missing) stays internal. A
+    // flag bake is named after its first output, which the message names
+    // already: no name in front (it printed the path twice).
     if (!s) {
-      return fail(s.code() == StatusCode::internal ? s : Status::bad_input(job.name + ": " + s.message()));
+      return fail(s.code() == StatusCode::internal || flags.job_file.empty()
+                      ? s
+                      : Status::bad_input(job.name + ": " + s.message()));
     }
   }
 
+  // A bake that fails while it runs (a mesh broken halfway) stops the job
+  // (or, with --keep-going, only itself); the summary then says which bakes
+  // finished and what they wrote.
+  std::vector<JobOutcome> outcomes(jobs.size());
+  for (std::size_t i = 0; i < jobs.size(); ++i) outcomes[i].name = jobs[i].name;
   int exit_code = kSuccess;
-  for (const BakeJob& job : jobs) {
+  int failure_code = kSuccess;
+  for (std::size_t index = 0; index < jobs.size(); ++index) {
+    const BakeJob& job = jobs[index];
+    JobOutcome& outcome = outcomes[index];
     const bool show_progress = !global.quiet && stderr_is_terminal();
     ProgressBar bar(show_progress);
     BakeReport report;
@@ -219,20 +315,34 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
     ProgressFn listener;
     if (show_progress) listener = [&](const char* stage, double f) { bar.update(stage, f); };
     bool cached = false;
-    const Status s = bake_or_fetch(job, !flags.cache.empty() ? flags.cache : resolve_cache_dir(job.cache_dir), report,
-                                   listener, cached);
+    Status s = bake_or_fetch(job, !flags.cache.empty() ? flags.cache : resolve_cache_dir(job.cache_dir), report,
+                             listener, cached);
     bar.finish();
-    if (!s) return fail(s);
-    if (cached) {
-      if (!global.quiet) std::printf("%s: cached (key %s): %zu maps\n", job.name.c_str(), report.key.c_str(), report.outputs.size());
+    if (s && !cached && !job.report_path.empty()) s = write_report(job.report_path, report);
+    if (!s) {
+      outcome.state = JobOutcome::State::failed;
+      outcome.message = s.message();
+      const int code = fail(jobs.size() > 1 ? Status::bad_input(job.name + ": " + s.message()) : s);
+      failure_code = std::max(failure_code, s.code() == StatusCode::internal ? static_cast<int>(kInternal) : code);
+      if (!flags.keep_going) break;
       continue;
     }
-    if (!job.report_path.empty()) {
-      const Status rs = write_report(job.report_path, report);
-      if (!rs) return fail(rs);
+    if (cached) {
+      outcome.state = JobOutcome::State::done;
+      outcome.outputs = report.outputs;
+      if (!job.report_path.empty()) outcome.outputs.push_back(job.report_path);
+      if (!global.quiet) {
+        std::printf("%s: cached (key %s): %zu maps\n", printable_text(job.name).c_str(), report.key.c_str(),
+                    report.outputs.size());
+      }
+      continue;
     }
+    outcome.state = JobOutcome::State::done;
+    outcome.outputs = report.outputs;
+    if (report.unwrapped) outcome.outputs.push_back(report.unwrapped_low_path);
+    if (!job.report_path.empty()) outcome.outputs.push_back(job.report_path);
     if (!global.quiet) {
-      std::printf("%s: %s\n", job.name.c_str(), report.summary_line().c_str());
+      std::printf("%s: %s\n", printable_text(job.name).c_str(), report.summary_line().c_str());
       if (global.verbose) {
         for (const StageTime& st : report.stages) std::printf("  %-10s %8.3f s\n", st.name.c_str(), st.seconds);
         const auto print_load = [](const char* which, const LoadStats& load) {
@@ -260,18 +370,25 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
       std::fprintf(stderr,
                    "nmbake: warning: %s: every ray missed the high mesh: is it within front %.4g / back %.4g of "
                    "the low mesh, in the same place and scale?\n",
-                   job.name.c_str(), report.front, report.back);
+                   printable_text(job.name).c_str(), report.front, report.back);
     } else if (report.miss_rate() > 0.01) {
       std::fprintf(stderr, "nmbake: warning: %s: %.2f%% of the rays missed the high mesh (kept the low normal)\n",
-                   job.name.c_str(), 100.0 * report.miss_rate());
+                   printable_text(job.name).c_str(), 100.0 * report.miss_rate());
     }
     if (flags.max_miss_rate >= 0.0 && report.miss_rate() > flags.max_miss_rate) {
       std::fprintf(stderr, "nmbake: gate failed: %s: miss rate %.4f is above --max-miss-rate %.4f\n",
-                   job.name.c_str(), report.miss_rate(), flags.max_miss_rate);
+                   printable_text(job.name).c_str(), report.miss_rate(), flags.max_miss_rate);
       exit_code = kGateFailed;
     }
   }
-  return exit_code;
+  if (failure_code != kSuccess && jobs.size() > 1) print_outcomes(outcomes);
+  if (!flags.job_report.empty()) {
+    if (const Status s = write_text(flags.job_report, outcomes_json(outcomes)); !s) {
+      fail(s);
+      failure_code = std::max<int>(failure_code, kBadInput);
+    }
+  }
+  return failure_code != kSuccess ? failure_code : exit_code;
 }
 
 }  // namespace
@@ -320,6 +437,10 @@ Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
       ->default_val("mikktspace");
   cmd->add_option("--uv-set", flags->uv_set, "the low mesh's UV set: glTF TEXCOORD_N, FBX UV channel N")
       ->default_val(0)->check(CLI::Range(0, 7));
+  cmd->add_flag("--keep-going", flags->keep_going, "a job: run the other bakes when one fails (exit 2 at the end)");
+  cmd->add_option("--job-report", flags->job_report, "a job: write each bake's status and outputs here (JSON)");
+  cmd->add_option("--max-memory", flags->max_memory,
+                  "refuse a bake whose estimated memory is above this (e.g. 8G; default: what is available)");
   cmd->add_option("--debug-dump", flags->debug_dump, "also write PREFIX_coverage.png, PREFIX_misses.png, PREFIX_distance.exr");
   return [flags, &global, cmd]() { return run_bake(*flags, global, *cmd); };
 }

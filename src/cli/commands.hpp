@@ -24,6 +24,11 @@ struct GlobalOptions {
 
 using Runner = std::function<int()>;
 
+// "nmbake: error: MESSAGE" on stderr, through printable_text(): a message
+// may carry a path from a job file (a NUL must not cut it) or bytes of a
+// broken file (which must not reach the terminal as escape codes).
+void print_error(const std::string& message);
+
 Runner add_bake_command(CLI::App& app, const GlobalOptions& global);
 Runner add_preview_command(CLI::App& app, const GlobalOptions& global);
 Runner add_diff_command(CLI::App& app, const GlobalOptions& global);

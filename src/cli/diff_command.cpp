@@ -21,7 +21,7 @@ struct DiffFlags {
 
 int run_diff(const DiffFlags& f, const GlobalOptions& global) {
   auto fail = [](const Status& s) {
-    std::fprintf(stderr, "nmbake: error: %s\n", s.message().c_str());
+    print_error(s.message());
     return s.code() == StatusCode::internal ? kInternal : kBadInput;
   };
   DiffOptions options;

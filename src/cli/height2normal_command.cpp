@@ -24,12 +24,12 @@ struct Height2NormalFlags {
 };
 
 int fail(const Status& status) {
-  std::fprintf(stderr, "nmbake: error: %s\n", status.message().c_str());
+  print_error(status.message());
   return status.code() == StatusCode::internal ? kInternal : kBadInput;
 }
 
 int usage_error(const std::string& message) {
-  std::fprintf(stderr, "nmbake: error: %s\n", message.c_str());
+  print_error(message);
   return kBadInput;
 }
 

@@ -9,6 +9,16 @@
 
 #include "commands.hpp"
 #include "nmbake/task.hpp"
+#include "nmbake/cleanup.hpp"
+
+namespace nmbake::cli {
+
+void print_error(const std::string& message) {
+  const std::string text = printable_text(message);
+  std::fprintf(stderr, "nmbake: error: %s\n", text.c_str());
+}
+
+}  // namespace nmbake::cli
 
 int main(int argc, char** argv) {
   using namespace nmbake::cli;
@@ -37,6 +47,9 @@ int main(int argc, char** argv) {
     const int code = app.exit(e);
     return code == 0 ? kSuccess : kBadInput;
   }
+  // Ctrl-C or a farm's SIGTERM removes the temp files of the outputs being
+  // written and exits 128 + signal (README, "Reliability").
+  nmbake::install_signal_cleanup();
   try {
     std::unique_ptr<tbb::global_control> limit;
     if (global.threads > 0) {
@@ -52,7 +65,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("merge")) return merge();
     if (app.got_subcommand("plan")) return plan();
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "nmbake: internal error: %s\n", e.what());
+    std::fprintf(stderr, "nmbake: internal error: %s\n", nmbake::printable_text(e.what()).c_str());
     return kInternal;
   }
   return kBadInput;

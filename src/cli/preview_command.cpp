@@ -68,7 +68,7 @@ struct PreviewFlags {
 };
 
 int fail(const Status& s) {
-  std::fprintf(stderr, "nmbake: error: %s\n", s.message().c_str());
+  print_error(s.message());
   return s.code() == StatusCode::internal ? kInternal : kBadInput;
 }
 

@@ -30,7 +30,7 @@ struct TangentFlags {
 };
 
 int fail(const Status& s) {
-  std::fprintf(stderr, "nmbake: error: %s\n", s.message().c_str());
+  print_error(s.message());
   return s.code() == StatusCode::internal ? kInternal : kBadInput;
 }
 

@@ -2,6 +2,9 @@
 #include <cstdio>
 #include <fstream>
 
+#include <unistd.h>
+
+#include "nmbake/cleanup.hpp"
 #include "commands.hpp"
 #include "nmbake/load.hpp"
 #include "nmbake/unwrap.hpp"
@@ -19,16 +22,21 @@ struct UnwrapFlags {
 };
 
 int fail(const Status& s) {
-  std::fprintf(stderr, "nmbake: error: %s\n", s.message().c_str());
+  print_error(s.message());
   return s.code() == StatusCode::internal ? kInternal : kBadInput;
 }
 
 Status write_text_atomically(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
+  // The pid keeps two processes writing the same report apart.
+  NMBAKE_TRY(check_output_target(path));
+  const std::string tmp = path + ".tmp" + std::to_string(::getpid());
+  const TempFileGuard guard(tmp);
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     out << text;
-    if (!out.good()) {
+    // flush(): a full disk shows when the buffer is written, not at <<.
+    if (!out.flush()) {
+      out.close();
       std::remove(tmp.c_str());
       return Status::io(path + ": cannot write the report");
     }
@@ -50,7 +58,11 @@ int run_unwrap(const UnwrapFlags& f, const GlobalOptions& global) {
   LoadStats load_stats;
   if (const Status s = load_mesh(f.input, LoadOptions{true, true}, in, load_stats); !s) return fail(s);
   UnwrapReport report;
-  if (const Status s = unwrap_mesh(in, options, out, report); !s) return fail(s);
+  if (const Status s = check_coordinate_range(in, f.input); !s) return fail(s);
+  // unwrap_mesh() does not know the file: its messages get the input's name.
+  if (const Status s = unwrap_mesh(in, options, out, report); !s) {
+    return fail(Status::bad_input(f.input + ": " + s.message()));
+  }
   if (const Status s = save_mesh(f.output, out); !s) return fail(s);
   if (!f.report.empty()) {
     if (const Status s = write_text_atomically(f.report, report.to_json()); !s) return fail(s);

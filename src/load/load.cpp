@@ -39,6 +39,8 @@ FileReader::~FileReader() {
 
 Status FileReader::open(const std::string& path) {
   path_ = path;
+  // open(2) would see the path cut at the NUL: another file.
+  if (path.find('\0') != std::string::npos) return Status::bad_input(path + ": cannot open: the path holds a NUL byte");
   fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd_ < 0) return Status::bad_input(path + ": cannot open: " + std::strerror(errno));
   struct stat info {};
@@ -103,10 +105,19 @@ bool FileReader::skip(std::uint64_t count) {
 
 bool FileReader::next_line_slow(std::string_view& line) {
   // No newline in the buffered bytes: read more until one appears or the file
-  // ends; a line longer than the buffer grows it.
+  // ends; a line longer than the buffer grows it, up to kMaxLineBytes: an
+  // endless stream with no newline (a link to /dev/zero) must not grow it
+  // until memory runs out.
   for (;;) {
     const std::size_t scanned = end_ - pos_;
     if (eof_) break;
+    if (scanned > kMaxLineBytes) {
+      read_status_ = Status::bad_input(path_ + ":" + std::to_string(line_number_ + 1) + ": line longer than " +
+                                       std::to_string(kMaxLineBytes >> 20) + " MiB (no line end): not a mesh file");
+      eof_ = true;
+      pos_ = end_;
+      return false;
+    }
     fill(scanned + 1);
     const char* newline = static_cast<const char*>(std::memchr(data_ + pos_ + scanned, '\n', end_ - pos_ - scanned));
     if (newline != nullptr) return next_line(line);
@@ -174,10 +185,16 @@ NumberError parse_int(const char* first, const char* last, std::int64_t& value) 
   return NumberError::none;
 }
 
+std::string token_text(std::string_view token) {
+  std::string text = printable_text(token.substr(0, 64));
+  if (token.size() > 64) text += "...";
+  return text;
+}
+
 std::string number_error_text(NumberError error, std::string_view token) {
   // Appended piecewise: GCC 12 warns falsely (-Wrestrict) on "'" + string.
   std::string quoted(1, '\'');
-  quoted.append(token.substr(0, 64));
+  quoted.append(token_text(token));
   quoted.push_back('\'');
   switch (error) {
     case NumberError::none:
@@ -260,6 +277,14 @@ void drop_unreferenced_vertices(Mesh& mesh) {
 
 }  // namespace load_detail
 
+bool mesh_extension_supported(const std::string& path) {
+  const std::string extension = load_detail::lower_extension(path);
+  return extension == ".obj" || extension == ".ply" || extension == ".gltf" || extension == ".glb" ||
+         load_detail::is_assimp_extension(extension);
+}
+
+const char* supported_mesh_extensions() { return ".obj, .ply, .gltf, .glb, .fbx, .dae, .3ds or .stl"; }
+
 Status load_mesh(const std::string& path, const LoadOptions& options, Mesh& out, LoadStats& stats) {
   const auto begin = std::chrono::steady_clock::now();
   out = Mesh{};
@@ -267,9 +292,9 @@ Status load_mesh(const std::string& path, const LoadOptions& options, Mesh& out,
   const std::string extension = load_detail::lower_extension(path);
   const bool gltf = extension == ".gltf" || extension == ".glb";
   const bool assimp = load_detail::is_assimp_extension(extension);
-  if (extension != ".obj" && extension != ".ply" && !gltf && !assimp) {
-    return Status::bad_input(path + ": unknown mesh format '" + extension +
-                             "' (expected .obj, .ply, .gltf, .glb, .fbx, .dae, .3ds or .stl)");
+  if (!mesh_extension_supported(path)) {
+    return Status::bad_input(path + ": unknown mesh format '" + extension + "' (expected " +
+                             supported_mesh_extensions() + ")");
   }
   if (!gltf && !assimp && options.uv_set != 0) {
     return Status::bad_input(path + ": UV set " + std::to_string(options.uv_set) + " asked for, but " +

@@ -314,7 +314,7 @@ class ObjParser {
     std::int64_t value = 0;
     const NumberError number_error = parse_int(first, last, value);
     if (number_error != NumberError::none) {
-      return error(std::string("bad ") + what + " index '" + std::string(first, last) + "'");
+      return error(std::string("bad ") + what + " index '" + token_text(std::string_view(first, static_cast<std::size_t>(last - first))) + "'");
     }
     if (value == 0) return error(std::string(what) + " index 0 (OBJ indices start at 1)");
     const std::int64_t resolved = value > 0 ? value - 1 : static_cast<std::int64_t>(count) + value;
@@ -344,13 +344,13 @@ class ObjParser {
         }
       }
       if (vt_last < token_end) {
-        if (vt_last + 1 == token_end) return error("missing normal index in corner '" + std::string(token) + "'");
+        if (vt_last + 1 == token_end) return error("missing normal index in corner '" + token_text(token) + "'");
         has_vn = true;
         if (options_.keep_normals) {
           NMBAKE_TRY(resolve_index(vt_last + 1, token_end, normal_count_, "normal", corner.vn));
         }
       } else if (vt_last == vt_first) {
-        return error("missing texture coordinate index in corner '" + std::string(token) + "'");
+        return error("missing texture coordinate index in corner '" + token_text(token) + "'");
       }
     }
     // Every corner must carry the same kept attributes; attributes that are
@@ -362,10 +362,10 @@ class ObjParser {
       has_vt_ = kept_vt;
       has_vn_ = kept_vn;
     } else if (kept_vt != has_vt_) {
-      return error("corner '" + std::string(token) + (kept_vt ? "' has" : "' has no") +
+      return error("corner '" + token_text(token) + (kept_vt ? "' has" : "' has no") +
                    " texture coordinate index but earlier corners " + (kept_vt ? "do not" : "do"));
     } else if (kept_vn != has_vn_) {
-      return error("corner '" + std::string(token) + (kept_vn ? "' has" : "' has no") + " normal index but earlier corners " +
+      return error("corner '" + token_text(token) + (kept_vn ? "' has" : "' has no") + " normal index but earlier corners " +
                    (kept_vn ? "do not" : "do"));
     }
     return Status::ok();

@@ -22,6 +22,10 @@
 
 namespace nmbake::load_detail {
 
+// The longest text line a mesh file may have (README, "Limits"); no real
+// OBJ or PLY header line comes near it.
+constexpr std::size_t kMaxLineBytes = std::size_t{64} << 20;
+
 class FileReader {
  public:
   FileReader() = default;
@@ -80,7 +84,8 @@ class FileReader {
   // Absolute file offset of the next unread byte.
   std::uint64_t offset() const { return buffer_offset_ + pos_; }
 
-  // ok, or io "PATH: read failed: REASON" if read(2) failed.
+  // ok, or io "PATH: read failed: REASON" if read(2) failed, or bad_input
+  // "PATH:LINE: line longer than 64 MiB" (kMaxLineBytes).
   const Status& read_status() const { return read_status_; }
 
  private:
@@ -123,6 +128,9 @@ NumberError parse_float(const char* first, const char* last, float& value);
 NumberError parse_double(const char* first, const char* last, double& value);
 NumberError parse_int(const char* first, const char* last, std::int64_t& value);
 // "bad number 'TOKEN'" and friends, for error messages.
+// A token of file content for a message: at most 64 bytes, then "...", and
+// printable_text() so a broken file cannot send terminal escape codes.
+std::string token_text(std::string_view token);
 std::string number_error_text(NumberError error, std::string_view token);
 
 // "PATH:LINE: reason"

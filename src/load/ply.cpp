@@ -235,7 +235,7 @@ class PlyParser {
         } else if (words[1] == "binary_big_endian") {
           format_ = PlyFormat::binary_big_endian;
         } else {
-          return header_error("unknown format '" + std::string(words[1]) + "'");
+          return header_error("unknown format '" + token_text(words[1]) + "'");
         }
         format_seen = true;
       } else if (words[0] == "element") {
@@ -245,7 +245,7 @@ class PlyParser {
         element.line = reader_.line_number();
         std::int64_t count = 0;
         if (parse_int(words[2].data(), words[2].data() + words[2].size(), count) != NumberError::none || count < 0) {
-          return header_error("bad element count '" + std::string(words[2]) + "'");
+          return header_error("bad element count '" + token_text(words[2]) + "'");
         }
         element.count = static_cast<std::uint64_t>(count);
         elements_.push_back(std::move(element));
@@ -255,16 +255,16 @@ class PlyParser {
         if (words.size() == 5 && words[1] == "list") {
           property.is_list = true;
           if (!parse_type(words[2], property.count_type)) {
-            return header_error("unknown property type '" + std::string(words[2]) + "'");
+            return header_error("unknown property type '" + token_text(words[2]) + "'");
           }
           if (!is_integer(property.count_type)) return header_error("list count type must be an integer type");
           if (!parse_type(words[3], property.type)) {
-            return header_error("unknown property type '" + std::string(words[3]) + "'");
+            return header_error("unknown property type '" + token_text(words[3]) + "'");
           }
           property.name = std::string(words[4]);
         } else if (words.size() == 3 && words[1] != "list") {
           if (!parse_type(words[1], property.type)) {
-            return header_error("unknown property type '" + std::string(words[1]) + "'");
+            return header_error("unknown property type '" + token_text(words[1]) + "'");
           }
           property.name = std::string(words[2]);
         } else {
@@ -272,7 +272,7 @@ class PlyParser {
         }
         elements_.back().properties.push_back(std::move(property));
       } else {
-        return header_error("unknown header line '" + std::string(line.substr(0, 64)) + "'");
+        return header_error("unknown header line '" + token_text(line) + "'");
       }
     }
     if (!format_seen) return header_error("no format line in the header");
@@ -287,7 +287,7 @@ class PlyParser {
       if (per_entry == 0) continue;
       if (element.count > body_bytes / per_entry || needed + element.count * per_entry > body_bytes) {
         return text_error(path_, element.line,
-                          "element '" + element.name + "' has " + std::to_string(element.count) +
+                          "element '" + token_text(element.name) + "' has " + std::to_string(element.count) +
                               " entries, more than the " + std::to_string(body_bytes) +
                               " bytes after the header can hold (truncated file?)");
       }
@@ -347,8 +347,8 @@ class PlyParser {
         const bool has_second = vertex.find(pair[1]) >= 0;
         if (has_first != has_second) {
           return text_error(path_, vertex.line,
-                            "element 'vertex' has property '" + std::string(has_first ? pair[0] : pair[1]) +
-                                "' but not '" + std::string(has_first ? pair[1] : pair[0]) + "'");
+                            "element 'vertex' has property '" + token_text(has_first ? pair[0] : pair[1]) +
+                                "' but not '" + token_text(has_first ? pair[1] : pair[0]) + "'");
         }
         if (has_first && !has_uvs_) {
           assign(pair[0], kU);
@@ -359,7 +359,7 @@ class PlyParser {
     }
     for (std::size_t i = 0; i < vertex.properties.size(); ++i) {
       if (slot_of_property_[i] >= 0 && vertex.properties[i].is_list) {
-        return text_error(path_, vertex.line, "vertex property '" + vertex.properties[i].name + "' is a list");
+        return text_error(path_, vertex.line, "vertex property '" + token_text(vertex.properties[i].name) + "' is a list");
       }
     }
     return Status::ok();
@@ -375,7 +375,7 @@ class PlyParser {
     }
     const PlyProperty& property = face.properties[static_cast<std::size_t>(index_property_)];
     if (!property.is_list || !is_integer(property.type)) {
-      return text_error(path_, face.line, "face property '" + property.name + "' must be a list of integers");
+      return text_error(path_, face.line, "face property '" + token_text(property.name) + "' must be a list of integers");
     }
     return Status::ok();
   }
@@ -420,7 +420,7 @@ class PlyParser {
   // ---------------------------------------------------------------- binary
 
   Status truncated(std::uint64_t offset, const PlyElement& element, std::uint64_t entry) const {
-    return byte_error(offset, "file ends inside " + element.name + " " + std::to_string(entry) + " of " +
+    return byte_error(offset, "file ends inside " + token_text(element.name) + " " + std::to_string(entry) + " of " +
                                   std::to_string(element.count));
   }
 
@@ -540,7 +540,7 @@ class PlyParser {
     const char* bytes = reader_.take(type_size(property.count_type));
     if (bytes == nullptr) return truncated(offset, element, entry);
     const std::int64_t value = load_as_int(bytes, property.count_type, swap_);
-    if (value < 0) return byte_error(offset, element.name + " " + std::to_string(entry) + ": negative list count");
+    if (value < 0) return byte_error(offset, token_text(element.name) + " " + std::to_string(entry) + ": negative list count");
     count = static_cast<std::uint64_t>(value);
     const std::uint64_t remaining = reader_.file_size() - std::min(reader_.file_size(), reader_.offset());
     if (count * type_size(property.type) > remaining) return truncated(offset, element, entry);
@@ -718,7 +718,7 @@ class PlyParser {
   }
 
   Status ascii_truncated(const PlyElement& element, std::uint64_t entry) const {
-    return line_error("file ends inside " + element.name + " " + std::to_string(entry) + " of " +
+    return line_error("file ends inside " + token_text(element.name) + " " + std::to_string(entry) + " of " +
                       std::to_string(element.count));
   }
 
@@ -751,7 +751,7 @@ class PlyParser {
     if (!next_token(token)) return ascii_truncated(element, entry);
     std::int64_t value = 0;
     NMBAKE_TRY(ascii_int(token, value));
-    if (value < 0) return line_error(element.name + " " + std::to_string(entry) + ": negative list count");
+    if (value < 0) return line_error(token_text(element.name) + " " + std::to_string(entry) + ": negative list count");
     count = static_cast<std::uint64_t>(value);
     return Status::ok();
   }

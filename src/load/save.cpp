@@ -16,6 +16,7 @@
 
 #include "load/parsers.hpp"
 #include "nmbake/load.hpp"
+#include "nmbake/cleanup.hpp"
 
 namespace nmbake {
 namespace {
@@ -170,6 +171,7 @@ template <typename Body>
 Status write_atomically(const std::string& path, Body&& body) {
   static std::atomic<unsigned> counter{0};
   const std::string temp_path = path + ".tmp" + std::to_string(::getpid()) + "_" + std::to_string(counter++);
+  const TempFileGuard guard(temp_path);  // removed if a signal ends the process meanwhile
   const int fd = ::open(temp_path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
   if (fd < 0) return Status::io(path + ": cannot write: " + std::strerror(errno));
   Writer writer(fd);
@@ -194,6 +196,7 @@ Status save_mesh(const std::string& path, const Mesh& mesh) {
     return Status::bad_input(path + ": unknown mesh format '" + extension + "' (expected .obj, .ply, .gltf or .glb)");
   }
   NMBAKE_TRY(validate_mesh(mesh, path));
+  NMBAKE_TRY(check_output_target(path));
   if (extension == ".glb") {
     std::string bytes;
     std::string unused;

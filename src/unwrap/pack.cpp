@@ -402,7 +402,11 @@ bool try_pack(const std::vector<Chart>& charts, const Orders& orders, const Pack
   const int size = options.resolution;
   for (const Chart& c : charts) {
     const double lo = std::min(c.extent.x, c.extent.y) * scale, hi = std::max(c.extent.x, c.extent.y) * scale;
-    if (lo + 1.0 > size || (!options.rotate && hi + 1.0 > size)) return false;
+    // A footprint is floor(extent * scale) + 1 texels a side and must lie
+    // inside the atlas in every turn, so its longer side must be below
+    // `size` too: checked before rasterize() allocates a bitmap that wide
+    // (a needle chart to one far vertex asked for gigabytes).
+    if (lo + 1.0 > size || !(hi < size)) return false;
   }
   std::vector<std::array<Footprint, 4>> prepared(charts.size());
   // Turns 2 and 3 are the reflections of turns 0 and 1.

@@ -1,0 +1,67 @@
+// Temp-file cleanup on signals (cleanup.hpp). A signal handler may only call
+// async-signal-safe functions and touch lock-free state, so the registry is
+// a fixed table of path buffers, each claimed and published through an
+// atomic state; the handler unlink()s the published ones and _exit()s.
+#include "nmbake/cleanup.hpp"
+
+#include <atomic>
+#include <csignal>
+#include <cstring>
+
+#include <unistd.h>
+
+namespace nmbake {
+
+namespace {
+
+constexpr int kSlots = 64;
+constexpr std::size_t kPathBytes = 4096;
+
+enum SlotState : int { kFree = 0, kClaimed = 1, kPublished = 2 };
+
+struct Slot {
+  std::atomic<int> state{kFree};
+  char path[kPathBytes];
+};
+
+Slot g_slots[kSlots];
+static_assert(std::atomic<int>::is_always_lock_free, "the signal handler reads the slots");
+
+void on_signal(int signal_number) {
+  for (Slot& slot : g_slots) {
+    if (slot.state.load(std::memory_order_acquire) == kPublished) ::unlink(slot.path);
+  }
+  ::_exit(kSignalExitBase + signal_number);
+}
+
+}  // namespace
+
+void install_signal_cleanup() {
+  struct sigaction action {};
+  action.sa_handler = on_signal;
+  sigemptyset(&action.sa_mask);
+  // A second signal during the cleanup waits: the files go first.
+  for (const int s : {SIGINT, SIGTERM, SIGHUP}) sigaddset(&action.sa_mask, s);
+  for (const int s : {SIGINT, SIGTERM, SIGHUP}) sigaction(s, &action, nullptr);
+  std::signal(SIGXFSZ, SIG_IGN);
+}
+
+TempFileGuard::TempFileGuard(const std::string& path) {
+  if (path.size() >= kPathBytes) return;
+  for (int i = 0; i < kSlots; ++i) {
+    int expected = kFree;
+    if (!g_slots[i].state.compare_exchange_strong(expected, kClaimed, std::memory_order_acquire)) continue;
+    std::memcpy(g_slots[i].path, path.c_str(), path.size() + 1);
+    g_slots[i].state.store(kPublished, std::memory_order_release);
+    slot_ = i;
+    return;
+  }
+}
+
+void TempFileGuard::release() {
+  if (slot_ < 0) return;
+  g_slots[slot_].state.store(kFree, std::memory_order_release);
+  slot_ = -1;
+}
+
+}  // namespace nmbake

@@ -1,0 +1,6 @@
+// OBJ through load_mesh() (fuzz_util.hpp: both parsers, which must agree).
+#include "fuzz_util.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  return nmbake::fuzz::load_mesh_both_ways(data, size, "input.obj");
+}

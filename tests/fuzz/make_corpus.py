@@ -1,0 +1,137 @@
+#!/usr/bin/env python3
+"""Writes the seed corpora of the fuzz harnesses (tests/fuzz/corpus/<harness>/):
+small files of every form each parser accepts, so the fuzzer starts from
+valid input. Images come from nmbake itself (pass the built binary):
+    python3 tests/fuzz/make_corpus.py build/nmbake
+"""
+import os
+import struct
+import subprocess
+import sys
+import tempfile
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def put(harness, name, data):
+    folder = os.path.join(HERE, "corpus", harness)
+    os.makedirs(folder, exist_ok=True)
+    with open(os.path.join(folder, name), "wb") as f:
+        f.write(data if isinstance(data, bytes) else data.encode())
+
+
+QUAD = [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]
+
+
+def obj_seeds():
+    put("obj", "quad_vt_vn.obj", "".join(f"v {x} {y} {z}\n" for x, y, z in QUAD) +
+        "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 1\n"
+        "f 1/1/1 2/2/1 3/3/1\nf 1/1/1 3/3/1 4/4/1\n")
+    put("obj", "polygon_negative.obj", "o part\ng grp\n" + "".join(f"v {x} {y} {z}\n" for x, y, z in QUAD) +
+        "s 1\nusemtl m\nf -4 -3 -2 -1\n")
+    put("obj", "normals_only.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1\r\n# comment\n")
+    put("obj", "exponents.obj", "v 1e-3 +2.5E+1 -0\nv 1e-50 3 4\nv 5 6 7\nvt .5 .5\nf 1/1 2/1 3/1\n")
+
+
+def ply_header(fmt, vertex_props, face_list="uchar int"):
+    h = f"ply\nformat {fmt} 1.0\ncomment seed\nelement vertex 4\n"
+    h += "".join(f"property {t} {n}\n" for t, n in vertex_props)
+    h += f"element face 2\nproperty list {face_list} vertex_indices\nend_header\n"
+    return h
+
+
+def ply_seeds():
+    props = [("float", "x"), ("float", "y"), ("float", "z"), ("float", "nx"), ("float", "ny"), ("float", "nz"),
+             ("float", "u"), ("float", "v")]
+    rows = [(x, y, z, 0, 0, 1, (x + 1) / 2, (y + 1) / 2) for x, y, z in QUAD]
+    text = ply_header("ascii", props) + "".join(" ".join(str(c) for c in r) + "\n" for r in rows)
+    put("ply", "ascii.ply", text + "3 0 1 2\n3 0 2 3\n")
+    for fmt, e in (("binary_little_endian", "<"), ("binary_big_endian", ">")):
+        body = b"".join(struct.pack(e + "8f", *r) for r in rows)
+        body += struct.pack(e + "B3i", 3, 0, 1, 2) + struct.pack(e + "B3i", 3, 0, 2, 3)
+        put("ply", fmt + ".ply", ply_header(fmt, props).encode() + body)
+    # A quad face and other types: the generic (one-thread) binary path.
+    props2 = [("double", "x"), ("double", "y"), ("double", "z"), ("uchar", "red"), ("short", "s"), ("ushort", "t")]
+    body = b"".join(struct.pack("<3dBhH", x, y, z, 9, 1, 2) for x, y, z in QUAD)
+    body += struct.pack("<H4H", 4, 0, 1, 2, 3) + struct.pack("<H3H", 3, 0, 2, 3)
+    put("ply", "generic.ply", ply_header("binary_little_endian", props2, "ushort ushort").encode() + body)
+
+
+def job_seeds():
+    put("job", "full.toml", """[defaults]
+size = 64
+samples = 4
+space = "tangent"
+green = "down"
+front = "2%"
+back = 0.25
+hit = "nearest"
+cage_mode = "interpolated"
+high_normals = "face"
+padding = 4
+build_quality = "medium"
+bvh = "compact"
+ignore_backfaces = true
+max_memory = "1G"
+
+[[bake]]
+name = "a"
+low = "low.obj"
+high = "high.ply"
+cage = "cage.obj"
+outputs = ["a.png", { path = "a.exr", format = "exr-half" }]
+report = "a.json"
+debug_dump = "dbg"
+
+[[bake]]
+width = 32
+height = 16
+low = "low.ply"
+high = "high.obj"
+outputs = ["b.tif"]
+front = "auto"
+""")
+    put("job", "minimal.toml", '[[bake]]\nlow = "l.obj"\nhigh = "h.obj"\noutputs = ["o.png"]\n')
+
+
+def image_seeds(nmbake):
+    with tempfile.TemporaryDirectory() as d:
+        low, high = os.path.join(d, "low.obj"), os.path.join(d, "high.obj")
+        with open(low, "w") as f:
+            f.write("".join(f"v {x} {y} {z}\n" for x, y, z in QUAD) +
+                    "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n")
+        with open(high, "w") as f:
+            f.write("v -2 -2 0.1\nv 2 -2 0.2\nv 2 2 0.1\nv -2 2 0.0\nf 1 2 3\nf 1 3 4\n")
+        outputs = [("png8", "a.png", 0), ("png16", "b.png", 0), ("exr-half", "c.exr", 1), ("exr-float", "d.exr", 1),
+                   ("tiff16", "e.tif", 2)]
+        for fmt, name, tag in outputs:
+            out = os.path.join(d, name)
+            subprocess.run([nmbake, "bake", "-q", "--low", low, "--high", high, "-o", out, "--size", "8",
+                            "--samples", "1", "--format", fmt], check=True)
+            with open(out, "rb") as f:
+                put("image", fmt + "_" + name, bytes([tag]) + f.read())
+
+
+def bake_seeds():
+    # flags, counts, then coordinates (+ UVs) and indices of the low mesh,
+    # then of the high mesh (see fuzz_bake.cpp).
+    counts = bytes([1, 1, 1, 1])  # 4 vertices and 2 triangles each
+    low_uv = b"".join(bytes([x, y, 126, u, v]) for x, y, u, v in
+                      ((94, 94, 0, 0), (158, 94, 255, 0), (158, 158, 255, 255), (94, 158, 0, 255)))
+    low_plain = b"".join(bytes([x, y, 126]) for x, y in ((94, 94), (158, 94), (158, 158), (94, 158)))
+    indices = bytes([0, 1, 2, 0, 2, 3])
+    high = b"".join(bytes([x, y, z]) for x, y, z in ((60, 60, 130), (200, 60, 131), (200, 200, 130), (60, 200, 129)))
+    put("bake", "quad_uv", bytes([1]) + counts + low_uv + indices + high + indices)
+    put("bake", "no_uv", bytes([0]) + counts + low_plain + indices + high + indices)
+    put("bake", "nearest_object", bytes([1 | 2 | 4 | 16]) + counts + low_uv + indices + high + indices)
+    put("bake", "distances", bytes([1 | 32]) + counts + low_uv + indices + high + indices + bytes([5, 140]))
+    put("bake", "far_vertex", bytes([1]) + counts + bytes([255]) + low_uv[1:] + indices + high + indices)
+
+
+if __name__ == "__main__":
+    obj_seeds()
+    ply_seeds()
+    job_seeds()
+    bake_seeds()
+    if len(sys.argv) > 1:
+        image_seeds(sys.argv[1])
