@@ -397,8 +397,8 @@ Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
   auto flags = std::make_shared<BakeFlags>();
   CLI::App* cmd = app.add_subcommand("bake", "bake a normal map (from flags, or every bake of a TOML job file)");
   cmd->add_option("job", flags->job_file, "job file (TOML) describing one or several bakes")->check(CLI::ExistingFile);
-  cmd->add_option("--low", flags->low, "low-poly mesh with UVs (OBJ, PLY)");
-  cmd->add_option("--high", flags->high, "high-poly mesh (OBJ, PLY)");
+  cmd->add_option("--low", flags->low, "low-poly mesh with UVs (OBJ, PLY, glTF/GLB, FBX, DAE, 3DS)");
+  cmd->add_option("--high", flags->high, "high-poly mesh (OBJ, PLY, glTF/GLB, FBX, DAE, 3DS, STL)");
   cmd->add_option("--cage", flags->cage, "cage mesh with the low mesh's topology (default: averaged-normal cage)");
   cmd->add_option("-o,--output", flags->outputs, "output map(s): .png (16-bit), .tif, .exr; repeat for several")->allow_extra_args(false);
   cmd->add_option("--size", flags->size, "map size, N or WxH")->default_val("2048");
