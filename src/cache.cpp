@@ -14,6 +14,7 @@
 
 #include "strings.hpp"
 
+#include "nmbake/cleanup.hpp"
 #include "nmbake/udim.hpp"
 
 namespace nmbake {
@@ -58,25 +59,6 @@ std::string read_text(const std::string& path) {
   return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
 
-Status write_text_atomically(const std::string& path, const std::string& text) {
-  const std::string temp = path + ".tmp" + unique_suffix();
-  {
-    std::ofstream out(temp, std::ios::binary | std::ios::trunc);
-    if (!out) return Status::io(path + ": cannot write: " + std::strerror(errno));
-    out << text;
-    if (!out.flush()) {
-      std::remove(temp.c_str());
-      return Status::io(path + ": cannot write (disk full?)");
-    }
-  }
-  if (std::rename(temp.c_str(), path.c_str()) != 0) {
-    const int error = errno;
-    std::remove(temp.c_str());
-    return Status::io(path + ": cannot write: " + std::strerror(error));
-  }
-  return Status::ok();
-}
-
 }  // namespace
 
 Status cache_fetch(const std::string& dir, const BakeKey& key, const BakeOptions& options,
@@ -106,7 +88,7 @@ Status cache_fetch(const std::string& dir, const BakeKey& key, const BakeOptions
     report["outputs"] = written;
     report["low"] = options.low_path;
     report["high"] = options.high_path;
-    NMBAKE_TRY(write_text_atomically(report_path, report.dump(2) + "\n"));
+    NMBAKE_TRY(write_file_atomically(report_path, {report.dump(2) + "\n"}, "the report"));
   }
   hit = true;
   return Status::ok();

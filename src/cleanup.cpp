@@ -5,9 +5,12 @@
 #include "nmbake/cleanup.hpp"
 
 #include <atomic>
+#include <cerrno>
 #include <csignal>
 #include <cstring>
 
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 namespace nmbake {
@@ -62,6 +65,34 @@ void TempFileGuard::release() {
   if (slot_ < 0) return;
   g_slots[slot_].state.store(kFree, std::memory_order_release);
   slot_ = -1;
+}
+
+Status write_file_atomically(const std::string& path, std::initializer_list<std::string_view> pieces,
+                             const char* what, unsigned mode) {
+  static std::atomic<unsigned> counter{0};
+  const std::string temp = path + ".tmp" + std::to_string(::getpid()) + "_" + std::to_string(counter++);
+  const TempFileGuard guard(temp);
+  const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, static_cast<mode_t>(mode));
+  const auto fail = [&](int error) {
+    ::unlink(temp.c_str());
+    return Status::io(path + ": cannot write " + what + ": " + std::strerror(error));
+  };
+  if (fd < 0) return Status::io(path + ": cannot write " + what + ": " + std::strerror(errno));
+  for (std::string_view piece : pieces) {
+    while (!piece.empty()) {
+      const ssize_t written = ::write(fd, piece.data(), piece.size());
+      if (written < 0 && errno == EINTR) continue;
+      if (written <= 0) {
+        const int error = written < 0 ? errno : ENOSPC;
+        ::close(fd);
+        return fail(error);
+      }
+      piece.remove_prefix(static_cast<std::size_t>(written));
+    }
+  }
+  if (::close(fd) != 0) return fail(errno);
+  if (::rename(temp.c_str(), path.c_str()) != 0) return fail(errno);
+  return Status::ok();
 }
 
 }  // namespace nmbake

@@ -13,6 +13,7 @@
 
 #include "strings.hpp"
 
+#include "nmbake/cleanup.hpp"
 #include "nmbake/task.hpp"
 #include "nmbake/udim.hpp"
 
@@ -172,18 +173,7 @@ std::string ninja_value(const std::string& text) {
 }
 
 Status write_file(const std::string& path, const std::string& text, bool executable = false) {
-  const std::string temp = path + ".tmp";
-  {
-    std::ofstream out(temp, std::ios::binary | std::ios::trunc);
-    if (!out) return Status::io(path + ": cannot write the plan");
-    out << text;
-    if (!out.flush()) return Status::io(path + ": cannot write the plan (disk full?)");
-  }
-  if (executable) ::chmod(temp.c_str(), 0755);
-  std::error_code ec;
-  fs::rename(temp, path, ec);
-  if (ec) return Status::io(path + ": cannot write the plan: " + ec.message());
-  return Status::ok();
+  return write_file_atomically(path, {text}, "the plan", executable ? 0777 : 0666);
 }
 
 }  // namespace

@@ -28,6 +28,7 @@
 #include <tbb/parallel_for.h>
 #include <xxhash.h>
 
+#include "nmbake/cleanup.hpp"
 #include "nmbake/udim.hpp"
 
 namespace nmbake {
@@ -220,27 +221,10 @@ Status write_tile(const std::string& path, const TileData& tile) {
   }
   const std::uint64_t check = tile_checksum(header, tile);
 
-  const std::string temp = path + ".tmp" + std::to_string(::getpid());
-  {
-    std::ofstream out(temp, std::ios::binary | std::ios::trunc);
-    if (!out) return Status::io(path + ": cannot write the tile file: " + std::strerror(errno));
-    out.write(header.data(), static_cast<std::streamsize>(header.size()));
-    out.write(reinterpret_cast<const char*>(tile.pixels.data()),
-              static_cast<std::streamsize>(tile.pixels.size() * sizeof(float)));
-    out.write(reinterpret_cast<const char*>(tile.coverage.data()), static_cast<std::streamsize>(tile.coverage.size()));
-    out.write(reinterpret_cast<const char*>(&check), sizeof check);
-    if (!out.flush()) {
-      out.close();
-      std::remove(temp.c_str());
-      return Status::io(path + ": cannot write the tile file (disk full?)");
-    }
-  }
-  if (std::rename(temp.c_str(), path.c_str()) != 0) {
-    const int error = errno;
-    std::remove(temp.c_str());
-    return Status::io(path + ": cannot write the tile file: " + std::strerror(error));
-  }
-  return Status::ok();
+  const std::string_view pixels(reinterpret_cast<const char*>(tile.pixels.data()), tile.pixels.size() * sizeof(float));
+  const std::string_view coverage(reinterpret_cast<const char*>(tile.coverage.data()), tile.coverage.size());
+  const std::string_view trailer(reinterpret_cast<const char*>(&check), sizeof check);
+  return write_file_atomically(path, {header, pixels, coverage, trailer}, "the tile file");
 }
 
 Status read_tile(const std::string& path, TileData& tile) {

@@ -801,37 +801,36 @@ DistanceEstimate estimate_distances(const HighScene& scene, const LowSurface& su
     return v[k];
   };
   const float floor_distance = 0.002f * diagonal;
-  // The estimate from the probes of the triangles with keep(t).
-  const auto estimate = [&](auto&& keep, GroupDistances& d, std::uint64_t* misses) {
-    std::vector<float> outside, inside;
-    for (std::size_t t = 0; t < triangle_count; ++t) {
-      if (!keep(t)) continue;
-      for (std::uint32_t p = first_probe[t]; p < first_probe[t + 1]; ++p) {
-        if (!found[p]) {
-          if (misses) ++*misses;
-          continue;
-        }
-        if (signed_distance[p] >= 0.0f) {
-          outside.push_back(signed_distance[p]);
-        } else {
-          inside.push_back(-signed_distance[p]);
-        }
-      }
-    }
-    d.front = std::max(floor_distance, 1.25f * quantile(outside, 0.995) + floor_distance);
-    d.back = std::max(floor_distance, 1.25f * quantile(inside, 0.995) + floor_distance);
-  };
+  // One pass over the probes, in probe order: the outside and inside
+  // distances of all probes and of each group's.
+  const std::size_t lists = grouped ? static_cast<std::size_t>(group_count) + 1 : 1;
+  std::vector<std::vector<float>> outside(lists), inside(lists);
   DistanceEstimate e;
   e.probes = probe_count;
+  for (std::size_t t = 0; t < triangle_count; ++t) {
+    const std::size_t g = grouped ? surface.group[t] + std::size_t{1} : 0;
+    for (std::uint32_t p = first_probe[t]; p < first_probe[t + 1]; ++p) {
+      if (!found[p]) {
+        ++e.probe_misses;
+        continue;
+      }
+      const bool out = signed_distance[p] >= 0.0f;
+      const float d = out ? signed_distance[p] : -signed_distance[p];
+      (out ? outside : inside)[0].push_back(d);
+      if (g > 0) (out ? outside : inside)[g].push_back(d);
+    }
+  }
+  const auto estimate = [&](std::size_t list, GroupDistances& d) {
+    d.front = std::max(floor_distance, 1.25f * quantile(outside[list], 0.995) + floor_distance);
+    d.back = std::max(floor_distance, 1.25f * quantile(inside[list], 0.995) + floor_distance);
+  };
   GroupDistances all;
-  estimate([](std::size_t) { return true; }, all, &e.probe_misses);
+  estimate(0, all);
   e.front = all.front;
   e.back = all.back;
   if (grouped) {
     e.groups.resize(static_cast<std::size_t>(group_count));
-    for (int g = 0; g < group_count; ++g) {
-      estimate([&](std::size_t t) { return static_cast<int>(surface.group[t]) == g; }, e.groups[g], nullptr);
-    }
+    for (int g = 0; g < group_count; ++g) estimate(static_cast<std::size_t>(g) + 1, e.groups[g]);
   }
   return e;
 }

@@ -134,15 +134,7 @@ TEST(Hostile, HugeFrontDistanceIsRefused) {
 // traced but counted, whatever route built it (queued SIMD lanes, single
 // rays for `nearest`, the distance estimate).
 TEST(Hostile, RaysEmbreeWouldRefuseAreMissesNotAborts) {
-  LowSurface s;
-  const glm::vec3 p[4] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
-  for (int c : {0, 1, 2, 0, 2, 3}) {
-    s.position.push_back(p[c]);
-    s.uv.push_back({p[c].x, p[c].y});
-    s.normal.push_back({0, 0, 1});
-    s.cage_normal.push_back({0, 0, 1});
-    s.tangent.push_back({1, 0, 0, 1});
-  }
+  LowSurface s = test::low_quad();
   Mesh high;
   high.positions = {{-5, -5, 0.1f}, {5, -5, 0.1f}, {5, 5, 0.1f}, {-5, 5, 0.1f}};
   high.indices = {0, 1, 2, 0, 2, 3};

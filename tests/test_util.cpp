@@ -12,6 +12,19 @@
 
 namespace nmbake::test {
 
+LowSurface low_quad() {
+  LowSurface s;
+  const glm::vec3 p[4] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+  for (int c : {0, 1, 2, 0, 2, 3}) {
+    s.position.push_back(p[c]);
+    s.uv.push_back({p[c].x, p[c].y});
+    s.normal.push_back({0, 0, 1});
+    s.cage_normal.push_back({0, 0, 1});
+    s.tangent.push_back({1, 0, 0, 1});
+  }
+  return s;
+}
+
 TempDir::TempDir() {
   static std::atomic<int> counter{0};
   const auto base = std::filesystem::temp_directory_path();

@@ -4,6 +4,8 @@
 #include <filesystem>
 #include <string>
 
+#include "nmbake/surface.hpp"
+
 namespace nmbake::test {
 
 // A fresh, empty folder under the system temp dir, removed by the destructor.
@@ -29,6 +31,10 @@ struct CommandResult {
 };
 // Runs a shell command line, capturing its output.
 CommandResult run_command(const std::string& command_line);
+
+// A low quad [0,1]^2 at z = 0 (two triangles, normal +z, UV = xy, tangent
+// +x) as a LowSurface.
+LowSurface low_quad();
 
 // Paths of the built programs and of the source tree.
 std::string cli_path();

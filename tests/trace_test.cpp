@@ -5,23 +5,12 @@
 
 #include "nmbake/raster.hpp"
 #include "nmbake/trace.hpp"
+#include "test_util.hpp"
 
 namespace nmbake {
 namespace {
 
-// A low quad [0,1]^2 at z = 0 (two triangles, normal +z) as a LowSurface.
-LowSurface low_quad() {
-  LowSurface s;
-  const glm::vec3 p[4] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
-  for (int c : {0, 1, 2, 0, 2, 3}) {
-    s.position.push_back(p[c]);
-    s.uv.push_back({p[c].x, p[c].y});
-    s.normal.push_back({0, 0, 1});
-    s.cage_normal.push_back({0, 0, 1});
-    s.tangent.push_back({1, 0, 0, 1});
-  }
-  return s;
-}
+using test::low_quad;
 
 // Adds a square [-1,2]^2 at height z, facing +z (or -z when flipped).
 void add_layer(Mesh& m, float z, bool flipped) {

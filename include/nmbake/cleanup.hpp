@@ -5,7 +5,11 @@
 // interrupted bake leaves neither a half-written map nor a stray temp file.
 #pragma once
 
+#include <initializer_list>
 #include <string>
+#include <string_view>
+
+#include "nmbake/common.hpp"
 
 namespace nmbake {
 
@@ -33,5 +37,14 @@ class TempFileGuard {
  private:
   int slot_ = -1;
 };
+
+// Writes `pieces`, one after the other, to `path` through a registered temp
+// file in its folder (named with the pid and a counter, so concurrent
+// writers stay apart) and a rename: the file appears whole or not at all,
+// and a failure or a signal leaves nothing behind. `what` names the file in
+// messages: Status::io "PATH: cannot write WHAT: REASON". `mode` is the new
+// file's permission bits.
+Status write_file_atomically(const std::string& path, std::initializer_list<std::string_view> pieces,
+                             const char* what, unsigned mode = 0666);
 
 }  // namespace nmbake

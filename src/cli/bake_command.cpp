@@ -124,26 +124,8 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
 }
 
 Status write_text(const std::string& path, const std::string& text) {
-  // The pid keeps two processes writing the same report apart (one shared
-  // temp name let them tear each other's file).
   NMBAKE_TRY(check_output_target(path));
-  const std::string tmp = path + ".tmp" + std::to_string(::getpid());
-  const TempFileGuard guard(tmp);
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) return Status::io(path + ": cannot write the report");
-    out << text;
-    if (!out.flush()) {
-      out.close();
-      std::remove(tmp.c_str());  // a full disk must not leave half a report
-      return Status::io(path + ": cannot write the report");
-    }
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    return Status::io(path + ": cannot write the report");
-  }
-  return Status::ok();
+  return write_file_atomically(path, {text}, "the report");
 }
 
 // A bake through the cache (cache.hpp): fetched when its key is there,

@@ -2,9 +2,9 @@
 // bake --tile I/N`) into its maps, dilated and written as the whole bake
 // would write them, byte for byte.
 #include <cstdio>
-#include <fstream>
 
 #include "commands.hpp"
+#include "nmbake/cleanup.hpp"
 #include "nmbake/task.hpp"
 
 namespace nmbake::cli {
@@ -35,11 +35,10 @@ int run_merge(const MergeFlags& f, const GlobalOptions& global) {
     return s.code() == StatusCode::internal ? kInternal : kBadInput;
   }
   if (!f.report.empty()) {
-    const std::string temp = f.report + ".tmp";
-    std::ofstream out(temp, std::ios::binary | std::ios::trunc);
-    out << report.to_json();
-    if (!out.flush() || std::rename(temp.c_str(), f.report.c_str()) != 0) {
-      std::fprintf(stderr, "nmbake: error: %s: cannot write the report\n", f.report.c_str());
+    Status written = check_output_target(f.report);
+    if (written) written = write_file_atomically(f.report, {report.to_json()}, "the report");
+    if (!written) {
+      std::fprintf(stderr, "nmbake: error: %s\n", written.message().c_str());
       return kBadInput;
     }
   }
