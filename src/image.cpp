@@ -20,8 +20,11 @@
 #include <algorithm>
 #include <atomic>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstddef>
+#include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <memory>
 #include <mutex>
@@ -144,6 +147,52 @@ Status check_regular_file(const std::string& path) {
   const fs::file_status status = fs::status(path, ec);
   if (ec || !fs::exists(status)) return Status::bad_input("cannot read '" + path + "': no such file");
   if (!fs::is_regular_file(status)) return Status::bad_input("cannot read '" + path + "': not a regular file");
+  return Status::ok();
+}
+
+// The OpenImageIO reader for the formats nmbake reads, picked from the
+// file's first bytes (a Targa, which has no signature, from its extension),
+// so that no other reader sees the file: OpenImageIO's open() offers a file
+// to every plugin in turn, and some allocate the whole image from the header
+// inside open(), before check_image_header() can run (a 30-byte WebP
+// claiming 12546 x 13317 took 670 MB there; found by tests/fuzz).
+Status pick_reader(const std::string& path, std::string& reader) {
+  unsigned char head[12] = {};
+  std::size_t got = 0;
+  if (std::FILE* f = std::fopen(path.c_str(), "rb")) {
+    got = std::fread(head, 1, sizeof head, f);
+    std::fclose(f);
+  } else {
+    return Status::io("cannot read '" + path + "': " + std::strerror(errno));
+  }
+  const auto starts = [&](const char* magic, std::size_t n) {
+    return got >= n && std::memcmp(head, magic, n) == 0;
+  };
+  std::string extension = fs::path(path).extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (starts("\x89PNG\r\n\x1a\n", 8)) {
+    reader = "png";
+  } else if (starts("\x76\x2f\x31\x01", 4)) {
+    reader = "openexr";
+  } else if (starts("II*\0", 4) || starts("MM\0*", 4) || starts("II+\0", 4) || starts("MM\0+", 4)) {
+    reader = "tiff";
+  } else if (starts("\xff\xd8\xff", 3)) {
+    reader = "jpeg";
+  } else if (starts("BM", 2)) {
+    reader = "bmp";
+  } else if (starts("#?RADIANCE", 10) || starts("#?RGBE", 6)) {
+    reader = "hdr";
+  } else if (got >= 2 && head[0] == 'P' && head[1] >= '1' && head[1] <= '6') {
+    reader = "pnm";
+  } else if (starts("\x01\xda", 2)) {
+    reader = "sgi";
+  } else if (extension == ".tga" || extension == ".tpic") {
+    reader = "targa";
+  } else {
+    return Status::bad_input("cannot read '" + path +
+                             "': not an image nmbake reads (PNG, EXR, TIFF, JPEG, Targa, BMP, HDR, PNM, SGI: "
+                             "its first bytes are none of theirs)");
+  }
   return Status::ok();
 }
 
@@ -328,7 +377,9 @@ Status read_image_info(const std::string& path, ImageFileInfo& out) {
   std::string reason;
   const oiio_module::Api* api = image_module(reason);
   if (!api) return Status::internal("cannot read '" + path + "': " + reason);
-  const oiio_module::Outcome outcome = api->read_info(path, out, reason);
+  std::string reader;
+  NMBAKE_TRY(pick_reader(path, reader));
+  const oiio_module::Outcome outcome = api->read_info(path, reader, out, reason);
   return module_status(outcome, "cannot read '" + path + "': " + reason);
 }
 
@@ -340,12 +391,14 @@ Status read_image(const std::string& path, Image& out) {
   // The header first: a file that claims 1,000,000^2 pixels must be refused
   // before the pixels are allocated (it made std::bad_alloc, or took 4.7 GB
   // for 20000^2 before failing on the missing data).
+  std::string reader;
+  NMBAKE_TRY(pick_reader(path, reader));
   ImageFileInfo info;
-  const oiio_module::Outcome header = api->read_info(path, info, reason);
+  const oiio_module::Outcome header = api->read_info(path, reader, info, reason);
   if (header != oiio_module::Outcome::ok) return module_status(header, "cannot read '" + path + "': " + reason);
   NMBAKE_TRY(check_image_header(path, info));
   Image image;
-  const oiio_module::Outcome outcome = api->read(path, image, reason);
+  const oiio_module::Outcome outcome = api->read(path, reader, image, reason);
   if (outcome != oiio_module::Outcome::ok) return module_status(outcome, "cannot read '" + path + "': " + reason);
   for (std::size_t i = 0; i < image.pixels.size(); ++i) {
     if (std::isnan(image.pixels[i])) {

@@ -100,12 +100,27 @@ Outcome write(const Image& image, const std::string& file, PixelFormat format, s
   return Outcome::ok;
 }
 
-Outcome read_info(const std::string& path, ImageFileInfo& out, std::string& reason) {
-  std::unique_ptr<OIIO::ImageInput> in = OIIO::ImageInput::open(path);
+// The reader named `reader`, opened on `path`; never another reader (open()
+// alone tries every plugin in turn until one takes the file).
+std::unique_ptr<OIIO::ImageInput> open_with(const std::string& path, const std::string& reader,
+                                            const OIIO::ImageSpec* config, std::string& reason) {
+  std::unique_ptr<OIIO::ImageInput> in = OIIO::ImageInput::create(reader);
   if (!in) {
-    reason = error_text(OIIO::geterror());
-    return Outcome::io_error;
+    reason = "no OpenImageIO reader for " + reader + ": " + error_text(OIIO::geterror());
+    return nullptr;
   }
+  OIIO::ImageSpec spec;
+  const bool opened = config ? in->open(path, spec, *config) : in->open(path, spec);
+  if (!opened) {
+    reason = error_text(in->geterror());
+    return nullptr;
+  }
+  return in;
+}
+
+Outcome read_info(const std::string& path, const std::string& reader, ImageFileInfo& out, std::string& reason) {
+  std::unique_ptr<OIIO::ImageInput> in = open_with(path, reader, nullptr, reason);
+  if (!in) return Outcome::bad_input;  // image.cpp has read its first bytes: the file is there
   const OIIO::ImageSpec& spec = in->spec();
   out.width = spec.width;
   out.height = spec.height;
@@ -120,14 +135,11 @@ Outcome read_info(const std::string& path, ImageFileInfo& out, std::string& reas
   return Outcome::ok;
 }
 
-Outcome read(const std::string& path, Image& out, std::string& reason) {
+Outcome read(const std::string& path, const std::string& reader, Image& out, std::string& reason) {
   OIIO::ImageSpec config;
   config.attribute("oiio:UnassociatedAlpha", 1);
-  std::unique_ptr<OIIO::ImageInput> in = OIIO::ImageInput::open(path, &config);
-  if (!in) {
-    reason = error_text(OIIO::geterror());
-    return Outcome::io_error;
-  }
+  std::unique_ptr<OIIO::ImageInput> in = open_with(path, reader, &config, reason);
+  if (!in) return Outcome::bad_input;
   const OIIO::ImageSpec spec = in->spec();
   if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 || spec.depth > 1) {
     reason = "not a 2D image (" + std::to_string(spec.width) + "x" + std::to_string(spec.height) + "x" +

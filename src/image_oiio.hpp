@@ -15,7 +15,7 @@
 
 namespace nmbake::oiio_module {
 
-constexpr int kAbiVersion = 1;
+constexpr int kAbiVersion = 2;
 constexpr const char* kFileName = "libnmbake_oiio.so";
 constexpr const char* kEntryPoint = "nmbake_oiio_module_api";
 
@@ -27,9 +27,11 @@ struct Api {
   // Writes `image` (already checked: sized, finite) to `file` in `format`
   // (tiff16, exr_float_piz), the same bytes for the same pixels.
   Outcome (*write)(const Image& image, const std::string& file, PixelFormat format, std::string& reason);
-  Outcome (*read_info)(const std::string& path, ImageFileInfo& out, std::string& reason);
+  // `reader` is the OpenImageIO format name image.cpp picked from the file's
+  // first bytes ("png", "openexr", ...): only that reader sees the file.
+  Outcome (*read_info)(const std::string& path, const std::string& reader, ImageFileInfo& out, std::string& reason);
   // Float pixels, 0..1 for integer formats, alpha as stored.
-  Outcome (*read)(const std::string& path, Image& out, std::string& reason);
+  Outcome (*read)(const std::string& path, const std::string& reader, Image& out, std::string& reason);
 };
 
 }  // namespace nmbake::oiio_module

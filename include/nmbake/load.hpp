@@ -93,6 +93,11 @@ struct LoadOptions {
   // and every error are the same whatever they are set to.
   std::size_t block_bytes = 0;  // bytes read and decoded at a time; 0: 4 MiB
   bool serial = false;          // true: the one-thread reference parsers only
+  // FBX, Collada, 3DS and STL (Assimp) are read in a child process, so that
+  // a crash or runaway allocation inside Assimp is an error naming the file
+  // (src/load/isolated.hpp). false: in this process (the fuzz harness, which
+  // checks both ways give the same mesh).
+  bool isolate_libraries = true;
 };
 
 struct LoadStats {

@@ -1,9 +1,13 @@
 #!/usr/bin/env python3
 """Writes the seed corpora of the fuzz harnesses (tests/fuzz/corpus/<harness>/):
 small files of every form each parser accepts, so the fuzzer starts from
-valid input. Images come from nmbake itself (pass the built binary):
-    python3 tests/fuzz/make_corpus.py build/nmbake
+valid input. Images, .glb and .fbx come from nmbake and nmbake-gen (pass the
+build folder):
+    python3 tests/fuzz/make_corpus.py build
+tools/fuzz adds the small models of Debian's assimp-testmodels at run time.
 """
+import base64
+import json
 import os
 import struct
 import subprocess
@@ -128,10 +132,72 @@ def bake_seeds():
     put("bake", "far_vertex", bytes([1]) + counts + bytes([255]) + low_uv[1:] + indices + high + indices)
 
 
+def gltf_json_seed():
+    # Two triangles with positions, normals and UVs in one data: buffer.
+    import struct as st
+    pos = b"".join(st.pack("<3f", x, y, z) for x, y, z in QUAD)
+    nrm = st.pack("<3f", 0, 0, 1) * 4
+    uv = b"".join(st.pack("<2f", (x + 1) / 2, (y + 1) / 2) for x, y, _ in QUAD)
+    idx = st.pack("<6H", 0, 1, 2, 0, 2, 3)
+    blob = pos + nrm + uv + idx
+    views = [(0, 48), (48, 48), (96, 32), (128, 12)]
+    doc = {
+        "asset": {"version": "2.0"},
+        "scene": 0, "scenes": [{"nodes": [0]}],
+        "nodes": [{"name": "quad_low", "mesh": 0, "translation": [0, 0, 1]}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2}, "indices": 3}]}],
+        "buffers": [{"byteLength": len(blob),
+                     "uri": "data:application/octet-stream;base64," + base64.b64encode(blob).decode()}],
+        "bufferViews": [{"buffer": 0, "byteOffset": o, "byteLength": n} for o, n in views],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [-1, -1, 0], "max": [1, 1, 0]},
+            {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3"},
+            {"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC2"},
+            {"bufferView": 3, "componentType": 5123, "count": 6, "type": "SCALAR"},
+        ],
+    }
+    put("gltf", "quad_data_uri.gltf", bytes([0]) + json.dumps(doc).encode())
+
+
+def assimp_text_seeds():
+    stl = "solid quad\n"
+    for tri in ((0, 1, 2), (0, 2, 3)):
+        stl += " facet normal 0 0 1\n  outer loop\n"
+        stl += "".join("   vertex %g %g %g\n" % QUAD[i] for i in tri)
+        stl += "  endloop\n endfacet\n"
+    put("assimp", "quad_ascii.stl", bytes([3]) + (stl + "endsolid quad\n").encode())
+    import struct as st
+    binary = b"\0" * 80 + st.pack("<I", 2)
+    for tri in ((0, 1, 2), (0, 2, 3)):
+        binary += st.pack("<3f", 0, 0, 1) + b"".join(st.pack("<3f", *QUAD[i]) for i in tri) + b"\0\0"
+    put("assimp", "quad_binary.stl", bytes([3]) + binary)
+
+
+def mesh_format_seeds(build):
+    gen = os.path.join(build, "nmbake-gen")
+    with tempfile.TemporaryDirectory() as d:
+        obj = os.path.join(d, "parts.obj")
+        with open(obj, "w") as f:
+            f.write("o a_low\n" + "".join(f"v {x} {y} {z}\n" for x, y, z in QUAD) +
+                    "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 1\nf 1/1/1 2/2/1 3/3/1\nf 1/1/1 3/3/1 4/4/1\n"
+                    "o b_low\nv 0 0 1\nv 1 0 1\nv 0 1 1\nvt 0 0\nvt 1 0\nvt 0 1\nf 5/5/1 6/6/1 7/7/1\n")
+        for name, harness, tag in (("parts.glb", "gltf", 1), ("parts.fbx", "assimp", 0)):
+            out = os.path.join(d, name)
+            subprocess.run([gen, "convert", obj, out], check=True)
+            with open(out, "rb") as f:
+                put(harness, name, bytes([tag]) + f.read())
+
+
 if __name__ == "__main__":
     obj_seeds()
     ply_seeds()
     job_seeds()
     bake_seeds()
+    gltf_json_seed()
+    assimp_text_seeds()
     if len(sys.argv) > 1:
-        image_seeds(sys.argv[1])
+        build = sys.argv[1]
+        if os.path.isfile(build):  # the old form: the nmbake binary
+            build = os.path.dirname(build)
+        image_seeds(os.path.join(build, "nmbake"))
+        mesh_format_seeds(build)

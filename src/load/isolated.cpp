@@ -1,0 +1,223 @@
+#include "load/isolated.hpp"
+
+#include <signal.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <type_traits>
+#include <vector>
+
+#include "nmbake/budget.hpp"
+
+#if defined(__SANITIZE_ADDRESS__)
+#define NMBAKE_ISOLATED_SANITIZED 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define NMBAKE_ISOLATED_SANITIZED 1
+#endif
+#endif
+
+namespace nmbake::load_detail {
+namespace {
+
+// The child's answer, in order: a byte 'R' once the library has returned,
+// then 'S' and the status, then (when it is ok) the mesh and the stats.
+class Writer {
+ public:
+  explicit Writer(int fd) : fd_(fd) {}
+  bool bytes(const void* data, std::size_t size) {
+    const char* p = static_cast<const char*>(data);
+    while (size > 0) {
+      const ssize_t n = ::write(fd_, p, size);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) return false;
+      p += n;
+      size -= static_cast<std::size_t>(n);
+    }
+    return true;
+  }
+  template <typename T>
+  bool value(const T& v) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    return bytes(&v, sizeof v);
+  }
+  bool text(const std::string& s) { return value(static_cast<std::uint64_t>(s.size())) && bytes(s.data(), s.size()); }
+  template <typename T>
+  bool array(const std::vector<T>& v) {
+    return value(static_cast<std::uint64_t>(v.size())) && bytes(v.data(), v.size() * sizeof(T));
+  }
+
+ private:
+  int fd_;
+};
+
+class Reader {
+ public:
+  explicit Reader(const std::string& data) : data_(data) {}
+  bool bytes(void* out, std::size_t size) {
+    if (data_.size() - at_ < size) return false;
+    if (size == 0) return true;  // an empty vector's data() may be null
+    std::memcpy(out, data_.data() + at_, size);
+    at_ += size;
+    return true;
+  }
+  template <typename T>
+  bool value(T& v) {
+    return bytes(&v, sizeof v);
+  }
+  bool text(std::string& s) {
+    std::uint64_t n = 0;
+    if (!value(n) || n > data_.size() - at_) return false;
+    s.assign(data_, at_, n);
+    at_ += n;
+    return true;
+  }
+  template <typename T>
+  bool array(std::vector<T>& v) {
+    std::uint64_t n = 0;
+    if (!value(n) || n > (data_.size() - at_) / sizeof(T)) return false;
+    v.resize(n);
+    return bytes(v.data(), n * sizeof(T));
+  }
+
+ private:
+  const std::string& data_;
+  std::size_t at_ = 0;
+};
+
+bool send_result(Writer& w, const Status& status, const Mesh& mesh, const LoadStats& stats) {
+  if (!w.value('S') || !w.value(static_cast<int>(status.code())) || !w.text(status.message())) return false;
+  if (!status.is_ok()) return true;
+  if (!w.array(mesh.positions) || !w.array(mesh.normals) || !w.array(mesh.uvs) || !w.array(mesh.tangents) ||
+      !w.array(mesh.indices) || !w.value(static_cast<std::uint64_t>(mesh.parts.size()))) {
+    return false;
+  }
+  for (const MeshPart& part : mesh.parts) {
+    if (!w.text(part.name) || !w.value(part.first_triangle) || !w.value(part.triangle_count)) return false;
+  }
+  return w.value(stats.bytes) && w.value(stats.polygons) && w.value(stats.triangles) &&
+         w.value(stats.degenerate_faces) && w.value(stats.unit_meters);
+}
+
+bool receive_result(const std::string& data, Status& status, Mesh& mesh, LoadStats& stats) {
+  Reader r(data);
+  char tag = 0;
+  if (!r.value(tag) || tag != 'R') return false;
+  int code = 0;
+  std::string message;
+  if (!r.value(tag) || tag != 'S' || !r.value(code) || !r.text(message)) return false;
+  if (code != static_cast<int>(StatusCode::ok)) {
+    status = code == static_cast<int>(StatusCode::bad_input) ? Status::bad_input(message)
+             : code == static_cast<int>(StatusCode::io)      ? Status::io(message)
+                                                              : Status::internal(message);
+    return true;
+  }
+  std::uint64_t parts = 0;
+  if (!r.array(mesh.positions) || !r.array(mesh.normals) || !r.array(mesh.uvs) || !r.array(mesh.tangents) ||
+      !r.array(mesh.indices) || !r.value(parts) || parts > data.size()) {
+    return false;
+  }
+  mesh.parts.resize(parts);
+  for (MeshPart& part : mesh.parts) {
+    if (!r.text(part.name) || !r.value(part.first_triangle) || !r.value(part.triangle_count)) return false;
+  }
+  if (!(r.value(stats.bytes) && r.value(stats.polygons) && r.value(stats.triangles) &&
+        r.value(stats.degenerate_faces) && r.value(stats.unit_meters))) {
+    return false;
+  }
+  status = Status::ok();
+  return true;
+}
+
+// The child's address space: what it uses now plus the memory available, so
+// that an allocation the machine cannot hold fails (std::bad_alloc, which
+// Assimp reports as an error) instead of swapping the machine to a halt.
+void cap_child_memory() {
+#ifndef NMBAKE_ISOLATED_SANITIZED
+  const MemoryLimit limit = available_memory();
+  if (limit.bytes == 0) return;
+  std::uint64_t used = 0;
+  if (std::FILE* f = std::fopen("/proc/self/statm", "r")) {
+    unsigned long long pages = 0;
+    if (std::fscanf(f, "%llu", &pages) == 1) used = pages * static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
+    std::fclose(f);
+  }
+  struct rlimit current {};
+  if (::getrlimit(RLIMIT_AS, &current) != 0) return;
+  const std::uint64_t cap = used + limit.bytes;
+  if (current.rlim_cur != RLIM_INFINITY && current.rlim_cur <= cap) return;
+  struct rlimit wanted = current;
+  wanted.rlim_cur = static_cast<rlim_t>(cap);
+  (void)::setrlimit(RLIMIT_AS, &wanted);
+#endif
+}
+
+}  // namespace
+
+Status load_in_child(const std::string& path, const char* library, const ChildLoad& load, Mesh& out,
+                     LoadStats& stats) {
+  int fds[2];
+  if (::pipe(fds) != 0) return Status::internal(path + ": cannot create a pipe: " + std::strerror(errno));
+  std::fflush(nullptr);
+  const pid_t child = ::fork();
+  if (child < 0) {
+    ::close(fds[0]);
+    ::close(fds[1]);
+    return Status::internal(path + ": cannot fork to run " + library + ": " + std::strerror(errno));
+  }
+  if (child == 0) {
+    ::close(fds[0]);
+    ::signal(SIGPIPE, SIG_IGN);
+    cap_child_memory();
+    Writer w(fds[1]);
+    Mesh mesh;
+    LoadStats child_stats = stats;
+    bool sent_read = false;
+    const Status status = load(mesh, child_stats, [&] {
+      sent_read = true;
+      (void)w.value('R');
+    });
+    if (!sent_read) (void)w.value('R');  // failed before the library returned a scene
+    const bool ok = send_result(w, status, mesh, child_stats);
+    ::_exit(ok ? 0 : 1);
+  }
+  ::close(fds[1]);
+  std::string data;
+  char buffer[1 << 16];
+  for (;;) {
+    const ssize_t n = ::read(fds[0], buffer, sizeof buffer);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;
+    data.append(buffer, static_cast<std::size_t>(n));
+  }
+  ::close(fds[0]);
+  int wstatus = 0;
+  while (::waitpid(child, &wstatus, 0) < 0 && errno == EINTR) {
+  }
+  const bool library_returned = !data.empty() && data[0] == 'R';
+  Status status;
+  Mesh mesh;
+  LoadStats child_stats = stats;
+  if (WIFEXITED(wstatus) && WEXITSTATUS(wstatus) == 0 && receive_result(data, status, mesh, child_stats)) {
+    if (status.is_ok()) {
+      out = std::move(mesh);
+      stats = child_stats;
+    }
+    return status;
+  }
+  const std::string how = WIFSIGNALED(wstatus) ? "crashed (signal " + std::to_string(WTERMSIG(wstatus)) + ", " +
+                                                     strsignal(WTERMSIG(wstatus)) + ")"
+                                               : "stopped (exit " + std::to_string(WEXITSTATUS(wstatus)) + ")";
+  if (!library_returned) {
+    return Status::bad_input(path + ": " + library + " " + how +
+                             " reading the file: a broken file (the library runs in a process of its own)");
+  }
+  return Status::internal(path + ": nmbake " + how + " converting what " + library + " read");
+}
+
+}  // namespace nmbake::load_detail

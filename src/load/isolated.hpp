@@ -1,0 +1,29 @@
+// Private to the loaders: running a third-party reader in a process of its
+// own, so that a crash or a runaway allocation inside it is an error naming
+// the file (exit 2), not the end of nmbake.
+//
+// Why: Debian's Assimp 5.2.5 crashes (SIGSEGV) on some broken Collada files
+// and allocates whatever a count in a file says (an 8.6 KB .dae took 18.9 GB
+// and 110 s before failing), both found by tests/fuzz/fuzz_assimp. We cannot
+// fix the library, so it reads in a child (fork()), whose address space is
+// capped at the memory available (budget.hpp; not in sanitizer builds, whose
+// shadow memory needs terabytes of it), and sends the mesh back through a pipe.
+#pragma once
+
+#include <functional>
+#include <string>
+
+#include "nmbake/load.hpp"
+
+namespace nmbake::load_detail {
+
+// `load` runs in the child; it calls `read_done()` once the library has
+// returned its scene, so that a crash after that point (in our conversion
+// code) is reported as ours (internal, exit 3), one before it as the file's
+// (bad_input naming `library`). The child is single-threaded: `load` must not
+// use TBB. On success `out` and `stats` are what `load` filled in the child.
+using ChildLoad = std::function<Status(Mesh& out, LoadStats& stats, const std::function<void()>& read_done)>;
+Status load_in_child(const std::string& path, const char* library, const ChildLoad& load, Mesh& out,
+                     LoadStats& stats);
+
+}  // namespace nmbake::load_detail
