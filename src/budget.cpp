@@ -1,6 +1,7 @@
 // Memory budgets (budget.hpp): the estimate of a bake's buffers and the
 // memory the process may use, read from the kernel's own accounting.
 #include "nmbake/budget.hpp"
+#include "nmbake/task.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -80,8 +81,21 @@ void consider_cgroup_v1(MemoryLimit& limit, const std::string& group) {
   }
 }
 
+// The rows a bake holds in memory: a tile bake (task.hpp) only its own.
+int baked_rows(const BakeOptions& o) {
+  if (o.tile_count <= 0 || o.tile_index < 0 || o.tile_index >= o.tile_count) return o.height;
+  int begin = 0, end = 0;
+  tile_rows(o.height, o.tile_index, o.tile_count, begin, end);
+  return end - begin;
+}
+
 std::string map_text(const BakeOptions& o) {
-  return std::to_string(o.width) + "x" + std::to_string(o.height) + " map at " + std::to_string(o.samples) + " spp";
+  std::string text = std::to_string(o.width) + "x" + std::to_string(o.height) + " map at " + std::to_string(o.samples) + " spp";
+  if (baked_rows(o) != o.height) {
+    text = "tile " + std::to_string(o.tile_index + 1) + "/" + std::to_string(o.tile_count) + " (" +
+           std::to_string(baked_rows(o)) + " rows) of a " + text;
+  }
+  return text;
 }
 
 }  // namespace
@@ -153,7 +167,8 @@ std::string memory_text(std::uint64_t bytes) {
 
 BakeMemory estimate_bake_memory(const BakeOptions& o, const MeshSize& low, const MeshSize& high) {
   BakeMemory m;
-  const std::uint64_t texels = static_cast<std::uint64_t>(o.width) * static_cast<std::uint64_t>(o.height);
+  // A tile bake's image and coverage hold its rows only (bake_tile).
+  const std::uint64_t texels = static_cast<std::uint64_t>(o.width) * static_cast<std::uint64_t>(baked_rows(o));
   // Per texel: the float RGB image (12), coverage (1), dilation's rings (2:
   // 20 bytes a ring texel, rings about a tenth of the map at most), the
   // debug images (36). Measured: a 8192^2 bake peaks at 0.92 GB, this says
@@ -161,7 +176,7 @@ BakeMemory estimate_bake_memory(const BakeOptions& o, const MeshSize& low, const
   m.map = texels * (12 + 1 + 2) + (o.debug_dump_prefix.empty() ? 0 : texels * 36);
   // One band of samples: raster (triangle 4 + bary 8) and trace (triangle 4,
   // bary 8, distance 4): 28 bytes, plus a coverage byte per texel.
-  const int rows = band_rows(o.width, o.height, o.samples, o.band_samples);
+  const int rows = band_rows(o.width, baked_rows(o), o.samples, o.band_samples);
   const std::uint64_t band_texels = static_cast<std::uint64_t>(rows) * static_cast<std::uint64_t>(o.width);
   m.bands = band_texels * static_cast<std::uint64_t>(o.samples) * 28 + band_texels;
   // Low: the indexed mesh, its half-edge copy for tangents (and unwrap), and
@@ -195,7 +210,8 @@ Status check_bake_memory(const BakeOptions& o, const MeshSize& low, const MeshSi
   if (low.triangles + high.triangles > 0) parts += ", meshes " + memory_text(m.low + m.high);
   return Status::bad_input("a " + map_text(o) + " needs about " + memory_text(m.total()) + " (" + parts + "); " +
                            memory_text(limit.bytes) + " are available (" + limit.source +
-                           "): use a smaller --size, or set --max-memory if more can be used");
+                           "): use a smaller --size" + std::string(baked_rows(o) != o.height ? " or more tiles" : "") +
+                           ", or set --max-memory if more can be used");
 }
 
 Status check_image_memory(const std::string& path, std::uint64_t width, std::uint64_t height,
