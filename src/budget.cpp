@@ -98,6 +98,13 @@ std::string map_text(const BakeOptions& o) {
   return text;
 }
 
+// The address space this process has mapped (VmSize), 0 when unknown.
+std::uint64_t address_space_in_use() {
+  std::uint64_t used = 0;
+  (void)read_kb_field("/proc/self/status", "VmSize", used);
+  return used;
+}
+
 }  // namespace
 
 MemoryLimit available_memory() {
@@ -119,12 +126,25 @@ MemoryLimit available_memory() {
   }
   rlimit as{};
   if (getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY) {
-    std::uint64_t used = 0;
-    (void)read_kb_field("/proc/self/status", "VmSize", used);
+    const std::uint64_t used = address_space_in_use();
     const std::uint64_t cap = static_cast<std::uint64_t>(as.rlim_cur);
     consider(limit, cap > used ? cap - used : 0, "RLIMIT_AS (ulimit -v)");
   }
   return limit;
+}
+
+void cap_address_space_at_available() {
+#ifndef NMBAKE_SANITIZED
+  const MemoryLimit limit = available_memory();
+  if (limit.bytes == 0) return;
+  rlimit current{};
+  if (getrlimit(RLIMIT_AS, &current) != 0) return;
+  const std::uint64_t cap = address_space_in_use() + limit.bytes;
+  if (current.rlim_cur != RLIM_INFINITY && static_cast<std::uint64_t>(current.rlim_cur) <= cap) return;
+  rlimit wanted = current;
+  wanted.rlim_cur = static_cast<rlim_t>(cap);
+  (void)setrlimit(RLIMIT_AS, &wanted);
+#endif
 }
 
 bool parse_memory_size(const std::string& text, std::uint64_t& bytes) {

@@ -40,14 +40,8 @@ std::string quoted(const std::string& path) { return "'" + path + "'"; }
 // `ulimit -v KB; ` in front of a command, so that what once took gigabytes
 // fails the test; nothing in a sanitizer build, whose shadow memory needs
 // terabytes of address space (the release pass checks the memory).
-#if defined(__SANITIZE_ADDRESS__)  // GCC
+#if defined(NMBAKE_SANITIZED)  // CMakeLists.txt, in sanitizer and fuzz builds
 constexpr bool kSanitized = true;
-#elif defined(__has_feature)  // clang
-#if __has_feature(address_sanitizer)
-constexpr bool kSanitized = true;
-#else
-constexpr bool kSanitized = false;
-#endif
 #else
 constexpr bool kSanitized = false;
 #endif

@@ -29,6 +29,14 @@ struct MemoryLimit {
 };
 MemoryLimit available_memory();
 
+// Caps this process's address space (RLIMIT_AS) at what it maps now plus
+// available_memory(), so that an allocation the machine cannot hold fails
+// (std::bad_alloc) instead of swapping the machine to a halt. Never raises
+// a lower limit; does nothing in sanitizer builds (NMBAKE_SANITIZED), whose
+// shadow memory needs terabytes of address space. For a child process that
+// runs a third-party reader (src/load/isolated.hpp).
+void cap_address_space_at_available();
+
 // "4096", "512K", "512M", "8G", "1.5T" (binary multiples; an optional "B" or
 // "iB" after the letter). False for junk, zero, or overflow.
 bool parse_memory_size(const std::string& text, std::uint64_t& bytes);

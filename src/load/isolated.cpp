@@ -1,7 +1,6 @@
 #include "load/isolated.hpp"
 
 #include <signal.h>
-#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -13,14 +12,6 @@
 #include <vector>
 
 #include "nmbake/budget.hpp"
-
-#if defined(__SANITIZE_ADDRESS__)
-#define NMBAKE_ISOLATED_SANITIZED 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define NMBAKE_ISOLATED_SANITIZED 1
-#endif
-#endif
 
 namespace nmbake::load_detail {
 namespace {
@@ -134,29 +125,6 @@ bool receive_result(const std::string& data, Status& status, Mesh& mesh, LoadSta
   return true;
 }
 
-// The child's address space: what it uses now plus the memory available, so
-// that an allocation the machine cannot hold fails (std::bad_alloc, which
-// Assimp reports as an error) instead of swapping the machine to a halt.
-void cap_child_memory() {
-#ifndef NMBAKE_ISOLATED_SANITIZED
-  const MemoryLimit limit = available_memory();
-  if (limit.bytes == 0) return;
-  std::uint64_t used = 0;
-  if (std::FILE* f = std::fopen("/proc/self/statm", "r")) {
-    unsigned long long pages = 0;
-    if (std::fscanf(f, "%llu", &pages) == 1) used = pages * static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
-    std::fclose(f);
-  }
-  struct rlimit current {};
-  if (::getrlimit(RLIMIT_AS, &current) != 0) return;
-  const std::uint64_t cap = used + limit.bytes;
-  if (current.rlim_cur != RLIM_INFINITY && current.rlim_cur <= cap) return;
-  struct rlimit wanted = current;
-  wanted.rlim_cur = static_cast<rlim_t>(cap);
-  (void)::setrlimit(RLIMIT_AS, &wanted);
-#endif
-}
-
 }  // namespace
 
 Status load_in_child(const std::string& path, const char* library, const ChildLoad& load, Mesh& out,
@@ -173,7 +141,7 @@ Status load_in_child(const std::string& path, const char* library, const ChildLo
   if (child == 0) {
     ::close(fds[0]);
     ::signal(SIGPIPE, SIG_IGN);
-    cap_child_memory();
+    cap_address_space_at_available();
     Writer w(fds[1]);
     Mesh mesh;
     LoadStats child_stats = stats;
