@@ -293,6 +293,22 @@ TEST(Hostile, AssimpCrashesAndCountsAreErrors) {
   }
 }
 
+// Found by tests/fuzz (fuzz_image): an EXR of 18743296 x 9 passes the header
+// check, then OpenImageIO's read_scanlines() asks for 28.7 GB. Exit 2 (was
+// exit 3, "internal error: std::bad_alloc"). Release pass only: under ASan a
+// failed `new` is a report, not std::bad_alloc.
+TEST(Hostile, OpenImageIOAllocationFailureIsBadInput) {
+  if (kSanitized) GTEST_SKIP() << "ASan reports a failed new instead of throwing";
+  TempDir dir;
+  const std::string input = read_bytes(test::source_dir() + "/tests/fuzz/open/image-oiio-read-scanlines-28gb.bin");
+  const std::string exr = dir.file("wide.exr"), out = dir.file("out.png");
+  write_text(exr, input.substr(1));
+  const test::CommandResult r = run_command(memory_limit(6000000) + cli() + " height2normal '" + exr + "' -o '" + out + "'");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(contains(r.output, "cannot read '" + exr + "'")) << r.output;
+  EXPECT_FALSE(fs::exists(out));
+}
+
 // A tile bake holds its own rows only: its memory estimate counts those.
 TEST(Hostile, TileBakeBudgetCountsItsRows) {
   Scene s;
