@@ -150,6 +150,113 @@ Status check_regular_file(const std::string& path) {
   return Status::ok();
 }
 
+// An OpenEXR header is a list of attributes (name, type, byte size, value)
+// ended by an empty name; a multi-part file has one header a part, ended by
+// an empty header. What OpenEXR sizes from a header before any check of ours
+// could run is checked here first, from the bytes:
+//  * every attribute's size against the bytes left in the file (OpenEXR
+//    allocates an attribute of a type it does not know at the size the file
+//    states, up to 2 GB for a file of a few bytes; ASan zeroes it, and
+//    fuzz_image ran at 10 inputs a second);
+//  * each part's data window against kMaxReadSide, and its chunk count (rows
+//    over the compression's lines a chunk, or tiles) against the file, which
+//    holds an 8-byte offset a chunk (OpenEXR allocates the offset table in
+//    open()).
+Status check_exr_header(const std::string& path) {
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) return Status::io("cannot read '" + path + "': " + std::strerror(errno));
+  const std::unique_ptr<std::FILE, int (*)(std::FILE*)> closer(f, &std::fclose);
+  std::error_code ec;
+  const std::uintmax_t file_bytes = fs::file_size(path, ec);
+  if (ec) return Status::io("cannot read '" + path + "': " + ec.message());
+  const auto broken = [&](const std::string& why) {
+    return Status::bad_input("cannot read '" + path + "': a broken EXR header: " + why);
+  };
+  const auto u32 = [](const unsigned char* b) {
+    return static_cast<std::uint32_t>(b[0]) | static_cast<std::uint32_t>(b[1]) << 8 |
+           static_cast<std::uint32_t>(b[2]) << 16 | static_cast<std::uint32_t>(b[3]) << 24;
+  };
+  unsigned char head[8];
+  if (std::fread(head, 1, sizeof head, f) != sizeof head) return broken("the file ends in its first 8 bytes");
+  const bool multipart = (head[5] & 0x10) != 0;  // version flags: bit 12
+  const bool tiled = (head[5] & 0x02) != 0;      // bit 9 (single-part files)
+  // A name or type: up to 255 bytes and a NUL; an empty name ends a header.
+  const auto read_name = [&](std::string& name) {
+    name.clear();
+    for (int c = std::fgetc(f); c != EOF; c = std::fgetc(f)) {
+      if (c == 0) return true;
+      if (name.size() == 255) return false;
+      name.push_back(static_cast<char>(c));
+    }
+    return false;
+  };
+  std::string name, type;
+  for (int part = 0;; ++part) {
+    int attributes = 0;
+    std::int64_t width = -1, height = -1, tile_x = 0, tile_y = 0;
+    int compression = 0;
+    for (;; ++attributes) {
+      if (!read_name(name)) return broken("an attribute name is longer than 255 bytes or runs past the end");
+      if (name.empty()) break;
+      const std::string shown_name = printable_text(name);
+      if (!read_name(type)) return broken("the type of '" + shown_name + "' runs past the end");
+      unsigned char size_bytes[4];
+      if (std::fread(size_bytes, 1, 4, f) != 4) return broken("the file ends in the size of '" + shown_name + "'");
+      const std::uint32_t size = u32(size_bytes);
+      const long at = std::ftell(f);
+      if (at < 0) return Status::io("cannot read '" + path + "': " + std::strerror(errno));
+      const std::uintmax_t left = file_bytes - static_cast<std::uintmax_t>(at);
+      if (size > 0x7fffffffu || size > left) {
+        return broken("attribute '" + shown_name + "' claims " + std::to_string(size) + " bytes, " +
+                      std::to_string(left) + " are left in the file");
+      }
+      unsigned char value[16];
+      const bool window = name == "dataWindow" && type == "box2i" && size == 16;
+      const bool tiles = name == "tiles" && type == "tiledesc" && size == 9;
+      const bool packing = name == "compression" && type == "compression" && size == 1;
+      if (window || tiles || packing) {
+        if (std::fread(value, 1, size, f) != size) return broken("the file ends in '" + shown_name + "'");
+        if (window) {
+          const auto corner = [&](int i) { return static_cast<std::int64_t>(static_cast<std::int32_t>(u32(value + 4 * i))); };
+          width = corner(2) - corner(0) + 1;
+          height = corner(3) - corner(1) + 1;
+        } else if (tiles) {
+          tile_x = u32(value);
+          tile_y = u32(value + 4);
+        } else {
+          compression = value[0];
+        }
+      } else if (std::fseek(f, static_cast<long>(size), SEEK_CUR) != 0) {
+        return Status::io("cannot read '" + path + "': " + std::strerror(errno));
+      }
+    }
+    if (attributes == 0) break;  // the empty header that ends a multi-part file
+    if (width > kMaxReadSide || height > kMaxReadSide) {
+      return Status::bad_input("cannot read '" + path + "': its header says " + std::to_string(width) + "x" +
+                               std::to_string(height) + "; nmbake reads images of at most " +
+                               std::to_string(kMaxReadSide) + " pixels a side");
+    }
+    if (width > 0 && height > 0) {
+      // Lines a chunk by compression (none, RLE, ZIPS, ZIP, PIZ, PXR24, B44,
+      // B44A, DWAA, DWAB); a tiled part has at least one chunk a tile.
+      static constexpr int kLines[] = {1, 1, 1, 16, 32, 16, 32, 32, 32, 256};
+      const std::int64_t lines = compression < 10 ? kLines[compression] : 1;
+      std::int64_t chunks = (height + lines - 1) / lines;
+      if ((tiled || multipart) && tile_x > 0 && tile_y > 0) {
+        chunks = ((width + tile_x - 1) / tile_x) * ((height + tile_y - 1) / tile_y);
+      }
+      if (static_cast<std::uintmax_t>(chunks) * 8u > file_bytes) {
+        return Status::bad_input("cannot read '" + path + "': its header says " + std::to_string(width) + "x" +
+                                 std::to_string(height) + " in " + std::to_string(chunks) + " chunks, whose offsets alone " +
+                                 std::to_string(file_bytes) + " bytes of openexr cannot hold: a broken or truncated file");
+      }
+    }
+    if (!multipart) break;
+    if (part >= 4096) return broken("more than 4096 parts");
+  }
+  return Status::ok();
+}
+
 // The OpenImageIO reader for the formats nmbake reads, picked from the
 // file's first bytes (a Targa, which has no signature, from its extension),
 // so that no other reader sees the file: OpenImageIO's open() offers a file
@@ -196,38 +303,75 @@ Status pick_reader(const std::string& path, std::string& reader) {
   return Status::ok();
 }
 
+// Bytes of one sample as the file stores it (OpenImageIO's type names).
+double stored_sample_bytes(const std::string& data_type) {
+  if (data_type == "half" || data_type == "uint16" || data_type == "int16") return 2.0;
+  if (data_type == "float" || data_type == "uint" || data_type == "int") return 4.0;
+  if (data_type == "double") return 8.0;
+  return 1.0;
+}
+
+// The largest expansion of an OpenEXR compression (OpenImageIO's name of it,
+// e.g. "zip" or "dwaa:45"): deflate-based and the others stay under deflate's
+// 1032:1 (measured on a constant 4096^2 half image: ZIP 764, PXR24 709, PIZ
+// 253, RLE 60, B44A 10); DWAA/DWAB code an all-zero block's AC coefficients as
+// one symbol before Huffman-coding them (measured 3388 and 11204), bounded
+// here by 1032 x 64.
+double exr_largest_ratio(const std::string& compression) {
+  if (compression.rfind("dwa", 0) == 0) return 1032.0 * 64.0;
+  return 1032.0;
+}
+
 // The header's size against what the file can hold and what memory allows.
-// Formats whose compression has a known largest ratio bound the pixels by
-// the file's size: a PNG's rows are deflated, and deflate expands at most
-// 1032:1 (each row a filter byte and at least one bit a sample: OpenImageIO
-// reports 1-, 2- and 4-bit PNGs as uint8); a Targa, BMP, SGI or Radiance HDR
-// run covers at most 128 pixels per byte of file (their RLE packets), a PNM
-// holds at least a bit a pixel. Other formats (EXR, TIFF, ...) are bounded by
-// memory only. (A 25-byte Targa claiming 19789 x 15104 took 1.2 GB and
-// seconds; found by tests/fuzz.)
+// No side may pass kMaxReadSide. Formats whose compression has a known
+// largest ratio bound the pixels by the file's size: a PNG's rows are
+// deflated, and deflate expands at most 1032:1 (each row a filter byte and at
+// least one bit a sample: OpenImageIO reports 1-, 2- and 4-bit PNGs as
+// uint8); an EXR's samples by its compression's ratio (exr_largest_ratio); a
+// TIFF's or JPEG's samples by 4096:1 (above LZW's ~2730, deflate's 1032 and
+// a flat JPEG's ~190); a Targa, BMP, SGI or Radiance HDR run covers at most
+// 128 pixels per byte of file (their RLE packets), a PNM holds at least a bit
+// a pixel. Then the float image against memory. (A 25-byte Targa claiming
+// 19789 x 15104 took 1.2 GB and seconds; a 422-byte ZIP EXR of 18743296 x 9
+// made OpenEXR's chunk buffers ask for 1.8 GB each, 28.7 GB in all under the
+// fuzzer; both found by tests/fuzz.)
 Status check_image_header(const std::string& path, const ImageFileInfo& info) {
   const std::uint64_t width = static_cast<std::uint64_t>(std::max(0, info.width));
   const std::uint64_t height = static_cast<std::uint64_t>(std::max(0, info.height));
   const std::uint64_t channels = static_cast<std::uint64_t>(std::max(0, info.channels));
+  if (width > kMaxReadSide || height > kMaxReadSide) {
+    return Status::bad_input("cannot read '" + path + "': its header says " + std::to_string(width) + "x" +
+                             std::to_string(height) + "; nmbake reads images of at most " +
+                             std::to_string(kMaxReadSide) + " pixels a side");
+  }
   std::error_code ec;
   const std::uintmax_t file_bytes = fs::file_size(path, ec);
+  const double file = static_cast<double>(file_bytes);
   const double pixels = static_cast<double>(width) * static_cast<double>(height);
-  double most = -1.0;  // the most pixels the file can hold; < 0: not bounded
+  const double samples = pixels * static_cast<double>(channels);
+  double most = -1.0;  // the most the file can hold; < 0: not bounded
   double needed = pixels;
   if (info.file_format == "png") {
     const double bits = info.data_type == "uint16" ? 16.0 : 1.0;
-    needed = static_cast<double>(height) * (1.0 + std::ceil(static_cast<double>(width) * static_cast<double>(channels) * bits / 8.0));
-    most = 1032.0 * static_cast<double>(file_bytes);  // bytes of rows
+    needed = static_cast<double>(height) *
+             (1.0 + std::ceil(static_cast<double>(width) * static_cast<double>(channels) * bits / 8.0));
+    most = 1032.0 * file;  // bytes of rows
+  } else if (info.file_format == "openexr") {
+    needed = samples * stored_sample_bytes(info.data_type);
+    most = exr_largest_ratio(info.compression) * file;
+  } else if (info.file_format == "tiff" || info.file_format == "jpeg") {
+    needed = samples * stored_sample_bytes(info.data_type);
+    most = 4096.0 * file;
   } else if (info.file_format == "targa" || info.file_format == "bmp" || info.file_format == "sgi" ||
              info.file_format == "hdr") {
-    most = 128.0 * static_cast<double>(file_bytes);
+    most = 128.0 * file;
   } else if (info.file_format == "pnm") {
-    most = 8.0 * static_cast<double>(file_bytes);
+    most = 8.0 * file;
   }
   if (!ec && most >= 0.0 && needed > most + 65536.0) {
     return Status::bad_input("cannot read '" + path + "': its header says " + std::to_string(width) + "x" +
-                             std::to_string(height) + ", which a " + info.file_format + " file of " +
-                             std::to_string(file_bytes) + " bytes cannot hold: a broken or truncated file");
+                             std::to_string(height) + ", which " + std::to_string(file_bytes) + " bytes of " +
+                             info.file_format + " cannot hold: a broken or truncated file");
   }
   return check_image_memory(path, width, height, channels);
 }
@@ -379,6 +523,7 @@ Status read_image_info(const std::string& path, ImageFileInfo& out) {
   if (!api) return Status::internal("cannot read '" + path + "': " + reason);
   std::string reader;
   NMBAKE_TRY(pick_reader(path, reader));
+  if (reader == "openexr") NMBAKE_TRY(check_exr_header(path));
   const oiio_module::Outcome outcome = api->read_info(path, reader, out, reason);
   return module_status(outcome, "cannot read '" + path + "': " + reason);
 }
@@ -393,6 +538,7 @@ Status read_image(const std::string& path, Image& out) {
   // for 20000^2 before failing on the missing data).
   std::string reader;
   NMBAKE_TRY(pick_reader(path, reader));
+  if (reader == "openexr") NMBAKE_TRY(check_exr_header(path));
   ImageFileInfo info;
   const oiio_module::Outcome header = api->read_info(path, reader, info, reason);
   if (header != oiio_module::Outcome::ok) return module_status(header, "cannot read '" + path + "': " + reason);

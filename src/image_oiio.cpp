@@ -151,10 +151,10 @@ Outcome read(const std::string& path, const std::string& reader, Image& out, std
   image.width = spec.width;
   image.height = spec.height;
   image.channels = spec.nchannels;
-  // image.cpp has checked the float image against the memory available, but
-  // OpenImageIO's own buffers can ask for more: an 18.7M x 9 EXR made
-  // read_scanlines() allocate 28.7 GB (tests/fuzz/open/). std::bad_alloc
-  // from it is the file's fault, not ours.
+  // image.cpp has bounded the header by the file's size and memory, but
+  // OpenImageIO's own buffers may still ask for more than there is (before
+  // the side limit, an 18.7M x 9 EXR made OpenEXR allocate 28.7 GB):
+  // std::bad_alloc from it is the file's fault, not ours.
   try {
     image.pixels.resize(static_cast<std::size_t>(spec.width) * spec.height * spec.nchannels);
     if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data())) {

@@ -61,9 +61,16 @@ Status write_image(const Image& image, const std::string& path, PixelFormat form
 // it was looked for if not). A bake checks before it starts.
 Status check_image_writer(PixelFormat format);
 
+// The largest side of an image read_image() reads: twice the largest map a
+// bake writes (RELIABILITY.md, "Limits").
+constexpr int kMaxReadSide = 65536;
+
 // Reads any format OpenImageIO reads into float, 0..1 for integer formats,
 // with the file's channels (alpha is returned as stored, not premultiplied).
 // A NaN in the file is rejected (bad_input) so no NaN enters the program.
+// The header is checked before the pixels are read: sides up to
+// kMaxReadSide, no more samples than the file's compression can hold, and
+// memory (RELIABILITY.md).
 Status read_image(const std::string& path, Image& out);
 
 // What a file holds, without reading its pixels: lets `nmbake diff` pick a

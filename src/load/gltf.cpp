@@ -701,10 +701,15 @@ bool skip_image(tinygltf::Image*, const int, std::string*, std::string*, int, in
 }
 
 // Whether the JSON of a file tinygltf refused names the Draco extension: the
-// first 16 MiB (a .glb's JSON chunk comes first) are searched.
+// first 16 MiB (a .glb's JSON chunk comes first) are searched. The buffer is
+// the file's size, not 16 MiB: zeroing that on every refused file cost more
+// than the parse (fuzz_gltf ran at 17 inputs a second).
 bool mentions_draco(const std::string& path) {
+  std::error_code ec;
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  if (ec) return false;
   std::ifstream in(path, std::ios::binary);
-  std::string head(std::size_t{16} << 20, '\0');
+  std::string head(static_cast<std::size_t>(std::min<std::uintmax_t>(size, std::uintmax_t{16} << 20)), '\0');
   in.read(head.data(), static_cast<std::streamsize>(head.size()));
   head.resize(static_cast<std::size_t>(in.gcount()));
   return head.find("\"KHR_draco_mesh_compression\"") != std::string::npos;

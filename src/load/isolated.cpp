@@ -1,10 +1,15 @@
 #include "load/isolated.hpp"
 
+#include <poll.h>
 #include <signal.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <chrono>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
@@ -127,10 +132,17 @@ bool receive_result(const std::string& data, Status& status, Mesh& mesh, LoadSta
 
 }  // namespace
 
+std::uint64_t child_cpu_seconds(std::uint64_t file_bytes) {
+  return kChildCpuSeconds + file_bytes / kChildBytesPerCpuSecond;
+}
+
 Status load_in_child(const std::string& path, const char* library, const ChildLoad& load, Mesh& out,
                      LoadStats& stats) {
   int fds[2];
   if (::pipe(fds) != 0) return Status::internal(path + ": cannot create a pipe: " + std::strerror(errno));
+  struct stat file_status {};
+  const std::uint64_t file_bytes = ::stat(path.c_str(), &file_status) == 0 ? static_cast<std::uint64_t>(file_status.st_size) : 0;
+  const std::uint64_t cpu_seconds = child_cpu_seconds(file_bytes);
   std::fflush(nullptr);
   const pid_t child = ::fork();
   if (child < 0) {
@@ -141,7 +153,13 @@ Status load_in_child(const std::string& path, const char* library, const ChildLo
   if (child == 0) {
     ::close(fds[0]);
     ::signal(SIGPIPE, SIG_IGN);
+    ::signal(SIGXCPU, SIG_DFL);
     cap_address_space_at_available();
+    // A file that sends the library into a loop ends as SIGXCPU (CPU time
+    // does not depend on how busy the machine is; the parent's wall-clock
+    // deadline below catches a child that waits instead).
+    const rlimit cpu{static_cast<rlim_t>(cpu_seconds), static_cast<rlim_t>(cpu_seconds + 1)};
+    (void)::setrlimit(RLIMIT_CPU, &cpu);
     Writer w(fds[1]);
     Mesh mesh;
     LoadStats child_stats = stats;
@@ -157,7 +175,19 @@ Status load_in_child(const std::string& path, const char* library, const ChildLo
   ::close(fds[1]);
   std::string data;
   char buffer[1 << 16];
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(kChildWallFactor * cpu_seconds);
+  bool timed_out = false;
   for (;;) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) {
+      timed_out = true;
+      ::kill(child, SIGKILL);
+      break;
+    }
+    pollfd ready{fds[0], POLLIN, 0};
+    const int polled = ::poll(&ready, 1, static_cast<int>(std::min<std::int64_t>(left.count(), 1000)));
+    if (polled < 0 && errno != EINTR) break;
+    if (polled <= 0) continue;
     const ssize_t n = ::read(fds[0], buffer, sizeof buffer);
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) break;
@@ -168,6 +198,16 @@ Status load_in_child(const std::string& path, const char* library, const ChildLo
   while (::waitpid(child, &wstatus, 0) < 0 && errno == EINTR) {
   }
   const bool library_returned = !data.empty() && data[0] == 'R';
+  if (timed_out || (WIFSIGNALED(wstatus) && WTERMSIG(wstatus) == SIGXCPU)) {
+    const std::string limit = timed_out ? std::to_string(kChildWallFactor * cpu_seconds) + " s"
+                                        : std::to_string(cpu_seconds) + " s of CPU time";
+    if (library_returned) {
+      return Status::internal(path + ": nmbake did not finish converting what " + library + " read within " + limit);
+    }
+    return Status::bad_input(path + ": " + library + " did not finish reading the file within " + limit + " (" +
+                             std::to_string(kChildCpuSeconds) + " s + 1 s per " +
+                             std::to_string(kChildBytesPerCpuSecond >> 20) + " MiB of file): a broken file");
+  }
   Status status;
   Mesh mesh;
   LoadStats child_stats = stats;

@@ -10,12 +10,24 @@
 // shadow memory needs terabytes of it), and sends the mesh back through a pipe.
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <string>
 
 #include "nmbake/load.hpp"
 
 namespace nmbake::load_detail {
+
+// The child's CPU time is capped at kChildCpuSeconds plus a second per
+// kChildBytesPerCpuSecond of file (far above what a real file needs: Assimp
+// reads a binary FBX at over 100 MB/s), and the parent kills a child still
+// running kChildWallFactor times that long by the clock (one that waits
+// instead of computing). Either is bad_input naming the file and the limit.
+// (A mutated 3 KB file kept Assimp busy past fuzz_assimp's 10 s timeout.)
+constexpr std::uint64_t kChildCpuSeconds = 2;
+constexpr std::uint64_t kChildBytesPerCpuSecond = std::uint64_t{1} << 20;
+constexpr std::uint64_t kChildWallFactor = 10;
+std::uint64_t child_cpu_seconds(std::uint64_t file_bytes);
 
 // `load` runs in the child; it calls `read_done()` once the library has
 // returned its scene, so that a crash after that point (in our conversion
