@@ -296,7 +296,9 @@ void unwrap_assimp_models(int size, int gutter, double wuson_floor, double spide
 TEST(Unwrap, AssimpTestModelsAtTargetSizeHeavy) { unwrap_assimp_models(2048, 4, 0.79, 0.70); }
 
 // Measured: Wuson 80.3%, spider 68.7%.
-TEST(Unwrap, AssimpTestModels) { unwrap_assimp_models(1024, 2, 0.79, 0.675); }
+// Release pass only (Heavy): 57 s there, 121 s under ASan, which the other
+// Unwrap tests already take through the same code.
+TEST(Unwrap, AssimpTestModelsHeavy) { unwrap_assimp_models(1024, 2, 0.79, 0.675); }
 
 TEST(UnwrapCli, WritesMeshAndReport) {
   test::TempDir dir;
