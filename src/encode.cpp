@@ -7,6 +7,11 @@
 // M = [T B N] and normalise, so decoding our t gives back the direction of
 // n_high exactly. The transpose (dot products with a normalised frame) is
 // kept only to measure what it costs: it is right only for orthonormal frames.
+// Other decodes (a bitangent interpolated per vertex, a frame normalised
+// before the decode: NormalDecode) get the same treatment with their own
+// M = [T B N] (the general inverse below); the SIMD lanes serve the
+// per-pixel, unnormalised frame only (every other decode takes the
+// per-sample path, so the lanes stay bit-identical to it by construction).
 #include "nmbake/encode.hpp"
 
 #include <algorithm>
@@ -50,6 +55,19 @@ void orthonormal_frame(const glm::vec3& T, const glm::vec3& N, float sign, glm::
 
 }  // namespace
 
+const char* to_string(Bitangent bitangent) { return bitangent == Bitangent::vertex ? "vertex" : "pixel"; }
+
+bool parse_bitangent(const std::string& text, Bitangent& out) {
+  if (text == "pixel") {
+    out = Bitangent::pixel;
+  } else if (text == "vertex") {
+    out = Bitangent::vertex;
+  } else {
+    return false;
+  }
+  return true;
+}
+
 glm::vec3 tangent_to_world(const glm::vec3& t, const glm::vec3& T, const glm::vec3& N, float sign) {
   const glm::vec3 B = sign * glm::cross(N, T);
   const glm::vec3 n = t.x * T + t.y * B + t.z * N;
@@ -77,7 +95,78 @@ inline bool inverse_tangent(const glm::vec3& n, const glm::vec3& T, const glm::v
   return true;
 }
 
+// The columns the renderer decodes with: as given, or each normalised
+// (false when one cannot be).
+inline bool decode_columns(bool unit_frame, glm::vec3& T, glm::vec3& B, glm::vec3& N) {
+  if (!unit_frame) return true;
+  for (glm::vec3* v : {&T, &B, &N}) {
+    const float l = glm::length(*v);
+    if (!(l > 0.0f) || !std::isfinite(l)) return false;
+    *v /= l;
+  }
+  return true;
+}
+
+// The exact inverse for any frame: Cramer's rule, M^-1 n = (n.(BxN),
+// n.(NxT), n.(TxB)) / det(M), det(M) = T.(BxN), unnormalised (only the sign
+// of det matters). Regular when |det| > 1e-6 |T||B||N| (on squares).
+inline bool inverse_general(const glm::vec3& n, glm::vec3 T, glm::vec3 B, glm::vec3 N, bool unit_frame, glm::vec3& t) {
+  if (!decode_columns(unit_frame, T, B, N)) return false;
+  const glm::vec3 r0 = glm::cross(B, N), r1 = glm::cross(N, T), r2 = glm::cross(T, B);
+  const float det = glm::dot(T, r0);
+  const float scale2 = glm::dot(T, T) * glm::dot(B, B) * glm::dot(N, N);
+  if (!(det * det > 1e-12f * scale2) || !(scale2 > 0.0f) || !std::isfinite(det) || !std::isfinite(scale2)) return false;
+  t = glm::vec3(glm::dot(n, r0), glm::dot(n, r1), glm::dot(n, r2));
+  if (det < 0.0f) t = -t;
+  return true;
+}
+
 }  // namespace
+
+bool world_to_tangent(const glm::vec3& n, const glm::vec3& T, const glm::vec3& B, const glm::vec3& N, float sign,
+                      bool unit_frame, glm::vec3& out) {
+  glm::vec3 t(0.0f);
+  bool regular = inverse_general(n, T, B, N, unit_frame, t);
+  if (!regular) {
+    glm::vec3 ot, ob, on;
+    orthonormal_frame(T, N, sign, ot, ob, on);
+    t = glm::vec3(glm::dot(n, ot), glm::dot(n, ob), glm::dot(n, on));
+  }
+  const float l = glm::length(t);
+  if (!(l > 0.0f) || !finite3(t)) {
+    out = glm::vec3(0.0f, 0.0f, 1.0f);
+    return false;
+  }
+  out = t / l;
+  return regular;
+}
+
+glm::vec3 tangent_to_world(const glm::vec3& t, const glm::vec3& T, const glm::vec3& B, const glm::vec3& N,
+                           bool unit_frame) {
+  glm::vec3 cT = T, cB = B, cN = N;
+  if (!decode_columns(unit_frame, cT, cB, cN)) return glm::vec3(0.0f, 0.0f, 1.0f);
+  const glm::vec3 n = t.x * cT + t.y * cB + t.z * cN;
+  const float l = glm::length(n);
+  return l > 0.0f && std::isfinite(l) ? n / l : glm::vec3(0.0f, 0.0f, 1.0f);
+}
+
+glm::vec3 decode_bitangent(const LowSurface& surface, std::size_t triangle, glm::vec2 b, Bitangent rule) {
+  const std::size_t base = 3 * triangle;
+  if (rule == Bitangent::vertex) {
+    NMBAKE_CHECK(surface.bitangent.size() == surface.tangent.size(), "per-corner bitangents filled");
+    return interpolate(surface.bitangent, base, b);
+  }
+  const glm::vec4 tw = interpolate(surface.tangent, base, b);
+  const float sign = tw.w < 0.0f ? -1.0f : 1.0f;
+  return sign * glm::cross(interpolate(surface.normal, base, b), glm::vec3(tw));
+}
+
+bool onto_upper_hemisphere(glm::vec3& t) {
+  if (!(t.z < 0.0f)) return true;
+  const float l = std::sqrt(t.x * t.x + t.y * t.y);
+  t = l > 0.0f && std::isfinite(l) ? glm::vec3(t.x / l, t.y / l, 0.0f) : glm::vec3(0.0f, 0.0f, 1.0f);
+  return false;
+}
 
 bool world_to_tangent(const glm::vec3& n, const glm::vec3& T, const glm::vec3& N, float sign,
                       TangentEncode method, glm::vec3& out) {
@@ -101,8 +190,11 @@ bool world_to_tangent(const glm::vec3& n, const glm::vec3& T, const glm::vec3& N
 namespace {
 
 struct Counts {
-  std::uint64_t singular = 0, zero_high = 0, zero_result = 0;
+  std::uint64_t singular = 0, zero_high = 0, zero_result = 0, below_horizon = 0;
 };
+
+// Decodes with a frame of their own: the general inverse, per sample.
+bool own_frame(const NormalDecode& decode) { return decode.bitangent == Bitangent::vertex || decode.unit_frame; }
 
 // What one sample adds to its texel's sum: the hit normal in the chosen
 // space (tangent: normalised per sample, so every sample weighs the same;
@@ -162,6 +254,23 @@ bool sample_contribution(const LowSurface& surface, const TexelSamples& samples,
   const glm::vec4 tw = interpolate(surface.tangent, base, b);
   const float sign = tw.w < 0.0f ? -1.0f : 1.0f;
   glm::vec3 t;
+  if (options.tangent_encode == TangentEncode::inverse && own_frame(options.decode)) {
+    const glm::vec3 T(tw);
+    const glm::vec3 B = options.decode.bitangent == Bitangent::vertex ? interpolate(surface.bitangent, base, b)
+                                                                      : sign * glm::cross(N, T);
+    if (inverse_general(n_high, T, B, N, options.decode.unit_frame, t)) {
+      const float lt2 = glm::dot(t, t);
+      if (lt2 > 0.0f && std::isfinite(lt2)) {
+        out = t * (1.0f / std::sqrt(lt2));
+        return true;
+      }
+    }
+    // Singular: the per-pixel Gram-Schmidt frame, as for the default decode.
+    world_to_tangent(n_high, T, N, sign, TangentEncode::transpose, t);
+    ++counts.singular;
+    out = t;
+    return true;
+  }
   if (options.tangent_encode == TangentEncode::inverse && inverse_tangent(n_high, glm::vec3(tw), N, sign, t)) {
     const float lt2 = glm::dot(t, t);
     if (lt2 > 0.0f && std::isfinite(lt2)) {
@@ -347,7 +456,11 @@ void encode_impl(const LowSurface& surface, const TexelSamples& samples, const M
   const int spp = samples.samples;
   const bool tangent_space = options.space == NormalSpace::tangent;
   const bool smooth = options.high_normals == HighNormals::smooth && high.has_normals();
-  const bool in_lanes = lanes > 1 && tangent_space && smooth && options.tangent_encode == TangentEncode::inverse;
+  const bool in_lanes = lanes > 1 && tangent_space && smooth && options.tangent_encode == TangentEncode::inverse &&
+                        !own_frame(options.decode);
+  if (tangent_space && options.decode.bitangent == Bitangent::vertex) {
+    NMBAKE_CHECK(surface.bitangent.size() == surface.tangent.size(), "per-corner bitangents filled");
+  }
 #if NMBAKE_ENCODE_EIGHT
   const bool eight = in_lanes && lanes >= 8 && cpu_has_avx2();
 #endif
@@ -418,6 +531,7 @@ void encode_impl(const LowSurface& surface, const TexelSamples& samples, const M
               if (ln > 0.0f && std::isfinite(ln)) value = low_normal_sum / ln;
             }
           }
+          if (tangent_space && options.decode.rebuild_blue && !onto_upper_hemisphere(value)) ++counts.below_horizon;
           if (tangent_space && options.green == GreenChannel::down) value.y = -value.y;
         }
         float* p = band_pixels + texel * 3;
@@ -431,6 +545,7 @@ void encode_impl(const LowSurface& surface, const TexelSamples& samples, const M
     stats.singular_frames += c.singular;
     stats.zero_high_normals += c.zero_high;
     stats.zero_results += c.zero_result;
+    stats.below_horizon += c.below_horizon;
   }
 }
 
