@@ -5,7 +5,9 @@
 // test's "[ figures ]" lines.
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <iostream>
+#include <iterator>
 
 #include <gtest/gtest.h>
 #include <glm/geometric.hpp>
@@ -13,6 +15,7 @@
 #include <tbb/global_control.h>
 
 #include "nmbake/bake.hpp"
+#include "nmbake/task.hpp"
 #include "scenes.hpp"
 #include "test_util.hpp"
 
@@ -152,6 +155,63 @@ TEST(Dither, BreaksTheBandsOfTheSphereAndKeepsTheMean) {
   // block averages back to the float map better than rounding does.
   EXPECT_LT(d.mean_4x4_degrees, 0.5 * r.mean_4x4_degrees);
   EXPECT_LT(d.mean_degrees, 2.0 * r.mean_degrees);
+}
+
+std::string read_bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// A preset bake with a per-sample decode and dithered 8-bit maps: the same
+// bytes with one thread or all, and from two tiles merged (the tile carries
+// the dither flag).
+TEST(Dither, PresetBakeSameBytesWithOneThreadOrAllAndFromTiles) {
+  test::TempDir dir;
+  scenes::SphereParams params;
+  params.low_cells = 3;
+  params.high_cells = 32;
+  const scenes::ScenePair pair = scenes::make_displaced_sphere(params);
+  ASSERT_TRUE(save_mesh(dir.file("low.obj"), pair.low).is_ok());
+  ASSERT_TRUE(save_mesh(dir.file("high.ply"), pair.high).is_ok());
+  BakeOptions o;
+  o.low_path = dir.file("low.obj");
+  o.high_path = dir.file("high.ply");
+  o.width = 160;
+  o.height = 96;
+  o.preset = "godot";
+  o.decode = {Bitangent::vertex, true, true};
+  o.outputs = {{dir.file("all.png"), PixelFormat::png8}, {dir.file("all.tga"), PixelFormat::tga8}};
+  BakeReport report;
+  ASSERT_TRUE(bake(o, report).is_ok());
+  BakeOptions one = o;
+  one.outputs = {{dir.file("one.png"), PixelFormat::png8}, {dir.file("one.tga"), PixelFormat::tga8}};
+  {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
+    ASSERT_TRUE(bake(one, report).is_ok());
+  }
+  EXPECT_EQ(read_bytes(dir.file("one.png")), read_bytes(dir.file("all.png")));
+  EXPECT_EQ(read_bytes(dir.file("one.tga")), read_bytes(dir.file("all.tga")));
+  std::vector<std::string> tiles;
+  for (int i = 0; i < 2; ++i) {
+    BakeOptions tile = o;
+    tile.tile_index = i;
+    tile.tile_count = 2;
+    tile.tile_path = dir.file(std::to_string(i) + ".tile");
+    ASSERT_TRUE(bake(tile, report).is_ok());
+    tiles.push_back(tile.tile_path);
+  }
+  MergeReport merged;
+  ASSERT_TRUE(merge_tiles(tiles, {{dir.file("m.png"), PixelFormat::png8}}, merged).is_ok());
+  EXPECT_EQ(read_bytes(dir.file("m.png")), read_bytes(dir.file("all.png")));
+  // A tile of the same bake without dither is another bake.
+  BakeOptions off = o;
+  off.dither = false;
+  off.tile_index = 1;
+  off.tile_count = 2;
+  off.tile_path = dir.file("off.tile");
+  ASSERT_TRUE(bake(off, report).is_ok());
+  const Status mixed = merge_tiles({tiles[0], off.tile_path}, {{dir.file("x.png"), PixelFormat::png8}}, merged);
+  EXPECT_FALSE(mixed.is_ok());
 }
 
 }  // namespace
