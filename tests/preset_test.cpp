@@ -269,8 +269,7 @@ TEST(EnginePreset, EachRuleMatters) {
             0.01);
 }
 
-// The SIMD lanes serve only the per-pixel raw frame; every decode gives the
-// bytes of the per-sample path at any lane count.
+// Every decode gives the bytes of the per-sample path at any lane count.
 TEST(EnginePreset, LanesMatchThePerSamplePathForEveryPreset) {
   const SphereScene& scene = sphere_scene();
   for (const EnginePreset& preset : engine_presets()) {
