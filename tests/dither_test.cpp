@@ -3,16 +3,16 @@
 // ways (the bake's write stage: the float texels are the same), and
 // measured against the float map. The figures of the README come from this
 // test's "[ figures ]" lines.
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
-#include <iostream>
-#include <iterator>
-
-#include <gtest/gtest.h>
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
-#include <tbb/global_control.h>
+#include <iostream>
+#include <iterator>
 
 #include "nmbake/bake.hpp"
 #include "nmbake/task.hpp"
@@ -32,10 +32,10 @@ double angle_degrees(const glm::dvec3& a, const glm::dvec3& b) {
 }
 
 struct Banding {
-  int longest_run = 0;  // equal 8-bit values along a row in red or green (x, y), inside the charts
+  int longest_run = 0;        // equal 8-bit values along a row in red or green (x, y), inside the charts
   double mean_run = 0.0;      // the length of the run a texel lies in, averaged over texels (and red, green)
   double share_long = 0.0;    // of texels in runs of 16 or more
-  double mean_degrees = 0.0;    // per texel, against the float map
+  double mean_degrees = 0.0;  // per texel, against the float map
   double mean_4x4_degrees = 0.0;  // 4 x 4 blocks averaged (a mip level three down), against the float map's
 };
 
@@ -141,9 +141,10 @@ TEST(Dither, BreaksTheBandsOfTheSphereAndKeepsTheMean) {
   const Banding d = measure(reference, dithered, inside);
   const Banding r = measure(reference, rounded, inside);
   for (const auto& [name, m] : {std::pair{"rounded", r}, std::pair{"dithered", d}}) {
-    std::cout << "[ figures ] sphere 512^2 png8, " << name << ": runs (red, green, along rows) longest " << m.longest_run
-              << ", mean " << m.mean_run << " texels, " << 100.0 * m.share_long << "% of texels in runs >= 16; error "
-              << m.mean_degrees << " deg a texel, " << m.mean_4x4_degrees << " deg over 4x4 blocks\n";
+    std::cout << "[ figures ] sphere 512^2 png8, " << name << ": runs (red, green, along rows) longest "
+              << m.longest_run << ", mean " << m.mean_run << " texels, " << 100.0 * m.share_long
+              << "% of texels in runs >= 16; error " << m.mean_degrees << " deg a texel, "
+              << m.mean_4x4_degrees << " deg over 4x4 blocks\n";
   }
   // Bands: rounding leaves long flat runs on the smooth sphere; the pattern
   // changes a value within a few texels wherever the float map is not within
@@ -210,7 +211,8 @@ TEST(Dither, PresetBakeSameBytesWithOneThreadOrAllAndFromTiles) {
   off.tile_count = 2;
   off.tile_path = dir.file("off.tile");
   ASSERT_TRUE(bake(off, report).is_ok());
-  const Status mixed = merge_tiles({tiles[0], off.tile_path}, {{dir.file("x.png"), PixelFormat::png8}}, merged);
+  const Status mixed =
+      merge_tiles({tiles[0], off.tile_path}, {{dir.file("x.png"), PixelFormat::png8}}, merged);
   EXPECT_FALSE(mixed.is_ok());
 }
 

@@ -6,23 +6,24 @@
 // The decodes below are written here from each engine's description
 // (README, "Outputs as engines want them"), not taken from src/encode.cpp,
 // so a wrong inverse there cannot agree with itself.
+#include "nmbake/preset.hpp"
+
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <functional>
+#include <glm/geometric.hpp>
+#include <glm/trigonometric.hpp>
 #include <iostream>
 #include <iterator>
 #include <map>
-
-#include <gtest/gtest.h>
-#include <glm/geometric.hpp>
-#include <glm/trigonometric.hpp>
 #include <nlohmann/json.hpp>
 
 #include "nmbake/bake.hpp"
 #include "nmbake/encode.hpp"
 #include "nmbake/job.hpp"
-#include "nmbake/preset.hpp"
 #include "nmbake/task.hpp"
 #include "scenes.hpp"
 #include "test_util.hpp"
@@ -179,7 +180,8 @@ struct SphereScene {
     for (std::size_t s = 0; s < samples.triangle.size(); ++s) {
       if (samples.triangle[s] < 0 || hits.triangle[s] < 0) continue;
       const float* p = &map.pixels[3 * s];
-      worst_angle = std::max(worst_angle, angle_degrees(decode({p[0], p[1], p[2]}, fragment(s)), high_normal(s)));
+      worst_angle =
+          std::max(worst_angle, angle_degrees(decode({p[0], p[1], p[2]}, fragment(s)), high_normal(s)));
       ++count;
     }
     if (texels) *texels = count;
@@ -197,14 +199,16 @@ Image encode_for(const SphereScene& scene, const EnginePreset& preset, EncodeSta
   options.green = preset.green;
   options.decode = preset.decode;
   Image map;
-  detail::encode_in_lanes(scene.surface, scene.samples, scene.pair.high, scene.hits, options, map, stats, lanes);
+  detail::encode_in_lanes(scene.surface, scene.samples, scene.pair.high, scene.hits, options, map, stats,
+                          lanes);
   return map;
 }
 
 TEST(EnginePreset, TableHasEveryEngineOnce) {
   std::vector<std::string> names;
   for (const EnginePreset& p : engine_presets()) names.push_back(p.name);
-  EXPECT_EQ(names, (std::vector<std::string>{"unity", "unreal", "godot", "blender", "gltf", "maya", "3dsmax", "substance"}));
+  EXPECT_EQ(names, (std::vector<std::string>{"unity", "unreal", "godot", "blender", "gltf", "maya", "3dsmax",
+                                             "substance"}));
   EnginePreset p;
   EXPECT_FALSE(find_engine_preset("Unity", p));
   ASSERT_TRUE(find_engine_preset("unreal", p));
@@ -245,7 +249,8 @@ TEST_P(PresetDecode, EngineDecodeGivesBackTheHighNormal) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Engines, PresetDecode,
-                         ::testing::Values("unity", "unreal", "godot", "blender", "gltf", "maya", "3dsmax", "substance"));
+                         ::testing::Values("unity", "unreal", "godot", "blender", "gltf", "maya", "3dsmax",
+                                           "substance"));
 
 // Each rule on its own changes the decode enough to be seen on this mesh:
 // a map baked for one rule and decoded with another is off by more than
@@ -255,7 +260,8 @@ TEST(EnginePreset, EachRuleMatters) {
   const auto decodes = engine_decodes();
   EncodeStats stats;
   EnginePreset unity, godot, gltf;
-  ASSERT_TRUE(find_engine_preset("unity", unity) && find_engine_preset("godot", godot) && find_engine_preset("gltf", gltf));
+  ASSERT_TRUE(find_engine_preset("unity", unity) && find_engine_preset("godot", godot) &&
+              find_engine_preset("gltf", gltf));
   // Per-vertex B (unity) read per pixel (blender's decode, z stored).
   EXPECT_GT(scene.worst(encode_for(scene, unity, stats), decodes.at("blender")), 0.05);
   // A normalised frame (gltf) read raw: the vertex-bitangent, raw decode.
@@ -264,9 +270,11 @@ TEST(EnginePreset, EachRuleMatters) {
     return glm::normalize(t.x * f.T() + t.y * f.vertex_bitangent(false) + t.z * f.N());
   };
   EXPECT_GT(scene.worst(encode_for(scene, gltf, stats), vertex_raw), 0.05);
-  EXPECT_LT(scene.worst(encode_for(scene, EnginePreset{"x", GreenChannel::up, {Bitangent::vertex, false, false}}, stats),
-                        vertex_raw),
-            0.01);
+  EXPECT_LT(
+      scene.worst(
+          encode_for(scene, EnginePreset{"x", GreenChannel::up, {Bitangent::vertex, false, false}}, stats),
+          vertex_raw),
+      0.01);
 }
 
 // Every decode gives the bytes of the per-sample path at any lane count.
@@ -313,7 +321,8 @@ TEST(EnginePreset, JobKeysOverrideThePreset) {
   test::TempDir dir;
   test::write_text(dir.file("job.toml"),
                    "[defaults]\ngreen = \"up\"\n"
-                   "[[bake]]\nname = \"a\"\nlow = \"l.obj\"\nhigh = \"h.ply\"\noutputs = [\"a.png\"]\npreset = \"unreal\"\n"
+                   "[[bake]]\nname = \"a\"\nlow = \"l.obj\"\nhigh = \"h.ply\"\noutputs = [\"a.png\"]\npreset "
+                   "= \"unreal\"\n"
                    "[[bake]]\nname = \"b\"\nlow = \"l.obj\"\nhigh = \"h.ply\"\noutputs = [\"b.tga\"]\n"
                    "bitangent = \"pixel\"\npreset = \"godot\"\ndither = \"off\"\n");
   std::vector<BakeJob> jobs;
@@ -327,11 +336,13 @@ TEST(EnginePreset, JobKeysOverrideThePreset) {
   EXPECT_TRUE(jobs[1].options.decode.unit_frame);
   EXPECT_FALSE(jobs[1].options.dither);
   EXPECT_EQ(jobs[1].options.outputs[0].format, PixelFormat::tga8);
-  test::write_text(dir.file("bad.toml"),
-                   "[[bake]]\nlow = \"l.obj\"\nhigh = \"h.ply\"\noutputs = [\"a.png\"]\npreset = \"cryengine\"\n");
+  test::write_text(
+      dir.file("bad.toml"),
+      "[[bake]]\nlow = \"l.obj\"\nhigh = \"h.ply\"\noutputs = [\"a.png\"]\npreset = \"cryengine\"\n");
   const Status s = load_job_file(dir.file("bad.toml"), jobs);
   ASSERT_FALSE(s.is_ok());
-  EXPECT_NE(s.message().find("bad.toml:5: preset: expected one of unity, unreal"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("bad.toml:5: preset: expected one of unity, unreal"), std::string::npos)
+      << s.message();
 }
 
 // Through the CLI: --preset sets the rules, an explicit flag overrides its
@@ -345,10 +356,10 @@ TEST(EnginePreset, CliFlagsOverrideThePresetAndTheReportSaysSo) {
   const scenes::ScenePair pair = scenes::make_displaced_sphere(params);
   ASSERT_TRUE(save_mesh(dir.file("low.obj"), pair.low).is_ok());
   ASSERT_TRUE(save_mesh(dir.file("high.ply"), pair.high).is_ok());
-  const std::string base = test::cli_path() + " bake -q --low " + dir.file("low.obj") + " --high " + dir.file("high.ply") +
-                           " --size 32 --samples 1";
-  const test::CommandResult r =
-      test::run_command(base + " --green up --preset unreal -o " + dir.file("m.png") + " --report " + dir.file("r.json"));
+  const std::string base = test::cli_path() + " bake -q --low " + dir.file("low.obj") + " --high " +
+                           dir.file("high.ply") + " --size 32 --samples 1";
+  const test::CommandResult r = test::run_command(base + " --green up --preset unreal -o " +
+                                                  dir.file("m.png") + " --report " + dir.file("r.json"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const nlohmann::json report = nlohmann::json::parse(read_file(dir.file("r.json")));
   const nlohmann::json& e = report.at("encoding");
@@ -360,7 +371,8 @@ TEST(EnginePreset, CliFlagsOverrideThePresetAndTheReportSaysSo) {
   EXPECT_EQ(e.at("dither_8bit"), true);
   const test::CommandResult bad = test::run_command(base + " --preset cryengine -o " + dir.file("x.png"));
   EXPECT_EQ(bad.exit_code, 2);
-  EXPECT_NE(bad.output.find("--preset cryengine: expected one of unity, unreal, godot"), std::string::npos) << bad.output;
+  EXPECT_NE(bad.output.find("--preset cryengine: expected one of unity, unreal, godot"), std::string::npos)
+      << bad.output;
   EXPECT_FALSE(std::filesystem::exists(dir.file("x.png")));
 
   BakeOptions o;
