@@ -147,10 +147,10 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
     } else if (!get_string(text) || !parse_memory_size(text, o.max_memory_bytes)) {
       return bad("expected bytes, or a string such as \"8G\"");
     }
-  // Outputs as engines want them (preset.hpp): the preset is applied once
-  // the bake's keys are all read (load_job_file), so green, bitangent, tbn
-  // and blue given anywhere override it.
   } else if (key == "preset") {
+    // Outputs as engines want them (preset.hpp): the preset is applied once
+    // the bake's keys are all read (load_job_file), so green, bitangent, tbn
+    // and blue given anywhere override it.
     EnginePreset preset;
     if (!get_string(text) || !find_engine_preset(text, preset)) return bad("expected one of " + engine_preset_names());
     o.preset = text;
