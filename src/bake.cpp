@@ -397,7 +397,9 @@ Status bake_tile(const Prepared& p, const LowSurface& surface, const std::vector
   timer.start("write");
   std::vector<Status> written(outputs.size());
   tbb::parallel_for(std::size_t{0}, outputs.size(),
-                    [&](std::size_t i) { written[i] = write_image(image, outputs[i].path, outputs[i].format); });
+                    [&](std::size_t i) {
+                      written[i] = write_image(image, outputs[i].path, outputs[i].format, WriteOptions{o.dither});
+                    });
   for (const Status& s : written) NMBAKE_TRY(s);
   timer.stop();
   return Status::ok();
@@ -427,6 +429,10 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   r.width = o.width;
   r.height = o.height;
   r.samples = o.samples;
+  r.preset = o.preset;
+  r.green = o.green;
+  r.decode = o.decode;
+  r.dither = o.dither;
   r.threads = tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
   StageTimer timer(r, progress);
 
@@ -567,6 +573,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   prepared.encode.green = o.green;
   prepared.encode.high_normals = o.high_normals;
   prepared.encode.tangent_encode = o.tangent_encode;
+  prepared.encode.decode = o.decode;
   const std::vector<glm::vec2> file_uvs = udim ? surface.uv : std::vector<glm::vec2>{};
   r.outputs.clear();
   for (const int tile : tiles) {
@@ -595,6 +602,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
       rows.index = o.tile_index;
       rows.count = o.tile_count;
       rows.padding = o.padding;
+      rows.dither = o.dither;
       rows.outputs = o.outputs;
       NMBAKE_TRY(bake_tile(prepared, surface, outputs, debug_prefix, r, timer, progress, done.covered_texels,
                            rows.row_begin, rows.row_end, &rows));

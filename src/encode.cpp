@@ -7,6 +7,10 @@
 // M = [T B N] and normalise, so decoding our t gives back the direction of
 // n_high exactly. The transpose (dot products with a normalised frame) is
 // kept only to measure what it costs: it is right only for orthonormal frames.
+// Other decodes (a bitangent interpolated per vertex, a frame normalised
+// before the decode: NormalDecode) get the same treatment with their own
+// M = [T B N] (the general inverse below), in the SIMD lanes too
+// (general_lanes(), the same operations in the same order).
 #include "nmbake/encode.hpp"
 
 #include <algorithm>
@@ -50,6 +54,19 @@ void orthonormal_frame(const glm::vec3& T, const glm::vec3& N, float sign, glm::
 
 }  // namespace
 
+const char* to_string(Bitangent bitangent) { return bitangent == Bitangent::vertex ? "vertex" : "pixel"; }
+
+bool parse_bitangent(const std::string& text, Bitangent& out) {
+  if (text == "pixel") {
+    out = Bitangent::pixel;
+  } else if (text == "vertex") {
+    out = Bitangent::vertex;
+  } else {
+    return false;
+  }
+  return true;
+}
+
 glm::vec3 tangent_to_world(const glm::vec3& t, const glm::vec3& T, const glm::vec3& N, float sign) {
   const glm::vec3 B = sign * glm::cross(N, T);
   const glm::vec3 n = t.x * T + t.y * B + t.z * N;
@@ -77,7 +94,78 @@ inline bool inverse_tangent(const glm::vec3& n, const glm::vec3& T, const glm::v
   return true;
 }
 
+// The columns the renderer decodes with: as given, or each normalised
+// (false when one cannot be).
+inline bool decode_columns(bool unit_frame, glm::vec3& T, glm::vec3& B, glm::vec3& N) {
+  if (!unit_frame) return true;
+  for (glm::vec3* v : {&T, &B, &N}) {
+    const float l = glm::length(*v);
+    if (!(l > 0.0f) || !std::isfinite(l)) return false;
+    *v /= l;
+  }
+  return true;
+}
+
+// The exact inverse for any frame: Cramer's rule, M^-1 n = (n.(BxN),
+// n.(NxT), n.(TxB)) / det(M), det(M) = T.(BxN), unnormalised (only the sign
+// of det matters). Regular when |det| > 1e-6 |T||B||N| (on squares).
+inline bool inverse_general(const glm::vec3& n, glm::vec3 T, glm::vec3 B, glm::vec3 N, bool unit_frame, glm::vec3& t) {
+  if (!decode_columns(unit_frame, T, B, N)) return false;
+  const glm::vec3 r0 = glm::cross(B, N), r1 = glm::cross(N, T), r2 = glm::cross(T, B);
+  const float det = glm::dot(T, r0);
+  const float scale2 = glm::dot(T, T) * glm::dot(B, B) * glm::dot(N, N);
+  if (!(det * det > 1e-12f * scale2) || !(scale2 > 0.0f) || !std::isfinite(det) || !std::isfinite(scale2)) return false;
+  t = glm::vec3(glm::dot(n, r0), glm::dot(n, r1), glm::dot(n, r2));
+  if (det < 0.0f) t = -t;
+  return true;
+}
+
 }  // namespace
+
+bool world_to_tangent(const glm::vec3& n, const glm::vec3& T, const glm::vec3& B, const glm::vec3& N, float sign,
+                      bool unit_frame, glm::vec3& out) {
+  glm::vec3 t(0.0f);
+  bool regular = inverse_general(n, T, B, N, unit_frame, t);
+  if (!regular) {
+    glm::vec3 ot, ob, on;
+    orthonormal_frame(T, N, sign, ot, ob, on);
+    t = glm::vec3(glm::dot(n, ot), glm::dot(n, ob), glm::dot(n, on));
+  }
+  const float l = glm::length(t);
+  if (!(l > 0.0f) || !finite3(t)) {
+    out = glm::vec3(0.0f, 0.0f, 1.0f);
+    return false;
+  }
+  out = t / l;
+  return regular;
+}
+
+glm::vec3 tangent_to_world(const glm::vec3& t, const glm::vec3& T, const glm::vec3& B, const glm::vec3& N,
+                           bool unit_frame) {
+  glm::vec3 cT = T, cB = B, cN = N;
+  if (!decode_columns(unit_frame, cT, cB, cN)) return glm::vec3(0.0f, 0.0f, 1.0f);
+  const glm::vec3 n = t.x * cT + t.y * cB + t.z * cN;
+  const float l = glm::length(n);
+  return l > 0.0f && std::isfinite(l) ? n / l : glm::vec3(0.0f, 0.0f, 1.0f);
+}
+
+glm::vec3 decode_bitangent(const LowSurface& surface, std::size_t triangle, glm::vec2 b, Bitangent rule) {
+  const std::size_t base = 3 * triangle;
+  if (rule == Bitangent::vertex) {
+    NMBAKE_CHECK(surface.bitangent.size() == surface.tangent.size(), "per-corner bitangents filled");
+    return interpolate(surface.bitangent, base, b);
+  }
+  const glm::vec4 tw = interpolate(surface.tangent, base, b);
+  const float sign = tw.w < 0.0f ? -1.0f : 1.0f;
+  return sign * glm::cross(interpolate(surface.normal, base, b), glm::vec3(tw));
+}
+
+bool onto_upper_hemisphere(glm::vec3& t) {
+  if (!(t.z < 0.0f)) return true;
+  const float l = std::sqrt(t.x * t.x + t.y * t.y);
+  t = l > 0.0f && std::isfinite(l) ? glm::vec3(t.x / l, t.y / l, 0.0f) : glm::vec3(0.0f, 0.0f, 1.0f);
+  return false;
+}
 
 bool world_to_tangent(const glm::vec3& n, const glm::vec3& T, const glm::vec3& N, float sign,
                       TangentEncode method, glm::vec3& out) {
@@ -101,8 +189,11 @@ bool world_to_tangent(const glm::vec3& n, const glm::vec3& T, const glm::vec3& N
 namespace {
 
 struct Counts {
-  std::uint64_t singular = 0, zero_high = 0, zero_result = 0;
+  std::uint64_t singular = 0, zero_high = 0, zero_result = 0, below_horizon = 0;
 };
+
+// Decodes with a frame of their own: the general inverse, per sample.
+bool own_frame(const NormalDecode& decode) { return decode.bitangent == Bitangent::vertex || decode.unit_frame; }
 
 // What one sample adds to its texel's sum: the hit normal in the chosen
 // space (tangent: normalised per sample, so every sample weighs the same;
@@ -162,6 +253,23 @@ bool sample_contribution(const LowSurface& surface, const TexelSamples& samples,
   const glm::vec4 tw = interpolate(surface.tangent, base, b);
   const float sign = tw.w < 0.0f ? -1.0f : 1.0f;
   glm::vec3 t;
+  if (options.tangent_encode == TangentEncode::inverse && own_frame(options.decode)) {
+    const glm::vec3 T(tw);
+    const glm::vec3 B = options.decode.bitangent == Bitangent::vertex ? interpolate(surface.bitangent, base, b)
+                                                                      : sign * glm::cross(N, T);
+    if (inverse_general(n_high, T, B, N, options.decode.unit_frame, t)) {
+      const float lt2 = glm::dot(t, t);
+      if (lt2 > 0.0f && std::isfinite(lt2)) {
+        out = t * (1.0f / std::sqrt(lt2));
+        return true;
+      }
+    }
+    // Singular: the per-pixel Gram-Schmidt frame, as for the default decode.
+    world_to_tangent(n_high, T, N, sign, TangentEncode::transpose, t);
+    ++counts.singular;
+    out = t;
+    return true;
+  }
   if (options.tangent_encode == TangentEncode::inverse && inverse_tangent(n_high, glm::vec3(tw), N, sign, t)) {
     const float lt2 = glm::dot(t, t);
     if (lt2 > 0.0f && std::isfinite(lt2)) {
@@ -174,8 +282,8 @@ bool sample_contribution(const LowSurface& surface, const TexelSamples& samples,
   return true;
 }
 
-// The default mode (tangent space, smooth high normals, the exact inverse)
-// takes four or eight consecutive samples in SIMD lanes (GCC vector
+// The default mode (tangent space, smooth high normals, the exact inverse,
+// any NormalDecode) takes four or eight consecutive samples in SIMD lanes (GCC vector
 // extensions: SSE for four, AVX2 for eight where the CPU has it, chosen at
 // run time). Each lane does exactly the operations of sample_contribution(),
 // in the same order and without fused multiply-adds (neither target enables
@@ -194,7 +302,7 @@ bool plain_samples(const TexelSamples& samples, const Hits& hits, std::size_t s0
 // frame interpolated across the lanes, others lane by lane; the same operations.
 [[gnu::always_inline]] inline void gather_four(const LowSurface& surface, const TexelSamples& samples,
                                                const Mesh& high, const Hits& hits, std::size_t s0, Axes& n, Axes& N,
-                                               Axes& T) {
+                                               Axes& T, Axes* B) {
   f4 high_n[4];
   for (int i = 0; i < 4; ++i) {
     const std::uint32_t* h = &high.indices[3 * static_cast<std::size_t>(hits.triangle[s0 + i])];
@@ -207,17 +315,20 @@ bool plain_samples(const TexelSamples& samples, const Hits& hits, std::size_t s0
     const Weights w = lane_weights(&samples.bary[s0]);
     N = mix_axes(&surface.normal[base], w);
     T = mix_axes(&surface.tangent[base], w);
+    if (B) *B = mix_axes(&surface.bitangent[base], w);
     return;
   }
-  f4 low_n[4], low_t[4];
+  f4 low_n[4], low_t[4], low_b[4];
   for (int i = 0; i < 4; ++i) {
     const std::size_t base = 3 * static_cast<std::size_t>(samples.triangle[s0 + i]);
     const glm::vec2 b = samples.bary[s0 + i];
     low_n[i] = corner_mix(&surface.normal[base], b);
     low_t[i] = corner_mix(surface.tangent[base], surface.tangent[base + 1], surface.tangent[base + 2], b);
+    if (B) low_b[i] = corner_mix(&surface.bitangent[base], b);
   }
   N = transpose(low_n[0], low_n[1], low_n[2], low_n[3]);
   T = transpose(low_t[0], low_t[1], low_t[2], low_t[3]);
+  if (B) *B = transpose(low_b[0], low_b[1], low_b[2], low_b[3]);
 }
 
 // inverse_tangent() and the normalisation of sample_contribution() in lanes
@@ -249,6 +360,63 @@ template <class V, class M>
   ok &= (lt2 > zero) & ((lt2 - lt2) == zero);
 }
 
+// inverse_general() of sample_contribution() in lanes, for the decodes with
+// a frame of their own (own_frame()), in two steps around the square roots,
+// which the caller takes with its target's instruction:
+// column_squares() makes B (per vertex: given, interpolated like N; per
+// pixel: sign (N x T)) and the squared lengths of T, B, N; general_lanes()
+// divides the columns by their lengths when the decode normalises them,
+// then applies Cramer's rule with the rows B x N, N x T, T x B. The
+// operations of the scalar code in its order (glm's cross and dot), so the
+// same bits.
+template <class V>
+struct FrameLanes {
+  V Tx, Ty, Tz, Bx, By, Bz, Nx, Ny, Nz;
+};
+
+template <class V>
+[[gnu::always_inline]] inline void column_squares(FrameLanes<V>& f, V Tw, const NormalDecode& decode, V& t2, V& b2,
+                                                  V& n2) {
+  const V zero = V{} + 0.0f, one = zero + 1.0f;
+  if (decode.bitangent == Bitangent::pixel) {
+    const V sign = Tw < zero ? -one : one;
+    f.Bx = sign * (f.Ny * f.Tz - f.Ty * f.Nz);
+    f.By = sign * (f.Nz * f.Tx - f.Tz * f.Nx);
+    f.Bz = sign * (f.Nx * f.Ty - f.Tx * f.Ny);
+  }
+  t2 = f.Tx * f.Tx + f.Ty * f.Ty + f.Tz * f.Tz;
+  b2 = f.Bx * f.Bx + f.By * f.By + f.Bz * f.Bz;
+  n2 = f.Nx * f.Nx + f.Ny * f.Ny + f.Nz * f.Nz;
+}
+
+template <class V, class M>
+[[gnu::always_inline]] inline void general_lanes(V nx, V ny, V nz, FrameLanes<V> f, V lt, V lb, V ln,
+                                                 const NormalDecode& decode, V& tx, V& ty, V& tz, V& lt2, M& ok) {
+  const V zero = V{} + 0.0f, one = zero + 1.0f;
+  const V l2 = nx * nx + ny * ny + nz * nz;
+  ok = (l2 > zero + 1e-24f) & ((l2 - l2) == zero);
+  if (decode.unit_frame) {
+    ok &= (lt > zero) & ((lt - lt) == zero) & (lb > zero) & ((lb - lb) == zero) & (ln > zero) & ((ln - ln) == zero);
+    f.Tx = f.Tx / lt, f.Ty = f.Ty / lt, f.Tz = f.Tz / lt;
+    f.Bx = f.Bx / lb, f.By = f.By / lb, f.Bz = f.Bz / lb;
+    f.Nx = f.Nx / ln, f.Ny = f.Ny / ln, f.Nz = f.Nz / ln;
+  }
+  const V r0x = f.By * f.Nz - f.Ny * f.Bz, r0y = f.Bz * f.Nx - f.Nz * f.Bx, r0z = f.Bx * f.Ny - f.Nx * f.By;
+  const V r1x = f.Ny * f.Tz - f.Ty * f.Nz, r1y = f.Nz * f.Tx - f.Tz * f.Nx, r1z = f.Nx * f.Ty - f.Tx * f.Ny;
+  const V r2x = f.Ty * f.Bz - f.By * f.Tz, r2y = f.Tz * f.Bx - f.Bz * f.Tx, r2z = f.Tx * f.By - f.Bx * f.Ty;
+  const V det = f.Tx * r0x + f.Ty * r0y + f.Tz * r0z;
+  const V scale2 = (f.Tx * f.Tx + f.Ty * f.Ty + f.Tz * f.Tz) * (f.Bx * f.Bx + f.By * f.By + f.Bz * f.Bz) *
+                   (f.Nx * f.Nx + f.Ny * f.Ny + f.Nz * f.Nz);
+  ok &= (det * det > (zero + 1e-12f) * scale2) & (scale2 > zero) & ((det - det) == zero) & ((scale2 - scale2) == zero);
+  const V flip = det < zero ? -one : one;
+  tx = nx * r0x + ny * r0y + nz * r0z;
+  ty = nx * r1x + ny * r1y + nz * r1z;
+  tz = nx * r2x + ny * r2y + nz * r2z;
+  tx *= flip, ty *= flip, tz *= flip;
+  lt2 = tx * tx + ty * ty + tz * tz;
+  ok &= (lt2 > zero) & ((lt2 - lt2) == zero);
+}
+
 // The lanes that are not plain, one by one; the plain ones stored as they are.
 template <class V, class M>
 void finish_lanes(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
@@ -272,11 +440,19 @@ void encode_four(const LowSurface& surface, const TexelSamples& samples, const M
       used[i] = sample_contribution(surface, samples, high, hits, options, true, s0 + i, counts, out[i]);
     return;
   }
-  Axes n, N, T;
-  gather_four(surface, samples, high, hits, s0, n, N, T);
+  Axes n, N, T, B{};
+  const bool own = own_frame(options.decode), vertex = options.decode.bitangent == Bitangent::vertex;
+  gather_four(surface, samples, high, hits, s0, n, N, T, own && vertex ? &B : nullptr);
   f4 tx, ty, tz, lt2;
   i4 ok;
-  inverse_lanes(n.x, n.y, n.z, N.x, N.y, N.z, T.x, T.y, T.z, T.w, tx, ty, tz, lt2, ok);
+  if (own) {
+    FrameLanes<f4> f{T.x, T.y, T.z, B.x, B.y, B.z, N.x, N.y, N.z};
+    f4 t2, b2, n2;
+    column_squares(f, T.w, options.decode, t2, b2, n2);
+    general_lanes(n.x, n.y, n.z, f, sqrt4(t2), sqrt4(b2), sqrt4(n2), options.decode, tx, ty, tz, lt2, ok);
+  } else {
+    inverse_lanes(n.x, n.y, n.z, N.x, N.y, N.z, T.x, T.y, T.z, T.w, tx, ty, tz, lt2, ok);
+  }
   const f4 inv = splat4(1.0f) / sqrt4(lt2);
   const f4 ox = tx * inv, oy = ty * inv, oz = tz * inv;
   if (all4(ok)) {
@@ -310,14 +486,24 @@ typedef std::int32_t i8 __attribute__((vector_size(32)));
     encode_four(surface, samples, high, hits, options, s0 + 4, counts, out + 4, used + 4);
     return;
   }
-  Axes n0, N0, T0, n1, N1, T1;
-  gather_four(surface, samples, high, hits, s0, n0, N0, T0);
-  gather_four(surface, samples, high, hits, s0 + 4, n1, N1, T1);
+  Axes n0, N0, T0, B0{}, n1, N1, T1, B1{};
+  const bool own = own_frame(options.decode), vertex = options.decode.bitangent == Bitangent::vertex;
+  gather_four(surface, samples, high, hits, s0, n0, N0, T0, own && vertex ? &B0 : nullptr);
+  gather_four(surface, samples, high, hits, s0 + 4, n1, N1, T1, own && vertex ? &B1 : nullptr);
   f8 tx, ty, tz, lt2;
   i8 ok;
-  inverse_lanes(join(n0.x, n1.x), join(n0.y, n1.y), join(n0.z, n1.z), join(N0.x, N1.x), join(N0.y, N1.y),
-                join(N0.z, N1.z), join(T0.x, T1.x), join(T0.y, T1.y), join(T0.z, T1.z), join(T0.w, T1.w), tx, ty, tz,
-                lt2, ok);
+  if (own) {
+    FrameLanes<f8> f{join(T0.x, T1.x), join(T0.y, T1.y), join(T0.z, T1.z), join(B0.x, B1.x), join(B0.y, B1.y),
+                     join(B0.z, B1.z), join(N0.x, N1.x), join(N0.y, N1.y), join(N0.z, N1.z)};
+    f8 t2, b2, n2;
+    column_squares(f, join(T0.w, T1.w), options.decode, t2, b2, n2);
+    general_lanes(join(n0.x, n1.x), join(n0.y, n1.y), join(n0.z, n1.z), f, __builtin_ia32_sqrtps256(t2),
+                  __builtin_ia32_sqrtps256(b2), __builtin_ia32_sqrtps256(n2), options.decode, tx, ty, tz, lt2, ok);
+  } else {
+    inverse_lanes(join(n0.x, n1.x), join(n0.y, n1.y), join(n0.z, n1.z), join(N0.x, N1.x), join(N0.y, N1.y),
+                  join(N0.z, N1.z), join(T0.x, T1.x), join(T0.y, T1.y), join(T0.z, T1.z), join(T0.w, T1.w), tx, ty,
+                  tz, lt2, ok);
+  }
   const f8 inv = (f8{} + 1.0f) / __builtin_ia32_sqrtps256(lt2);
   const f8 ox = tx * inv, oy = ty * inv, oz = tz * inv;
   if (__builtin_ia32_movmskps256(reinterpret_cast<f8>(ok)) == 0xFF) {
@@ -348,6 +534,9 @@ void encode_impl(const LowSurface& surface, const TexelSamples& samples, const M
   const bool tangent_space = options.space == NormalSpace::tangent;
   const bool smooth = options.high_normals == HighNormals::smooth && high.has_normals();
   const bool in_lanes = lanes > 1 && tangent_space && smooth && options.tangent_encode == TangentEncode::inverse;
+  if (tangent_space && options.decode.bitangent == Bitangent::vertex) {
+    NMBAKE_CHECK(surface.bitangent.size() == surface.tangent.size(), "per-corner bitangents filled");
+  }
 #if NMBAKE_ENCODE_EIGHT
   const bool eight = in_lanes && lanes >= 8 && cpu_has_avx2();
 #endif
@@ -418,6 +607,7 @@ void encode_impl(const LowSurface& surface, const TexelSamples& samples, const M
               if (ln > 0.0f && std::isfinite(ln)) value = low_normal_sum / ln;
             }
           }
+          if (tangent_space && options.decode.rebuild_blue && !onto_upper_hemisphere(value)) ++counts.below_horizon;
           if (tangent_space && options.green == GreenChannel::down) value.y = -value.y;
         }
         float* p = band_pixels + texel * 3;
@@ -431,6 +621,7 @@ void encode_impl(const LowSurface& surface, const TexelSamples& samples, const M
     stats.singular_frames += c.singular;
     stats.zero_high_normals += c.zero_high;
     stats.zero_results += c.zero_result;
+    stats.below_horizon += c.below_horizon;
   }
 }
 

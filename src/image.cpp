@@ -110,7 +110,7 @@ const oiio_module::Api* image_module(std::string& error) {
       return;
     }
     failure = std::string("the image module ") + oiio_module::kFileName +
-              " (OpenImageIO: TIFF, PIZ EXR, and reading images) was not found in " + looked +
+ " (OpenImageIO: TIFF, PIZ EXR, TGA, and reading images) was not found in " + looked +
               "; set NMBAKE_MODULE_DIR to its folder";
   });
   if (!api) error = failure;
@@ -131,11 +131,11 @@ Status module_status(oiio_module::Outcome outcome, const std::string& message) {
 
 // Writes the finished pixels to `temp` through the module; the caller renames.
 Status write_with_oiio(const Image& image, const std::string& path, const fs::path& temp,
-                       PixelFormat format) {
+                       PixelFormat format, bool dither) {
   std::string reason;
   const oiio_module::Api* api = image_module(reason);
   if (!api) return Status::internal("cannot write '" + path + "': " + reason);
-  const oiio_module::Outcome outcome = api->write(image, temp.string(), format, reason);
+  const oiio_module::Outcome outcome = api->write(image, temp.string(), format, dither, reason);
   return module_status(outcome, "cannot write '" + path + "': " + reason);
 }
 
@@ -392,13 +392,18 @@ const char* to_string(PixelFormat format) {
       return "exr-float";
     case PixelFormat::exr_float_piz:
       return "exr-float-piz";
+    case PixelFormat::tga8:
+      return "tga";
   }
   return "unknown";
 }
 
+bool is_8bit(PixelFormat format) { return format == PixelFormat::png8 || format == PixelFormat::tga8; }
+
 bool parse_pixel_format(const std::string& text, PixelFormat& out) {
   for (PixelFormat format : {PixelFormat::png8, PixelFormat::png16, PixelFormat::tiff16,
-                             PixelFormat::exr_half, PixelFormat::exr_float, PixelFormat::exr_float_piz}) {
+                             PixelFormat::exr_half, PixelFormat::exr_float, PixelFormat::exr_float_piz,
+                             PixelFormat::tga8}) {
     if (text == to_string(format)) {
       out = format;
       return true;
@@ -415,6 +420,8 @@ bool pixel_format_from_path(const std::string& path, PixelFormat& out) {
     out = PixelFormat::tiff16;
   } else if (ext == ".exr") {
     out = PixelFormat::exr_float;
+  } else if (ext == ".tga") {
+    out = PixelFormat::tga8;
   } else {
     return false;
   }
@@ -433,11 +440,13 @@ bool format_matches_extension(PixelFormat format, const std::string& path) {
     case PixelFormat::exr_float:
     case PixelFormat::exr_float_piz:
       return ext == ".exr";
+    case PixelFormat::tga8:
+      return ext == ".tga";
   }
   return false;
 }
 
-Status write_image(const Image& image, const std::string& path, PixelFormat format) {
+Status write_image(const Image& image, const std::string& path, PixelFormat format, const WriteOptions& options) {
   // Caller bugs first: they are internal errors, not the user's.
   if (image.width <= 0 || image.height <= 0 || image.channels <= 0) {
     return Status::internal("cannot write '" + path + "': empty image (" + std::to_string(image.width) + "x" +
@@ -484,7 +493,8 @@ Status write_image(const Image& image, const std::string& path, PixelFormat form
   switch (format) {
     case PixelFormat::png8:
     case PixelFormat::png16:
-      status = image_detail::write_png(image, format == PixelFormat::png8 ? 8 : 16, temp.string(), path);
+      status = image_detail::write_png(image, format == PixelFormat::png8 ? 8 : 16, temp.string(), path,
+                                       options.dither);
       break;
     case PixelFormat::exr_half:
     case PixelFormat::exr_float:
@@ -492,7 +502,8 @@ Status write_image(const Image& image, const std::string& path, PixelFormat form
       break;
     case PixelFormat::tiff16:
     case PixelFormat::exr_float_piz:
-      status = write_with_oiio(image, path, temp, format);
+    case PixelFormat::tga8:
+      status = write_with_oiio(image, path, temp, format, options.dither);
       break;
   }
   if (status.is_ok()) {
@@ -509,8 +520,10 @@ Status write_image(const Image& image, const std::string& path, PixelFormat form
 }
 
 Status check_image_writer(PixelFormat format) {
-  // PNG and ZIP EXR are ours; TIFF and PIZ EXR need the module.
-  if (format != PixelFormat::tiff16 && format != PixelFormat::exr_float_piz) return Status::ok();
+  // PNG and ZIP EXR are ours; TIFF, PIZ EXR and TGA need the module.
+  if (format != PixelFormat::tiff16 && format != PixelFormat::exr_float_piz && format != PixelFormat::tga8) {
+    return Status::ok();
+  }
   std::string reason;
   if (!image_module(reason)) return Status::internal(std::string("cannot write ") + to_string(format) + ": " + reason);
   return Status::ok();

@@ -1,5 +1,5 @@
 // The OpenImageIO image module (libnmbake_oiio.so; see image_oiio.hpp for
-// why it is a module): the TIFF and PIZ EXR writers and every reader.
+// why it is a module): the TIFF, PIZ EXR and TGA writers and every reader.
 //
 // OpenImageIO 2.4 behaviour this file relies on (checked by image_test.cpp):
 //  * TIFF writers un-premultiply an alpha channel unless
@@ -48,6 +48,11 @@ bool traits_of(PixelFormat format, FormatTraits& out) {
       // demo map 31.6 MB in 0.54 s, where our ZIP writes 48.2 MB in 0.05 s.
       out = {"openexr", OIIO::TypeDesc::FLOAT, "piz"};
       return true;
+    case PixelFormat::tga8:
+      // Uncompressed: every Targa reader takes it (some engines' loaders
+      // skip RLE), and a dithered normal map has few runs to encode.
+      out = {"targa", OIIO::TypeDesc::UINT8, "none"};
+      return true;
     case PixelFormat::exr_half:
     case PixelFormat::exr_float:
     case PixelFormat::png8:
@@ -57,10 +62,10 @@ bool traits_of(PixelFormat format, FormatTraits& out) {
   return false;
 }
 
-Outcome write(const Image& image, const std::string& file, PixelFormat format, std::string& reason) {
+Outcome write(const Image& image, const std::string& file, PixelFormat format, bool dither, std::string& reason) {
   FormatTraits traits;
   if (!traits_of(format, traits)) {
-    reason = "the image module writes only TIFF and PIZ EXR";
+    reason = "the image module writes only TIFF, PIZ EXR and TGA";
     return Outcome::io_error;
   }
   std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create(traits.plugin);
@@ -86,6 +91,19 @@ Outcome write(const Image& image, const std::string& file, PixelFormat format, s
       data[i] = static_cast<std::uint16_t>(detail::quantise(image.pixels[i], 65535.0f));
     }
     written = out->write_image(OIIO::TypeDesc::UINT16, data.data());
+  } else if (traits.type == OIIO::TypeDesc::UINT8) {
+    std::vector<std::uint8_t> data(image.pixels.size());
+    const auto channels = static_cast<std::size_t>(image.channels);
+    const auto width = static_cast<std::size_t>(image.width);
+    for (std::size_t i = 0; i < data.size(); ++i) {
+      const std::size_t texel = i / channels;
+      data[i] = static_cast<std::uint8_t>(
+          dither ? detail::quantise_dithered(image.pixels[i], 255.0f, static_cast<std::uint32_t>(texel % width),
+                                             static_cast<std::uint32_t>(texel / width),
+                                             static_cast<std::uint32_t>(i % channels))
+                 : detail::quantise(image.pixels[i], 255.0f));
+    }
+    written = out->write_image(OIIO::TypeDesc::UINT8, data.data());
   } else {
     written = out->write_image(OIIO::TypeDesc::FLOAT, image.pixels.data());  // float in, float out
   }

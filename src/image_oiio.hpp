@@ -3,7 +3,7 @@
 // OpenImageIO links about 260 shared libraries (codecs, DICOM, video, ...),
 // and resolving them costs ~0.2 s at every process start, more than the
 // encode and write stages of a 2048^2 bake together. So the code that needs
-// it (the TIFF and PIZ EXR writers, every reader) is built as a separate module that
+// it (the TIFF, PIZ EXR and TGA writers, every reader) is built as a separate module that
 // image.cpp loads with dlopen() on first use; a bake that writes PNG (the
 // default) or EXR never loads it. The module is built by the same build as the
 // library, so C++ types cross the boundary; kAbiVersion guards a stale file.
@@ -15,7 +15,7 @@
 
 namespace nmbake::oiio_module {
 
-constexpr int kAbiVersion = 2;
+constexpr int kAbiVersion = 3;
 constexpr const char* kFileName = "libnmbake_oiio.so";
 constexpr const char* kEntryPoint = "nmbake_oiio_module_api";
 
@@ -25,8 +25,9 @@ struct Api {
   int abi_version;
   const char* oiio_version;
   // Writes `image` (already checked: sized, finite) to `file` in `format`
-  // (tiff16, exr_float_piz), the same bytes for the same pixels.
-  Outcome (*write)(const Image& image, const std::string& file, PixelFormat format, std::string& reason);
+  // (tiff16, exr_float_piz, tga8), the same bytes for the same pixels;
+  // `dither`: 8-bit samples (tga8) with ordered dithering (quantise.hpp).
+  Outcome (*write)(const Image& image, const std::string& file, PixelFormat format, bool dither, std::string& reason);
   // `reader` is the OpenImageIO format name image.cpp picked from the file's
   // first bytes ("png", "openexr", ...): only that reader sees the file.
   Outcome (*read_info)(const std::string& path, const std::string& reader, ImageFileInfo& out, std::string& reason);

@@ -62,8 +62,19 @@ void put_chunk(std::vector<std::uint8_t>& out, const char (&type)[5], const std:
   put_u32(out, static_cast<std::uint32_t>(crc));
 }
 
-// One row quantised to big-endian samples of `bytes_per_sample` bytes.
-void quantise_row(const float* values, std::size_t count, int bits, std::uint8_t* out) {
+// Row y quantised to big-endian samples of bits / 8 bytes; 8-bit rows
+// dithered when asked (`channels` values a texel).
+void quantise_row(const float* values, std::size_t count, int bits, std::uint8_t* out, bool dither, std::size_t y,
+                  std::size_t channels) {
+  if (bits == 8 && dither) {
+    for (std::size_t i = 0; i < count; ++i) {
+      out[i] = static_cast<std::uint8_t>(detail::quantise_dithered(values[i], 255.0f,
+                                                                    static_cast<std::uint32_t>(i / channels),
+                                                                    static_cast<std::uint32_t>(y),
+                                                                    static_cast<std::uint32_t>(i % channels)));
+    }
+    return;
+  }
   if (bits == 8) {
     for (std::size_t i = 0; i < count; ++i) out[i] = static_cast<std::uint8_t>(detail::quantise(values[i], 255.0f));
     return;
@@ -118,7 +129,7 @@ namespace {
 // flight), then IEND. Writing a group overlaps the deflating of the next
 // ones, and no copy of the whole file is made.
 template <class Put>
-void stream_png(const Image& image, int bits, Put&& put) {
+void stream_png(const Image& image, int bits, bool dither, Put&& put) {
   NMBAKE_CHECK(bits == 8 || bits == 16, "PNG bit depth is 8 or 16");
   NMBAKE_CHECK(image.channels >= 1 && image.channels <= 4, "PNG has 1 to 4 channels");
   const std::size_t width = static_cast<std::size_t>(image.width);
@@ -150,10 +161,14 @@ void stream_png(const Image& image, int bits, Put&& put) {
     const std::size_t y1 = std::min(height, y0 + rows_per_group);
     // The row above the group is quantised again here, so groups share nothing.
     std::vector<std::uint8_t> above(row_bytes, 0), row(row_bytes);
-    if (y0 > 0) quantise_row(image.pixels.data() + (y0 - 1) * values_per_row, values_per_row, bits, above.data());
+    const std::size_t channels = static_cast<std::size_t>(image.channels);
+    if (y0 > 0) {
+      quantise_row(image.pixels.data() + (y0 - 1) * values_per_row, values_per_row, bits, above.data(), dither, y0 - 1,
+                   channels);
+    }
     std::vector<std::uint8_t> filtered((y1 - y0) * (row_bytes + 1));
     for (std::size_t y = y0; y < y1; ++y) {
-      quantise_row(image.pixels.data() + y * values_per_row, values_per_row, bits, row.data());
+      quantise_row(image.pixels.data() + y * values_per_row, values_per_row, bits, row.data(), dither, y, channels);
       filter_row(row.data(), above.data(), row_bytes, bpp, filtered.data() + (y - y0) * (row_bytes + 1));
       std::swap(row, above);
     }
@@ -194,20 +209,21 @@ void stream_png(const Image& image, int bits, Put&& put) {
 
 }  // namespace
 
-std::vector<std::uint8_t> encode_png(const Image& image, int bits) {
+std::vector<std::uint8_t> encode_png(const Image& image, int bits, bool dither) {
   std::vector<std::uint8_t> file;
-  stream_png(image, bits, [&](const std::uint8_t* data, std::size_t size) { file.insert(file.end(), data, data + size); });
+  stream_png(image, bits, dither, [&](const std::uint8_t* data, std::size_t size) { file.insert(file.end(), data, data + size); });
   return file;
 }
 
-Status write_png(const Image& image, int bits, const std::string& path, const std::string& display_path) {
+Status write_png(const Image& image, int bits, const std::string& path, const std::string& display_path,
+                 bool dither) {
   if (image.channels < 1 || image.channels > 4) {
     return Status::io("cannot write '" + display_path + "': PNG holds 1 to 4 channels, not " +
                       std::to_string(image.channels));
   }
   StreamFile file(path, display_path);
   if (!file.is_open()) return file.open_status();
-  stream_png(image, bits, [&](const std::uint8_t* data, std::size_t size) { file.put(data, size); });
+  stream_png(image, bits, dither, [&](const std::uint8_t* data, std::size_t size) { file.put(data, size); });
   return file.close();
 }
 

@@ -1,6 +1,7 @@
 // Job files (TOML, through toml++) and the option words shared with the CLI.
 #include "nmbake/job.hpp"
 #include "nmbake/budget.hpp"
+#include "nmbake/preset.hpp"
 
 #include <filesystem>
 #include <set>
@@ -146,6 +147,23 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
     } else if (!get_string(text) || !parse_memory_size(text, o.max_memory_bytes)) {
       return bad("expected bytes, or a string such as \"8G\"");
     }
+  } else if (key == "preset") {
+    // Outputs as engines want them (preset.hpp): the preset is applied once
+    // the bake's keys are all read (load_job_file), so green, bitangent, tbn
+    // and blue given anywhere override it.
+    EnginePreset preset;
+    if (!get_string(text) || !find_engine_preset(text, preset)) return bad("expected one of " + engine_preset_names());
+    o.preset = text;
+  } else if (key == "bitangent") {
+    if (!get_string(text) || !parse_bitangent(text, o.decode.bitangent)) return bad("expected \"pixel\" or \"vertex\"");
+  } else if (key == "tbn") {
+    if (!get_string(text) || !parse_frame_rule(text, o.decode.unit_frame)) return bad("expected \"raw\" or \"normalized\"");
+  } else if (key == "blue") {
+    if (!get_string(text) || !parse_blue_rule(text, o.decode.rebuild_blue)) return bad("expected \"stored\" or \"rebuilt\"");
+  } else if (key == "dither") {
+    if (auto b = value.value<bool>(); b && value.is_boolean()) o.dither = *b;
+    else if (get_string(text) && (text == "on" || text == "off")) o.dither = text == "on";
+    else return bad("expected \"on\", \"off\", true or false");
   } else if (key == "cage") {
     if (!get_string(text) || text.empty()) return bad("expected a path");
     o.cage_path = resolve_path(folder, text);
@@ -219,8 +237,8 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
       const bool ok = format.empty() ? pixel_format_from_path(out.path, out.format) : parse_pixel_format(format, out.format);
       if (!ok) {
         return Status::bad_input(where(file, item) + ": outputs: " +
-                                 (format.empty() ? "unknown image extension of " + path + " (use .png, .tif, .tiff, .exr)"
-                                                 : "unknown format \"" + format + "\" (png8, png16, tiff16, exr-half, exr-float, exr-float-piz)"));
+                                 (format.empty() ? "unknown image extension of " + path + " (use .png, .tif, .tiff, .exr, .tga)"
+                                                 : "unknown format \"" + format + "\" (png8, png16, tiff16, exr-half, exr-float, exr-float-piz, tga)"));
       }
       o.outputs.push_back(out);
     }
@@ -248,6 +266,7 @@ Status load_job_file(const std::string& path, std::vector<BakeJob>& jobs) {
   const std::filesystem::path folder = std::filesystem::path(path).parent_path();
 
   BakeJob defaults;
+  const toml::table* defaults_table = root["defaults"].as_table();
   for (const auto& [key, value] : root) {
     const std::string k(key.str());
     if (k != "defaults" && k != "bake") {
@@ -270,6 +289,16 @@ Status load_job_file(const std::string& path, std::vector<BakeJob>& jobs) {
     BakeJob job = defaults;
     job.name = "bake " + std::to_string(index);
     for (const auto& [key, value] : *table) NMBAKE_TRY(apply_key(path, folder, std::string(key.str()), value, true, job));
+    if (!job.options.preset.empty()) {
+      // Keys given in [defaults] or this [[bake]] keep their values.
+      const auto given = [&](const char* key) {
+        return table->contains(key) || (defaults_table != nullptr && defaults_table->contains(key));
+      };
+      EnginePreset preset;
+      NMBAKE_CHECK(find_engine_preset(job.options.preset, preset), "preset checked when read");
+      apply_engine_preset(preset, {given("green"), given("bitangent"), given("tbn"), given("blue")}, job.options.green,
+                          job.options.decode);
+    }
     if (job.options.low_path.empty() || job.options.high_path.empty() || job.options.outputs.empty()) {
       return Status::bad_input(where(path, node) + ": [[bake]] \"" + job.name + "\" needs low, high and outputs");
     }

@@ -314,7 +314,7 @@ Status render_preview(const LowSurface& surface, const Mesh& high, const Image& 
         bool fallback = false;
         const glm::vec3 low_normal = unit_or(N, to_eye, fallback);
         glm::vec3 n;
-        if (tangent_space) {
+        if (tangent_space && options.decode.is_default()) {
           t.y *= green;
           const glm::vec3 T(tw);
           const float sign = tw.w < 0.0f ? -1.0f : 1.0f;
@@ -322,6 +322,29 @@ Status render_preview(const LowSurface& surface, const Mesh& high, const Image& 
           const float l = glm::length(raw);
           if (l > 1e-12f && std::isfinite(l)) {
             n = tangent_to_world(t, T, N, sign);
+          } else {
+            n = low_normal;
+            fallback = true;
+          }
+        } else if (tangent_space) {
+          // Another engine's decode (preset.hpp): z from the filtered x, y,
+          // B per vertex, the frame normalised, as options.decode says.
+          t.y *= green;
+          if (options.decode.rebuild_blue) t.z = std::sqrt(std::max(0.0f, 1.0f - t.x * t.x - t.y * t.y));
+          glm::vec3 T(tw), B = decode_bitangent(surface, static_cast<std::size_t>(tri), b, options.decode.bitangent),
+                           M = N;
+          bool usable = true;
+          if (options.decode.unit_frame) {
+            for (glm::vec3* column : {&T, &B, &M}) {
+              const float lc = glm::length(*column);
+              usable = usable && lc > 1e-12f && std::isfinite(lc);
+              if (usable) *column /= lc;
+            }
+          }
+          const glm::vec3 raw = t.x * T + t.y * B + t.z * M;
+          const float l = glm::length(raw);
+          if (usable && l > 1e-12f && std::isfinite(l)) {
+            n = raw / l;
           } else {
             n = low_normal;
             fallback = true;

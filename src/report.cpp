@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include "nmbake/bake.hpp"
+#include "nmbake/preset.hpp"
 
 namespace nmbake {
 
@@ -31,6 +32,14 @@ std::string BakeReport::to_json() const {
   j["high_triangles"] = high_triangles;
   j["high_vertices"] = high_vertices;
   j["bvh"] = compact_bvh ? "compact" : "fast";
+  // How the map was encoded: the engine preset (if any) and the rules in
+  // force after explicit flags (README, "Outputs as engines want them").
+  j["encoding"] = {{"preset", preset.empty() ? ordered_json(nullptr) : ordered_json(preset)},
+                   {"green", green == GreenChannel::up ? "up" : "down"},
+                   {"bitangent", to_string(decode.bitangent)},
+                   {"tbn", frame_rule_name(decode.unit_frame)},
+                   {"blue", blue_rule_name(decode.rebuild_blue)},
+                   {"dither_8bit", dither}};
   j["distances"] = {{"front", front},
                     {"back", back},
                     {"estimated", distances_estimated},
@@ -60,6 +69,7 @@ std::string BakeReport::to_json() const {
       {"encode_singular_frames", encode.singular_frames},
       {"encode_zero_high_normals", encode.zero_high_normals},
       {"encode_zero_results", encode.zero_results},
+      {"encode_below_horizon", encode.below_horizon},
       {"dilate_filled_texels", dilate.filled_texels},
       {"load_skipped_faces", low_load.degenerate_faces + high_load.degenerate_faces},
   };

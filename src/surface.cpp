@@ -6,6 +6,8 @@
 #include <string>
 #include <tuple>
 
+#include <glm/geometric.hpp>
+
 namespace nmbake {
 
 LowSurface build_low_surface(const Mesh& low, const Mesh* cage, SurfaceStats& stats) {
@@ -31,6 +33,7 @@ LowSurface build_low_surface(const Mesh& low, const Mesh* cage, TangentBasis bas
   }
   compute_tangents(low, basis, s.tangent, stats.tangents);
   NMBAKE_CHECK(s.tangent.size() == corner_count, "one tangent per corner");
+  fill_corner_bitangents(s);
 
   if (cage != nullptr) {
     NMBAKE_CHECK(cage->indices.size() == corner_count, "cage topology checked before");
@@ -38,6 +41,17 @@ LowSurface build_low_surface(const Mesh& low, const Mesh* cage, TangentBasis bas
     for (std::size_t c = 0; c < corner_count; ++c) s.cage_position[c] = cage->positions[cage->indices[c]];
   }
   return s;
+}
+
+void fill_corner_bitangents(LowSurface& s) {
+  NMBAKE_CHECK(s.tangent.size() == s.normal.size(), "one tangent per corner normal");
+  s.bitangent.resize(s.tangent.size());
+  for (std::size_t c = 0; c < s.tangent.size(); ++c) {
+    // What a vertex shader computes from the vertex's attributes: the sign
+    // is +-1 (MikkTSpace), a zero w counts as +1 as in the encode.
+    const float sign = s.tangent[c].w < 0.0f ? -1.0f : 1.0f;
+    s.bitangent[c] = sign * glm::cross(s.normal[c], glm::vec3(s.tangent[c]));
+  }
 }
 
 namespace {

@@ -4,8 +4,8 @@
 // option text and, for each of low, high, cage, the file's length and bytes.
 //
 // Tile file, little endian:
-//   "NMBTILE1" | key (high, low: u64) | i32 width, height, row_begin,
-//   row_end, index, count, padding, output count | per output: u8 format,
+//   "NMBTILE2" | key (high, low: u64) | i32 width, height, row_begin,
+//   row_end, index, count, padding, dither, output count | per output: u8 format,
 //   u32 path length, path | f32 pixels[rows * width * 3] | u8
 //   coverage[rows * width] | u64 XXH3-64 of everything before it.
 // The sizes are checked against the file's length before anything is
@@ -29,6 +29,7 @@
 #include <xxhash.h>
 
 #include "nmbake/cleanup.hpp"
+#include "nmbake/preset.hpp"
 #include "nmbake/udim.hpp"
 
 namespace nmbake {
@@ -72,6 +73,13 @@ std::string bake_key_text(const BakeOptions& o) {
   line("high_normals", o.high_normals == HighNormals::smooth ? "smooth" : "face");
   line("tangent_encode", o.tangent_encode == TangentEncode::inverse ? "inverse" : "transpose");
   line("tangent_basis", to_string(o.tangent_basis));
+  // Outputs as engines want them: the preset, and what it resolved to after
+  // explicit flags (the rules are what change bytes; the name errs on the
+  // side of a miss).
+  line("preset", o.preset.empty() ? "none" : o.preset);
+  line("decode", std::string(to_string(o.decode.bitangent)) + " " + frame_rule_name(o.decode.unit_frame) + " " +
+                     blue_rule_name(o.decode.rebuild_blue));
+  line("dither", o.dither ? "on" : "off");
   // The BVH's quality and layout do not choose other hits, but a key errs on
   // the side of a miss.
   line("build_quality", std::to_string(static_cast<int>(o.build_quality)));
@@ -183,7 +191,8 @@ bool parse_tile_spec(const std::string& text, int& index, int& count) {
 
 namespace {
 
-constexpr char kMagic[8] = {'N', 'M', 'B', 'T', 'I', 'L', 'E', '1'};
+// "2": the dither flag joined the header (a "1" file is refused as one of another build).
+constexpr char kMagic[8] = {'N', 'M', 'B', 'T', 'I', 'L', 'E', '2'};
 
 template <typename T>
 void put(std::string& out, const T& value) {
@@ -211,7 +220,7 @@ Status write_tile(const std::string& path, const TileData& tile) {
   put(header, tile.key.high);
   put(header, tile.key.low);
   for (const int v : {tile.width, tile.height, tile.row_begin, tile.row_end, tile.index, tile.count, tile.padding,
-                      static_cast<int>(tile.outputs.size())}) {
+                      tile.dither ? 1 : 0, static_cast<int>(tile.outputs.size())}) {
     put(header, static_cast<std::int32_t>(v));
   }
   for (const OutputSpec& out : tile.outputs) {
@@ -235,13 +244,13 @@ Status read_tile(const std::string& path, TileData& tile) {
   const auto file_size = static_cast<std::uint64_t>(in.tellg());
   in.seekg(0);
   const auto bad = [&](const std::string& why) { return Status::bad_input(path + ": not a complete nmbake tile file: " + why); };
-  std::string header(sizeof kMagic + 16 + 8 * 4, '\0');
+  std::string header(sizeof kMagic + 16 + 9 * 4, '\0');
   if (!in.read(header.data(), static_cast<std::streamsize>(header.size()))) return bad("too short");
   if (std::memcmp(header.data(), kMagic, sizeof kMagic) != 0) return bad("wrong magic bytes");
   const char* p = header.data() + sizeof kMagic;
   std::memcpy(&tile.key.high, p, 8);
   std::memcpy(&tile.key.low, p + 8, 8);
-  std::int32_t v[8];
+  std::int32_t v[9];
   std::memcpy(v, p + 16, sizeof v);
   tile.width = v[0];
   tile.height = v[1];
@@ -250,17 +259,20 @@ Status read_tile(const std::string& path, TileData& tile) {
   tile.index = v[4];
   tile.count = v[5];
   tile.padding = v[6];
-  const std::int32_t output_count = v[7];
+  const std::int32_t dither = v[7];
+  tile.dither = dither == 1;
+  const std::int32_t output_count = v[8];
   if (tile.width <= 0 || tile.height <= 0 || tile.width > 65536 || tile.height > 65536 || tile.row_begin < 0 ||
       tile.row_end < tile.row_begin || tile.row_end > tile.height || tile.count < 1 || tile.count > 4096 ||
-      tile.index < 0 || tile.index >= tile.count || tile.padding < 0 || output_count < 0 || output_count > 64) {
+      tile.index < 0 || tile.index >= tile.count || tile.padding < 0 || (dither != 0 && dither != 1) ||
+      output_count < 0 || output_count > 64) {
     return bad("header values out of range");
   }
   for (std::int32_t i = 0; i < output_count; ++i) {
     std::uint8_t format = 0;
     std::uint32_t length = 0;
     if (!in.read(reinterpret_cast<char*>(&format), 1) || !in.read(reinterpret_cast<char*>(&length), 4)) return bad("too short");
-    if (format > static_cast<std::uint8_t>(PixelFormat::exr_float_piz) || length > 65536) return bad("bad output entry");
+    if (format > static_cast<std::uint8_t>(PixelFormat::tga8) || length > 65536) return bad("bad output entry");
     OutputSpec out;
     out.format = static_cast<PixelFormat>(format);
     out.path.resize(length);
@@ -334,8 +346,9 @@ Status merge_tiles(const std::vector<std::string>& tile_paths, const std::vector
       return Status::bad_input(path + ": a tile of another bake (key " + tile.key.hex() + ", not " + report.key.hex() + ")");
     }
     report.key = tile.key;
-    if (tile.width != width || tile.height != height || tile.count != count || tile.padding != first.padding) {
-      return Status::bad_input(path + ": a tile of another bake (size, tile count or padding differ)");
+    if (tile.width != width || tile.height != height || tile.count != count || tile.padding != first.padding ||
+        tile.dither != first.dither) {
+      return Status::bad_input(path + ": a tile of another bake (size, tile count, padding or dithering differ)");
     }
     if (!seen[tile.index].empty()) {
       return Status::bad_input(path + ": tile " + std::to_string(tile.index + 1) + "/" + std::to_string(count) +
@@ -349,6 +362,7 @@ Status merge_tiles(const std::vector<std::string>& tile_paths, const std::vector
     std::copy(tile.coverage.begin(), tile.coverage.end(), coverage.begin() + static_cast<std::ptrdiff_t>(b) * width);
     if (i == 0) {
       first.padding = tile.padding;
+      first.dither = tile.dither;
       first.outputs = tile.outputs;
     }
   }
@@ -367,7 +381,9 @@ Status merge_tiles(const std::vector<std::string>& tile_paths, const std::vector
   begin = Clock::now();
   std::vector<Status> written(targets.size());
   tbb::parallel_for(std::size_t{0}, targets.size(),
-                    [&](std::size_t i) { written[i] = write_image(image, targets[i].path, targets[i].format); });
+                    [&](std::size_t i) {
+                      written[i] = write_image(image, targets[i].path, targets[i].format, WriteOptions{first.dither});
+                    });
   for (const Status& s : written) NMBAKE_TRY(s);
   report.write_seconds = std::chrono::duration<double>(Clock::now() - begin).count();
   for (const OutputSpec& out : targets) report.outputs.push_back(out.path);

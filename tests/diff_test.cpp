@@ -124,6 +124,7 @@ TEST(Diff, PngAndExrOfOneBakeAgree) {
                {dir.file("map8.png"), PixelFormat::png8}};
   o.width = o.height = 64;
   o.samples = 1;
+  o.dither = false;  // the 8-bit map rounded, so "changed" counts only rounding boundaries
   BakeReport report;
   ASSERT_TRUE(bake(o, report).is_ok());
 

@@ -9,6 +9,7 @@
 #include <glm/trigonometric.hpp>
 
 #include "nmbake/encode.hpp"
+#include "nmbake/surface.hpp"
 
 namespace nmbake {
 namespace {
@@ -181,6 +182,7 @@ TEST(Encode, FourLanePathMatchesThePerSampleReference) {
   }
   // Triangle 3: the tangent parallel to the normal (a singular frame).
   for (int c = 0; c < 3; ++c) surface.tangent[9 + c] = glm::vec4(surface.normal[9 + c], 1.0f);
+  fill_corner_bitangents(surface);
   Mesh high;
   for (int v = 0; v < 30; ++v) {
     high.positions.push_back({rnd(), rnd(), rnd()});
@@ -216,6 +218,32 @@ TEST(Encode, FourLanePathMatchesThePerSampleReference) {
     samples.coverage.assign(static_cast<std::size_t>(samples.width) * samples.height, 0);
     for (std::size_t t = 0; t < samples.coverage.size(); ++t)
       for (int k = 0; k < spp; ++k) samples.coverage[t] |= samples.triangle[t * spp + k] >= 0 ? 1 : 0;
+
+    // Every engine decode (preset.hpp) in lanes: the bytes and counts of the
+    // per-sample path (which the reference below checks for the default).
+    for (const NormalDecode decode : {NormalDecode{Bitangent::vertex, false, false},
+                                      NormalDecode{Bitangent::pixel, true, false},
+                                      NormalDecode{Bitangent::vertex, true, true}}) {
+      SCOPED_TRACE(std::string("decode ") + to_string(decode.bitangent) + (decode.unit_frame ? " unit" : " raw"));
+      EncodeOptions options;
+      options.decode = decode;
+      Image reference;
+      EncodeStats reference_stats;
+      detail::encode_in_lanes(surface, samples, high, hits, options, reference, reference_stats, 1);
+      EXPECT_GT(reference_stats.singular_frames, 0u);
+      for (const int lanes : {4, 8}) {
+        if (lanes == 8 && !detail::encode_has_eight_lanes()) continue;
+        Image in_lanes;
+        EncodeStats lane_stats;
+        detail::encode_in_lanes(surface, samples, high, hits, options, in_lanes, lane_stats, lanes);
+        ASSERT_EQ(in_lanes.pixels.size(), reference.pixels.size());
+        EXPECT_EQ(0, std::memcmp(in_lanes.pixels.data(), reference.pixels.data(), in_lanes.pixels.size() * sizeof(float)))
+            << lanes << " lanes";
+        EXPECT_EQ(lane_stats.singular_frames, reference_stats.singular_frames);
+        EXPECT_EQ(lane_stats.zero_high_normals, reference_stats.zero_high_normals);
+        EXPECT_EQ(lane_stats.below_horizon, reference_stats.below_horizon);
+      }
+    }
 
     Image image;
     EncodeStats stats;

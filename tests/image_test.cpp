@@ -89,8 +89,9 @@ std::vector<PngChunk> png_chunks(const std::string& path) {
   return chunks;
 }
 
-const PixelFormat all_formats[] = {PixelFormat::png8, PixelFormat::png16, PixelFormat::tiff16,
-                                   PixelFormat::exr_half, PixelFormat::exr_float, PixelFormat::exr_float_piz};
+const PixelFormat all_formats[] = {PixelFormat::png8,      PixelFormat::png16,     PixelFormat::tiff16,
+                                   PixelFormat::exr_half,  PixelFormat::exr_float, PixelFormat::exr_float_piz,
+                                   PixelFormat::tga8};
 
 const char* extension_of(PixelFormat format) {
   switch (format) {
@@ -99,6 +100,8 @@ const char* extension_of(PixelFormat format) {
       return ".png";
     case PixelFormat::tiff16:
       return ".tif";
+    case PixelFormat::tga8:
+      return ".tga";
     default:
       return ".exr";
   }
@@ -118,6 +121,7 @@ const char* extension_of(PixelFormat format) {
   };
   switch (format) {
     case PixelFormat::png8:
+    case PixelFormat::tga8:
       return quantised(255.0f);
     case PixelFormat::png16:
     case PixelFormat::tiff16:
@@ -160,6 +164,11 @@ TEST(ImageFormat, FromPathAndExtensionMatch) {
   EXPECT_EQ(format, PixelFormat::tiff16);
   ASSERT_TRUE(pixel_format_from_path("a.exr", format));
   EXPECT_EQ(format, PixelFormat::exr_float);
+  ASSERT_TRUE(pixel_format_from_path("a.TGA", format));
+  EXPECT_EQ(format, PixelFormat::tga8);
+  EXPECT_TRUE(format_matches_extension(PixelFormat::tga8, "a.tga"));
+  EXPECT_FALSE(format_matches_extension(PixelFormat::tga8, "a.png"));
+  EXPECT_TRUE(is_8bit(PixelFormat::tga8) && is_8bit(PixelFormat::png8) && !is_8bit(PixelFormat::png16));
   EXPECT_FALSE(pixel_format_from_path("a.jpg", format));
   EXPECT_FALSE(pixel_format_from_path("png", format));
   EXPECT_FALSE(pixel_format_from_path("dir.png/file", format));
@@ -212,6 +221,7 @@ TEST(ImageWrite, FilesHoldTheRequestedType) {
       {PixelFormat::png8, "png", "uint8", nullptr},        {PixelFormat::png16, "png", "uint16", nullptr},
       {PixelFormat::tiff16, "tiff", "uint16", "zip"},      {PixelFormat::exr_half, "openexr", "half", "zip"},
       {PixelFormat::exr_float, "openexr", "float", "zip"},  {PixelFormat::exr_float_piz, "openexr", "float", "piz"},
+      {PixelFormat::tga8, "targa", "uint8", nullptr},
   };
   for (const auto& c : cases) {
     SCOPED_TRACE(to_string(c.format));
@@ -591,6 +601,77 @@ TEST(ImagePng, SameBytesWithOneThreadOrAll) {
     one = image_detail::encode_png(image, 16);
   }
   EXPECT_EQ(all, one);
+}
+
+// Ordered dithering of 8-bit outputs: a flat 76.5-step grey becomes 76s
+// and 77s in about equal shares (rounding makes it all 77s), so the mean is kept;
+// every texel stays within one step; the pattern is a function of the
+// texel's index, the same in PNG and TGA, and in a row group of its own.
+TEST(ImageDither, KeepsTheMeanWithinOneStep) {
+  TempDir dir;
+  Image flat;
+  flat.width = 64;
+  flat.height = 40;
+  flat.channels = 3;
+  flat.pixels.assign(static_cast<std::size_t>(flat.width) * flat.height * 3, 76.5f / 255.0f);
+  for (const PixelFormat format : {PixelFormat::png8, PixelFormat::tga8}) {
+    SCOPED_TRACE(to_string(format));
+    const std::string path = dir.file(std::string("flat") + extension_of(format));
+    const std::string rounded = dir.file(std::string("round") + extension_of(format));
+    ASSERT_TRUE(write_image(flat, path, format, WriteOptions{true}).is_ok());
+    ASSERT_TRUE(write_image(flat, rounded, format).is_ok());
+    Image back, round_back;
+    ASSERT_TRUE(read_image(path, back).is_ok());
+    ASSERT_TRUE(read_image(rounded, round_back).is_ok());
+    double sum = 0.0;
+    int low = 0, high = 0;
+    for (std::size_t i = 0; i < back.pixels.size(); ++i) {
+      const long q = std::lround(back.pixels[i] * 255.0f);
+      ASSERT_TRUE(q == 76 || q == 77) << q;
+      (q == 76 ? low : high) += 1;
+      sum += static_cast<double>(q);
+      EXPECT_EQ(std::lround(round_back.pixels[i] * 255.0f), 77);
+    }
+    EXPECT_NEAR(static_cast<double>(low) / (low + high), 0.5, 0.01);
+    EXPECT_NEAR(sum / static_cast<double>(back.pixels.size()), 76.5, 0.01);
+    // Channels do not step together: some texel has 76 in one channel and 77 in another.
+    bool mixed = false;
+    for (std::size_t t = 0; t < back.pixels.size() / 3 && !mixed; ++t) {
+      mixed = std::lround(back.pixels[3 * t] * 255.0f) != std::lround(back.pixels[3 * t + 1] * 255.0f);
+    }
+    EXPECT_TRUE(mixed);
+  }
+  // Exact steps stay exact: k / 255 is k with or without the pattern.
+  Image steps = make_image(256, 3, 3);
+  for (std::size_t i = 0; i < steps.pixels.size(); ++i) steps.pixels[i] = static_cast<float>(i % 256) / 255.0f;
+  ASSERT_TRUE(write_image(steps, dir.file("steps.png"), PixelFormat::png8, WriteOptions{true}).is_ok());
+  Image back;
+  ASSERT_TRUE(read_image(dir.file("steps.png"), back).is_ok());
+  for (std::size_t i = 0; i < back.pixels.size(); ++i) ASSERT_EQ(std::lround(back.pixels[i] * 255.0f), static_cast<long>(i % 256));
+  // The same pixels in PNG and TGA.
+  const Image image = make_image(37, 29, 3);
+  ASSERT_TRUE(write_image(image, dir.file("d.png"), PixelFormat::png8, WriteOptions{true}).is_ok());
+  ASSERT_TRUE(write_image(image, dir.file("d.tga"), PixelFormat::tga8, WriteOptions{true}).is_ok());
+  Image a, b;
+  ASSERT_TRUE(read_image(dir.file("d.png"), a).is_ok());
+  ASSERT_TRUE(read_image(dir.file("d.tga"), b).is_ok());
+  EXPECT_EQ(a.pixels, b.pixels);
+}
+
+TEST(ImageDither, SameBytesWithOneThreadOrAllAndNoTimestampInTga) {
+  TempDir dir;
+  const Image image = make_image(512, 700, 3);  // several PNG row groups
+  const std::vector<std::uint8_t> all = image_detail::encode_png(image, 8, true);
+  std::vector<std::uint8_t> one;
+  {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
+    one = image_detail::encode_png(image, 8, true);
+  }
+  EXPECT_EQ(all, one);
+  EXPECT_NE(all, image_detail::encode_png(image, 8, false));
+  ASSERT_TRUE(write_image(image, dir.file("a.tga"), PixelFormat::tga8, WriteOptions{true}).is_ok());
+  ASSERT_TRUE(write_image(image, dir.file("b.tga"), PixelFormat::tga8, WriteOptions{true}).is_ok());
+  EXPECT_EQ(read_bytes(dir.file("a.tga")), read_bytes(dir.file("b.tga")));
 }
 
 // Our EXR writer against OpenEXR itself (read back through OpenImageIO) and

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
@@ -255,6 +256,55 @@ TEST_F(PreviewRender, CliModesAndBadInput) {
                                          dir_->file("high.ply") + " -o " + dir_->file("x.png"));
   EXPECT_EQ(missing.exit_code, 2) << missing.output;
   EXPECT_FALSE(std::filesystem::exists(dir_->file("x.png")));
+}
+
+// A map baked for Godot (per-vertex bitangent, normalised frame, z
+// rebuilt) and previewed with that decode: the error panel's mean is at the
+// level of a default bake previewed the default way; read with the default
+// decode it is not. A coarse low sphere (frames far from orthonormal).
+TEST(PreviewRenderSphere, DecodesAsThePresetSays) {
+  scenes::SphereParams params;
+  params.low_cells = 2;
+  params.high_cells = 32;
+  params.amplitude = 0.05f;
+  scenes::ScenePair scene = scenes::make_displaced_sphere(params);
+  MeshStats mesh_stats;
+  prepare_low_normals(scene.low, mesh_stats);
+  normalize_normals(scene.high, mesh_stats);
+  pad_for_embree(scene.high);
+  SurfaceStats surface_stats;
+  const LowSurface surface = build_low_surface(scene.low, nullptr, surface_stats);
+  HighScene high_scene;
+  ASSERT_TRUE(HighScene::build(scene.high, BuildQuality::medium, false, high_scene).is_ok());
+  TexelSamples samples;
+  RasterStats raster_stats;
+  rasterize(surface, 256, 256, 1, samples, raster_stats);
+  RayOptions rays;
+  rays.front = rays.back = 0.2f;
+  Hits hits;
+  TraceStats trace_stats;
+  trace(high_scene, surface, samples, rays, hits, trace_stats);
+  EncodeOptions encode_options;
+  encode_options.decode = {Bitangent::vertex, true, true};
+  Image map;
+  EncodeStats encode_stats;
+  encode(surface, samples, scene.high, hits, encode_options, map, encode_stats);
+  DilateStats dilate_stats;
+  dilate(map, samples.coverage, 8, dilate_stats);
+
+  PreviewOptions options;
+  options.view.size = 64;
+  options.view.supersample = 1;
+  options.front = options.back = {Distance::Kind::absolute, 0.2f};
+  Image sheet;
+  PreviewStats right, wrong;
+  options.decode = encode_options.decode;
+  ASSERT_TRUE(render_preview(surface, scene.high, map, options, sheet, right).is_ok());
+  options.decode = NormalDecode{};
+  ASSERT_TRUE(render_preview(surface, scene.high, map, options, sheet, wrong).is_ok());
+  std::printf("godot map: godot decode mean %.4f deg, default decode mean %.4f deg\n", right.all.mean_degrees,
+              wrong.all.mean_degrees);
+  EXPECT_LT(right.all.mean_degrees, 0.6 * wrong.all.mean_degrees);
 }
 
 // --- Tangent-frame views -----------------------------------------------------

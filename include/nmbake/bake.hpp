@@ -90,6 +90,14 @@ struct BakeOptions {
   // Memory the bake may use (budget.hpp): refused up front, with the numbers,
   // when its estimate is larger. 0: the memory available to the process.
   std::uint64_t max_memory_bytes = 0;
+  // Outputs as engines want them (preset.hpp). `preset` names the engine
+  // preset the green convention and `decode` came from ("" none; for the
+  // report: explicit flags may have overridden parts of it). `decode`: how
+  // the engine decodes the map; the encode stores its exact inverse.
+  // `dither`: 8-bit outputs (png8, tga) ordered-dithered instead of rounded.
+  std::string preset;
+  NormalDecode decode;
+  bool dither = true;
 };
 
 // Checks options that need no file: sizes, sample count, outputs and formats,
@@ -129,6 +137,11 @@ struct BakeReport {
   TraceStats trace;
   EncodeStats encode;
   DilateStats dilate;
+  // How the map was encoded (BakeOptions::preset, decode, dither).
+  std::string preset;
+  GreenChannel green = GreenChannel::up;
+  NormalDecode decode;
+  bool dither = true;
   std::uint64_t estimate_probes = 0, estimate_probe_misses = 0;
   bool unwrapped = false;           // the low mesh had no UVs and was unwrapped
   std::string unwrapped_low_path;   // where the unwrapped low mesh was written

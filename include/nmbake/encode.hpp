@@ -7,9 +7,28 @@
 // green `down` (DirectX) negates t.y (tangent space only).
 // Samples of a texel are averaged in the space that is stored, then
 // renormalised. A miss keeps the low normal: (0, 0, 1) in tangent space.
+//
+// Engines do not all decode that way (preset.hpp): NormalDecode says how the
+// renderer the map is for decodes it, and the encode stores the exact inverse
+// of that decode instead:
+//  * bitangent `vertex`: B is computed per vertex, B_c = sign_c cross(N_c, T_c)
+//    (LowSurface::bitangent), and interpolated like T and N; `pixel` (the
+//    default, MikkTSpace's own) computes B = sign cross(N, T) from the
+//    interpolated N and T;
+//  * unit_frame: the renderer normalises the interpolated T, B and N before
+//    the decode (n = normalize(t.x T/|T| + t.y B/|B| + t.z N/|N|));
+//  * rebuild_blue: the renderer ignores the blue channel and rebuilds
+//    z = sqrt(max(0, 1 - x^2 - y^2)) (two-channel BC5 / RGTC maps): a texel
+//    whose t.z < 0 (below the low surface's horizon, which no such decode can
+//    give back) is stored on the horizon, (x, y) normalised and z = 0, and
+//    counted; every other texel is already the unit vector the decode rebuilds.
+// For any decode: t = normalize(M^-1 n_high), M = [T B N] with the columns
+// the renderer uses (Cramer's rule with the rows B x N, N x T, T x B).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
+#include <string>
 
 #include "nmbake/image.hpp"
 #include "nmbake/raster.hpp"
@@ -22,12 +41,26 @@ enum class NormalSpace : std::uint8_t { tangent, object };
 enum class GreenChannel : std::uint8_t { up, down };
 enum class HighNormals : std::uint8_t { smooth, face };
 enum class TangentEncode : std::uint8_t { inverse, transpose };  // transpose: for the method comparison only
+enum class Bitangent : std::uint8_t { pixel, vertex };
+
+// How the renderer a map is baked for decodes it (see the top of this file).
+// The default is MikkTSpace's per-pixel decode, what nmbake always baked.
+struct NormalDecode {
+  Bitangent bitangent = Bitangent::pixel;
+  bool unit_frame = false;    // T, B, N normalised before the decode
+  bool rebuild_blue = false;  // z rebuilt from x and y; blue ignored
+  bool is_default() const { return bitangent == Bitangent::pixel && !unit_frame && !rebuild_blue; }
+  bool operator==(const NormalDecode&) const = default;
+};
+const char* to_string(Bitangent bitangent);
+bool parse_bitangent(const std::string& text, Bitangent& out);  // "pixel", "vertex"
 
 struct EncodeOptions {
   NormalSpace space = NormalSpace::tangent;
   GreenChannel green = GreenChannel::up;
   HighNormals high_normals = HighNormals::smooth;
   TangentEncode tangent_encode = TangentEncode::inverse;
+  NormalDecode decode;  // tangent space only
   // Map row held by row 0 of `out`: 0 for a whole map; a tile of rows
   // (task.hpp) keeps only its own rows.
   int out_row_begin = 0;
@@ -37,6 +70,7 @@ struct EncodeStats {
   std::uint64_t singular_frames = 0;    // det(M) ~ 0: Gram-Schmidt frame + transpose used
   std::uint64_t zero_high_normals = 0;  // interpolated high normal of length ~0: face normal used
   std::uint64_t zero_results = 0;       // averaged texel normal of length ~0: low normal kept
+  std::uint64_t below_horizon = 0;      // rebuild_blue: texels with t.z < 0 stored on the horizon
 };
 
 // Writes the rows of `samples` (a whole image, or the band of rows starting
@@ -56,6 +90,22 @@ bool world_to_tangent(const glm::vec3& n, const glm::vec3& T, const glm::vec3& N
 
 // The MikkTSpace decode a renderer does.
 glm::vec3 tangent_to_world(const glm::vec3& t, const glm::vec3& T, const glm::vec3& N, float sign);
+
+// The same pair for any decode: B is the bitangent the renderer uses (sign
+// cross(N, T) per pixel, or the interpolated per-vertex one), unit_frame as
+// in NormalDecode. world_to_tangent returns false (and the Gram-Schmidt
+// fallback of the per-pixel frame) when [T B N] is singular. rebuild_blue is
+// not applied here (it acts on the stored texel, see encode()).
+bool world_to_tangent(const glm::vec3& n, const glm::vec3& T, const glm::vec3& B, const glm::vec3& N, float sign,
+                      bool unit_frame, glm::vec3& out);
+glm::vec3 tangent_to_world(const glm::vec3& t, const glm::vec3& T, const glm::vec3& B, const glm::vec3& N,
+                           bool unit_frame);
+// The bitangent a decode uses at barycentrics b of low triangle `triangle`.
+glm::vec3 decode_bitangent(const LowSurface& surface, std::size_t triangle, glm::vec2 b, Bitangent rule);
+// What rebuild_blue stores for a unit t: t itself when t.z >= 0, else the
+// horizon direction (x, y, 0) normalised ((0, 0, 1) when x = y = 0). False
+// when t was moved.
+bool onto_upper_hemisphere(glm::vec3& t);
 
 namespace detail {
 // For tests: encode() with `lanes` samples at a time: 1 (every sample on its

@@ -1,5 +1,5 @@
 // A float RGB(A) image in memory, and the "write" stage: 8/16-bit PNG and
-// half/float EXR (our own encoders), 16-bit TIFF (OpenImageIO), written to a
+// half/float EXR (our own encoders), 16-bit TIFF and 8-bit TGA (OpenImageIO), written to a
 // temporary file in the target's folder and renamed, so a failed bake never
 // leaves a half-written map. OpenImageIO is a module loaded on first use
 // (src/image_oiio.hpp); its types never leave it.
@@ -28,12 +28,15 @@ struct Image {
 // exr_half and exr_float are ZIP-compressed by our own writer (fast; float
 // data barely shrinks under ZIP); exr_float_piz is float with PIZ through
 // OpenImageIO: about a third smaller, about ten times slower to write.
-enum class PixelFormat : std::uint8_t { png8, png16, tiff16, exr_half, exr_float, exr_float_piz };
+// tga8: uncompressed 8-bit Targa through OpenImageIO.
+enum class PixelFormat : std::uint8_t { png8, png16, tiff16, exr_half, exr_float, exr_float_piz, tga8 };
 
 const char* to_string(PixelFormat format);
-// "png8", "png16", "tiff16", "exr-half", "exr-float", "exr-float-piz".
+// "png8", "png16", "tiff16", "exr-half", "exr-float", "exr-float-piz", "tga".
 bool parse_pixel_format(const std::string& text, PixelFormat& out);
-// From the file extension: .png -> png16, .tif/.tiff -> tiff16, .exr -> exr_float.
+// Whether the format stores 8 bits a sample (png8, tga8): the ones dithered.
+bool is_8bit(PixelFormat format);
+// From the file extension: .png -> png16, .tif/.tiff -> tiff16, .exr -> exr_float, .tga -> tga8.
 bool pixel_format_from_path(const std::string& path, PixelFormat& out);
 // Whether `format` can be written to a file with this extension.
 bool format_matches_extension(PixelFormat format, const std::string& path);
@@ -53,7 +56,17 @@ bool format_matches_extension(PixelFormat format, const std::string& path);
 // (NaN or infinity: callers must never pass one); bad_input for a format
 // that does not match the extension; io for a missing folder or a failed
 // OpenImageIO call or rename. Messages name the path.
-Status write_image(const Image& image, const std::string& path, PixelFormat format);
+//
+// WriteOptions::dither: 8-bit formats are quantised with ordered dithering
+// (quantise.hpp: a quasirandom R2 threshold from the texel's index, fixed,
+// never random) instead of rounding; other formats ignore it. Off by default here:
+// bake() turns it on for maps (BakeOptions::dither), previews and debug
+// images stay rounded.
+struct WriteOptions {
+  bool dither = false;
+};
+Status write_image(const Image& image, const std::string& path, PixelFormat format,
+                   const WriteOptions& options = {});
 
 // Whether `format` can be written here: always for PNG and ZIP EXR; for TIFF
 // and PIZ EXR,

@@ -70,6 +70,10 @@ struct PreviewOptions {
   int turntable = 1;  // views in the sheet, yaw + 360 k / turntable (k = 0 .. turntable - 1)
   NormalSpace space = NormalSpace::tangent;
   GreenChannel green = GreenChannel::up;
+  // How the map's engine decodes it (encode.hpp, preset.hpp): the map is
+  // decoded the same way, so a map baked with --preset X is previewed with
+  // --preset X.
+  NormalDecode decode;
   // The bake's ray rule, used to find the high normal the baker should have
   // stored at each low point (auto distances are estimated as the baker does).
   Distance front;

@@ -21,6 +21,9 @@ struct LowSurface {
   std::vector<glm::vec3> normal;       // unit shading normal
   std::vector<glm::vec2> uv;
   std::vector<glm::vec4> tangent;      // MikkTSpace: xyz, sign in w
+  // sign cross(normal, tangent.xyz) per corner: the bitangent a renderer
+  // that computes B per vertex interpolates (NormalDecode, encode.hpp).
+  std::vector<glm::vec3> bitangent;
   std::vector<glm::vec3> cage_normal;  // unit averaged normal: where the default cage is pushed
   std::vector<glm::vec3> cage_position;  // explicit cage mesh corners; empty without --cage
   std::vector<std::uint32_t> group;       // bake group per triangle (parts.hpp); empty: one group
@@ -41,6 +44,10 @@ struct SurfaceStats {
 LowSurface build_low_surface(const Mesh& low, const Mesh* cage, SurfaceStats& stats);
 // The same with another tangent basis (tangents.hpp), for the accuracy lab.
 LowSurface build_low_surface(const Mesh& low, const Mesh* cage, TangentBasis basis, SurfaceStats& stats);
+
+// Fills surface.bitangent from its normals and tangents (build_low_surface
+// does; for surfaces made by hand).
+void fill_corner_bitangents(LowSurface& surface);
 
 // A cage mesh must have the same triangles as the low mesh: same triangle
 // count and, corner by corner, the same vertex identity pattern (two corners

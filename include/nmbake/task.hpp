@@ -52,6 +52,7 @@ struct TileData {
   int row_begin = 0, row_end = 0;
   int index = 0, count = 1;
   int padding = 0;
+  bool dither = true;  // the bake's BakeOptions::dither, for the 8-bit outputs merge writes
   std::vector<OutputSpec> outputs;
   std::vector<float> pixels;            // (row_end - row_begin) * width * 3
   std::vector<std::uint8_t> coverage;   // (row_end - row_begin) * width

@@ -15,6 +15,7 @@
 #include "nmbake/budget.hpp"
 #include "nmbake/cleanup.hpp"
 #include "nmbake/job.hpp"
+#include "nmbake/preset.hpp"
 #include "nmbake/task.hpp"
 #include "progress.hpp"
 
@@ -28,7 +29,7 @@ struct BakeFlags {
   std::vector<std::string> outputs;
   std::string size = "2048";
   int samples = 4;
-  std::string space = "tangent", green = "up", front = "auto", back = "auto", hit = "first";
+  std::string space = "tangent", front = "auto", back = "auto", hit = "first";
   std::string cage_mode = "averaged", high_normals = "smooth", build_quality = "low", encode = "inverse", bvh = "auto";
   std::string format;
   std::string tangent_basis = "mikktspace";
@@ -45,6 +46,10 @@ struct BakeFlags {
   bool keep_going = false;      // a job: run the other bakes after one fails
   std::string job_report;       // a job: write each bake's status here (JSON)
   std::string max_memory;       // empty: the memory available to the process
+  // Outputs as engines want them: a preset, then the flags given explicitly
+  // ("" = not given), which override it whatever their order.
+  std::string preset, green, bitangent, tbn, blue;
+  std::string dither = "on";
 };
 
 int fail(const Status& status) {
@@ -81,7 +86,28 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
   if (!parse_size(f.size, o.width, o.height)) return Status::bad_input("--size " + f.size + ": expected N or WxH");
   o.samples = f.samples;
   if (!parse_normal_space(f.space, o.space)) return Status::bad_input("--space " + f.space + ": expected tangent or object");
-  if (!parse_green_channel(f.green, o.green)) return Status::bad_input("--green " + f.green + ": expected up or down");
+  if (!f.preset.empty()) {
+    EnginePreset preset;
+    if (!find_engine_preset(f.preset, preset)) {
+      return Status::bad_input("--preset " + f.preset + ": expected one of " + engine_preset_names());
+    }
+    o.preset = f.preset;
+    apply_engine_preset(preset, {}, o.green, o.decode);
+  }
+  if (!f.green.empty() && !parse_green_channel(f.green, o.green)) {
+    return Status::bad_input("--green " + f.green + ": expected up or down");
+  }
+  if (!f.bitangent.empty() && !parse_bitangent(f.bitangent, o.decode.bitangent)) {
+    return Status::bad_input("--bitangent " + f.bitangent + ": expected pixel or vertex");
+  }
+  if (!f.tbn.empty() && !parse_frame_rule(f.tbn, o.decode.unit_frame)) {
+    return Status::bad_input("--tbn " + f.tbn + ": expected raw or normalized");
+  }
+  if (!f.blue.empty() && !parse_blue_rule(f.blue, o.decode.rebuild_blue)) {
+    return Status::bad_input("--blue " + f.blue + ": expected stored or rebuilt");
+  }
+  if (f.dither != "on" && f.dither != "off") return Status::bad_input("--dither " + f.dither + ": expected on or off");
+  o.dither = f.dither == "on";
   if (!parse_hit_rule(f.hit, o.hit)) return Status::bad_input("--hit " + f.hit + ": expected first or nearest");
   if (!parse_cage_mode(f.cage_mode, o.cage_mode)) return Status::bad_input("--cage-mode " + f.cage_mode + ": expected averaged or interpolated");
   if (!parse_high_normals(f.high_normals, o.high_normals)) return Status::bad_input("--high-normals " + f.high_normals + ": expected smooth or face");
@@ -113,10 +139,10 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
     out.path = path;
     if (!f.format.empty()) {
       if (!parse_pixel_format(f.format, out.format)) {
-        return Status::bad_input("--format " + f.format + ": expected png8, png16, tiff16, exr-half, exr-float or exr-float-piz");
+        return Status::bad_input("--format " + f.format + ": expected png8, png16, tiff16, exr-half, exr-float, exr-float-piz or tga");
       }
     } else if (!pixel_format_from_path(path, out.format)) {
-      return Status::bad_input(path + ": unknown image extension (use .png, .tif, .tiff or .exr)");
+      return Status::bad_input(path + ": unknown image extension (use .png, .tif, .tiff, .exr or .tga)");
     }
     o.outputs.push_back(out);
   }
@@ -382,11 +408,10 @@ Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--low", flags->low, "low-poly mesh with UVs (OBJ, PLY, glTF/GLB, FBX, DAE, 3DS)");
   cmd->add_option("--high", flags->high, "high-poly mesh (OBJ, PLY, glTF/GLB, FBX, DAE, 3DS, STL)");
   cmd->add_option("--cage", flags->cage, "cage mesh with the low mesh's topology (default: averaged-normal cage)");
-  cmd->add_option("-o,--output", flags->outputs, "output map(s): .png (16-bit), .tif, .exr; repeat for several")->allow_extra_args(false);
+  cmd->add_option("-o,--output", flags->outputs, "output map(s): .png (16-bit), .tif, .exr, .tga (8-bit); repeat for several")->allow_extra_args(false);
   cmd->add_option("--size", flags->size, "map size, N or WxH")->default_val("2048");
   cmd->add_option("--samples", flags->samples, "samples per texel: 1, 4, 16, 64")->default_val(4);
   cmd->add_option("--space", flags->space, "tangent | object")->default_val("tangent");
-  cmd->add_option("--green", flags->green, "up (OpenGL: Blender, Unity, glTF) | down (DirectX: Unreal)")->default_val("up");
   cmd->add_option("--front", flags->front, "cage distance outside the low surface: units, N% of the bbox diagonal, auto")->default_val("auto");
   cmd->add_option("--back", flags->back, "search distance inside the low surface: units, N%, auto")->default_val("auto");
   cmd->add_option("--hit", flags->hit, "first (from the cage) | nearest (to the low surface)")->default_val("first");
@@ -394,7 +419,7 @@ Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_flag("--ignore-backfaces", flags->ignore_backfaces, "skip high triangles that face away from the ray");
   cmd->add_option("--high-normals", flags->high_normals, "smooth (interpolated vertex normals) | face")->default_val("smooth");
   cmd->add_option("--padding", flags->padding, "texels of dilation around charts")->default_val(16);
-  cmd->add_option("--format", flags->format, "png8 | png16 | tiff16 | exr-half | exr-float | exr-float-piz (default: from the extension)");
+  cmd->add_option("--format", flags->format, "png8 | png16 | tiff16 | exr-half | exr-float | exr-float-piz | tga (default: from the extension)");
   cmd->add_option("--report", flags->report, "write the bake report (JSON) here");
   cmd->add_option("--max-miss-rate", flags->max_miss_rate, "exit 1 when more than this share of rays miss (0..1)")->check(CLI::Range(0.0, 1.0));
   cmd->add_option("--build-quality", flags->build_quality, "BVH build quality: low | medium | high")->default_val("low");
@@ -423,6 +448,23 @@ Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--job-report", flags->job_report, "a job: write each bake's status and outputs here (JSON)");
   cmd->add_option("--max-memory", flags->max_memory,
                   "refuse a bake whose estimated memory is above this (e.g. 8G; default: what is available)");
+  // Outputs as engines want them (README): one block, so other option
+  // blocks merge beside it.
+  cmd->add_option("--preset", flags->preset,
+                  "engine the map is for: " + engine_preset_names() +
+                      " (sets --green, --bitangent, --tbn, --blue; each of those given too overrides it, in any order)");
+  cmd->add_option("--green", flags->green, "up (OpenGL: Blender, Unity, glTF, Maya) | down (DirectX: Unreal, 3ds Max)")
+      ->default_str("up");
+  cmd->add_option("--bitangent", flags->bitangent,
+                  "how the engine gets B: pixel (sign cross(N, T) from the interpolated N, T) | vertex (per vertex, "
+                  "interpolated)")
+      ->default_str("pixel");
+  cmd->add_option("--tbn", flags->tbn, "the engine's T, B, N before the decode: raw (interpolated) | normalized")
+      ->default_str("raw");
+  cmd->add_option("--blue", flags->blue, "the engine's z: stored (read from blue) | rebuilt (sqrt(1 - x^2 - y^2), BC5)")
+      ->default_str("stored");
+  cmd->add_option("--dither", flags->dither, "8-bit outputs (png8, tga): on (ordered dither) | off (rounded)")
+      ->default_val("on");
   cmd->add_option("--debug-dump", flags->debug_dump, "also write PREFIX_coverage.png, PREFIX_misses.png, PREFIX_distance.exr");
   return [flags, &global, cmd]() { return run_bake(*flags, global, *cmd); };
 }

@@ -7,6 +7,7 @@
 #include "commands.hpp"
 #include "nmbake/image.hpp"
 #include "nmbake/job.hpp"
+#include "nmbake/preset.hpp"
 #include "nmbake/preview.hpp"
 
 namespace nmbake::cli {
@@ -59,7 +60,7 @@ void add_view_flags(CLI::App* cmd, ViewFlags& f, int default_size) {
 namespace {
 
 struct PreviewFlags {
-  std::string map, output, green = "up", low, high, space = "tangent", front = "auto", back = "auto",
+  std::string map, output, green, preset, bitangent, tbn, blue, low, high, space = "tangent", front = "auto", back = "auto",
                            hit = "first";
   int max_size = 1024;
   int turntable = 1;
@@ -77,8 +78,22 @@ int run_preview_3d(const PreviewFlags& f, const GlobalOptions& global, const Ima
   if (const Status s = parse_view_flags(f.view, options.view); !s) return fail(s);
   options.turntable = f.turntable;
   options.heat_max_degrees = f.heat_max;
-  if (!parse_green_channel(f.green, options.green))
+  // A preset first, then the flags given explicitly, as `bake` does.
+  if (!f.preset.empty()) {
+    EnginePreset preset;
+    if (!find_engine_preset(f.preset, preset)) {
+      return fail(Status::bad_input("--preset " + f.preset + ": expected one of " + engine_preset_names()));
+    }
+    apply_engine_preset(preset, {}, options.green, options.decode);
+  }
+  if (!f.green.empty() && !parse_green_channel(f.green, options.green))
     return fail(Status::bad_input("--green " + f.green + ": expected up or down"));
+  if (!f.bitangent.empty() && !parse_bitangent(f.bitangent, options.decode.bitangent))
+    return fail(Status::bad_input("--bitangent " + f.bitangent + ": expected pixel or vertex"));
+  if (!f.tbn.empty() && !parse_frame_rule(f.tbn, options.decode.unit_frame))
+    return fail(Status::bad_input("--tbn " + f.tbn + ": expected raw or normalized"));
+  if (!f.blue.empty() && !parse_blue_rule(f.blue, options.decode.rebuild_blue))
+    return fail(Status::bad_input("--blue " + f.blue + ": expected stored or rebuilt"));
   if (!parse_normal_space(f.space, options.space)) {
     return fail(Status::bad_input("--space " + f.space + ": expected tangent or object"));
   }
@@ -150,7 +165,13 @@ int run_preview(const PreviewFlags& f, const GlobalOptions& global) {
   if (three_d) return run_preview_3d(f, global, map);
 
   LitMapOptions options;
-  if (!parse_green_channel(f.green, options.green)) {
+  EnginePreset preset;
+  if (!f.preset.empty() && !find_engine_preset(f.preset, preset)) {
+    std::fprintf(stderr, "nmbake: error: --preset %s: expected one of %s\n", f.preset.c_str(), engine_preset_names().c_str());
+    return kBadInput;
+  }
+  if (!f.preset.empty()) options.green = preset.green;
+  if (!f.green.empty() && !parse_green_channel(f.green, options.green)) {
     std::fprintf(stderr, "nmbake: error: --green %s: expected up or down\n", f.green.c_str());
     return kBadInput;
   }
@@ -170,7 +191,13 @@ Runner add_preview_command(CLI::App& app, const GlobalOptions& global) {
                                      "--low/--high the sheet [high | low+map | error]");
   cmd->add_option("--map", flags->map, "the normal map")->required();
   cmd->add_option("-o,--output", flags->output, "the preview image (.png: 8-bit)")->required();
-  cmd->add_option("--green", flags->green, "the map's green convention: up | down")->default_val("up");
+  cmd->add_option("--green", flags->green, "the map's green convention: up | down")->default_str("up");
+  cmd->add_option("--preset", flags->preset,
+                  "the engine the map was baked for (bake --preset): " + engine_preset_names() +
+                      "; --green, --bitangent, --tbn, --blue given too override it");
+  cmd->add_option("--bitangent", flags->bitangent, "3D: how the map's engine gets B: pixel | vertex")->default_str("pixel");
+  cmd->add_option("--tbn", flags->tbn, "3D: the engine's T, B, N before the decode: raw | normalized")->default_str("raw");
+  cmd->add_option("--blue", flags->blue, "3D: the engine's z: stored | rebuilt (from red and green)")->default_str("stored");
   cmd->add_option("--max-size", flags->max_size, "lit map only: longest side of the preview")
       ->default_val(1024)
       ->check(CLI::Range(16, 16384));
