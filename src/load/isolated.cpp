@@ -2,6 +2,7 @@
 
 #include <poll.h>
 #include <signal.h>
+#include <sys/prctl.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -155,6 +156,12 @@ Status load_in_child(const std::string& path, const char* library, const ChildLo
     ::signal(SIGPIPE, SIG_IGN);
     ::signal(SIGXCPU, SIG_DFL);
     cap_address_space_at_available();
+    // A crash or a CPU limit in the library must end the child at once: no
+    // core dump (where core files are enabled, writing one takes longer than
+    // the deadline on a slow disk, and would leave a file behind).
+    const rlimit no_core{0, 0};
+    (void)::setrlimit(RLIMIT_CORE, &no_core);
+    (void)::prctl(PR_SET_DUMPABLE, 0, 0, 0, 0);
     // A file that sends the library into a loop ends as SIGXCPU (CPU time
     // does not depend on how busy the machine is; the parent's wall-clock
     // deadline below catches a child that waits instead).
