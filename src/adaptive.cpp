@@ -1,22 +1,29 @@
-// Adaptive sampling: the first pass's values and the rule that picks the
+// Adaptive sampling: the first pass's values and the rules that pick the
 // texels to refine (include/nmbake/adaptive.hpp). The refinement itself is
 // the bake's own raster (rasterize_selected), trace and encode.
 //
-// The rule is a second-difference test, as in the refinement criteria of
+// The level-1 rule is a contrast test between neighbouring samples, as in
 // adaptive anti-aliasing (Mitchell, "Generating Antialiased Images at Low
-// Sampling Densities", SIGGRAPH 1987, tests contrast between neighbouring
-// samples; here the contrast that matters for a box filter is curvature, not
-// slope).
+// Sampling Densities", SIGGRAPH 1987), on the second difference: for a box
+// filter the contrast that matters is curvature, not slope. Level 2 is the
+// classic recursive refinement of Whitted ("An Improved Illumination Model
+// for Shaded Display", CACM 1980): more samples where the samples taken
+// disagree.
 #include "nmbake/adaptive.hpp"
 
-#include <algorithm>
-#include <cmath>
-
-#include <glm/geometric.hpp>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
+#include <cmath>
+#include <glm/geometric.hpp>
+
 namespace nmbake {
+
+std::vector<int> adaptive_levels(const AdaptiveOptions& options) {
+  if (options.max_samples <= 4) return {4};
+  return {4, options.max_samples};
+}
 
 std::vector<float> texel_sizes(const LowSurface& surface, int width, int height) {
   const std::size_t triangles = surface.triangle_count();
@@ -25,8 +32,10 @@ std::vector<float> texel_sizes(const LowSurface& surface, int width, int height)
     const glm::vec3* p = &surface.position[3 * t];
     const glm::vec2* uv = &surface.uv[3 * t];
     const double world = 0.5 * static_cast<double>(glm::length(glm::cross(p[1] - p[0], p[2] - p[0])));
-    const glm::dvec2 a(static_cast<double>(uv[1].x - uv[0].x) * width, static_cast<double>(uv[1].y - uv[0].y) * height);
-    const glm::dvec2 b(static_cast<double>(uv[2].x - uv[0].x) * width, static_cast<double>(uv[2].y - uv[0].y) * height);
+    const glm::dvec2 a(static_cast<double>(uv[1].x - uv[0].x) * width,
+                       static_cast<double>(uv[1].y - uv[0].y) * height);
+    const glm::dvec2 b(static_cast<double>(uv[2].x - uv[0].x) * width,
+                       static_cast<double>(uv[2].y - uv[0].y) * height);
     const double texels = 0.5 * std::fabs(a.x * b.y - a.y * b.x);
     if (texels > 1e-12 && world > 0.0 && std::isfinite(world / texels)) {
       size[t] = static_cast<float>(std::sqrt(world / texels));
@@ -35,101 +44,99 @@ std::vector<float> texel_sizes(const LowSurface& surface, int width, int height)
   return size;
 }
 
-void first_pass_values(const TexelSamples& samples, const Hits& hits, const Mesh& high, bool smooth_high,
-                       const std::vector<float>& texel_size, FirstPass& out) {
+void first_pass_values(const TexelSamples& samples, const Hits& hits, const std::vector<float>& texel_size,
+                       FirstPass& out) {
   NMBAKE_CHECK(samples.samples == 1, "the first pass has one sample per texel");
-  const std::size_t texels = static_cast<std::size_t>(samples.width) * static_cast<std::size_t>(samples.height);
+  const std::size_t texels =
+      static_cast<std::size_t>(samples.width) * static_cast<std::size_t>(samples.height);
+  NMBAKE_CHECK(out.rgb.size() >= 3 * texels, "the first pass is encoded");
   out.width = samples.width;
   out.rows = samples.height;
-  out.state.assign(texels, FirstPass::none);
-  out.normal.assign(texels, glm::vec3(0.0f));
-  out.depth.assign(texels, 0.0f);
-  out.turn.assign(texels, 0.0f);
-  const bool smooth = smooth_high && high.has_normals();
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, texels, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t t = r.begin(); t != r.end(); ++t) {
-      const std::int32_t low = samples.triangle[t];
-      if (low < 0) continue;
-      const std::int32_t tri = hits.triangle[t];
-      if (tri < 0) {
-        out.state[t] = FirstPass::miss;
-        continue;
-      }
-      const std::uint32_t* v = &high.indices[3 * static_cast<std::size_t>(tri)];
-      const glm::vec2 b = hits.bary[t];
-      glm::vec3 n;
-      if (smooth) {
-        n = high.normals[v[0]] * (1.0f - b.x - b.y) + high.normals[v[1]] * b.x + high.normals[v[2]] * b.y;
-      } else {
-        const glm::vec3 a = high.positions[v[0]];
-        n = glm::cross(high.positions[v[1]] - a, high.positions[v[2]] - a);
-      }
-      const float l = glm::length(n);
-      // A normal that cannot be normalised counts as a miss: it is refined.
-      if (!(l > 0.0f) || !std::isfinite(l)) {
-        out.state[t] = FirstPass::miss;
-        continue;
-      }
-      out.state[t] = FirstPass::hit;
-      out.normal[t] = n / l;
-      const float size = texel_size[static_cast<std::size_t>(low)];
-      out.depth[t] = size > 0.0f ? hits.distance[t] / size : 0.0f;
-      if (smooth) {
-        float turn = 0.0f;
-        for (int e = 0; e < 3; ++e) {
-          const std::uint32_t i = v[e], j = v[(e + 1) % 3];
-          const float length = glm::length(high.positions[i] - high.positions[j]);
-          if (length > 0.0f) turn = std::max(turn, glm::length(high.normals[i] - high.normals[j]) / length);
-        }
-        out.turn[t] = turn * size;
-      }
-    }
-  });
+  out.state.resize(texels);
+  out.depth.resize(texels);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, texels, 4096),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t t = r.begin(); t != r.end(); ++t) {
+                        const std::int32_t low = samples.triangle[t];
+                        out.depth[t] = 0.0f;
+                        if (low < 0) {
+                          out.state[t] = FirstPass::none;
+                        } else if (hits.triangle[t] < 0) {
+                          out.state[t] = FirstPass::miss;
+                        } else {
+                          out.state[t] = FirstPass::hit;
+                          const float size = texel_size[static_cast<std::size_t>(low)];
+                          out.depth[t] = size > 0.0f ? hits.distance[t] / size : 0.0f;
+                        }
+                      }
+                    });
 }
 
 FirstPass first_pass_row(const FirstPass& from, int row) {
   FirstPass out;
   out.width = from.width;
   out.rows = 1;
-  const auto begin = static_cast<std::size_t>(row) * static_cast<std::size_t>(from.width);
-  const auto end = begin + static_cast<std::size_t>(from.width);
-  out.state.assign(from.state.begin() + static_cast<std::ptrdiff_t>(begin), from.state.begin() + static_cast<std::ptrdiff_t>(end));
-  out.normal.assign(from.normal.begin() + static_cast<std::ptrdiff_t>(begin), from.normal.begin() + static_cast<std::ptrdiff_t>(end));
-  out.depth.assign(from.depth.begin() + static_cast<std::ptrdiff_t>(begin), from.depth.begin() + static_cast<std::ptrdiff_t>(end));
-  out.turn.assign(from.turn.begin() + static_cast<std::ptrdiff_t>(begin), from.turn.begin() + static_cast<std::ptrdiff_t>(end));
+  const auto begin = static_cast<std::ptrdiff_t>(row) * from.width;
+  const auto end = begin + from.width;
+  out.state.assign(from.state.begin() + begin, from.state.begin() + end);
+  out.rgb.assign(from.rgb.begin() + 3 * begin, from.rgb.begin() + 3 * end);
+  out.depth.assign(from.depth.begin() + begin, from.depth.begin() + end);
   return out;
 }
 
 namespace {
 
-// A texel's first-pass values, or none outside the band and its two rows.
-struct Sample {
-  std::uint8_t state = FirstPass::none;
-  glm::vec3 normal{0.0f};
-  float depth = 0.0f;
-  float turn = 0.0f;
+// One row of first-pass values (null outside the band and its two rows).
+struct Row {
+  const std::uint8_t* state = nullptr;
+  const float* rgb = nullptr;
+  const float* depth = nullptr;
 };
 
-bool refine(const Sample& centre, const Sample (&around)[8], const AdaptiveOptions& o) {
-  if (centre.state == FirstPass::none) return false;
-  if (centre.state == FirstPass::miss) return true;
-  if (centre.turn > o.turn_threshold) return true;
-  for (const Sample& s : around) {
-    if (s.state == FirstPass::miss) return true;
+Row row_of(const FirstPass& f, int row) {
+  if (f.rows == 0) return {};
+  const std::size_t at = static_cast<std::size_t>(row) * static_cast<std::size_t>(f.width);
+  return {f.state.data() + at, f.rgb.data() + 3 * at, f.depth.data() + at};
+}
+
+// The stored vector of an encoded texel (the encoding is affine: second
+// differences of rgb are half those of the vector).
+inline glm::vec3 stored(const float* rgb, int x) {
+  return glm::vec3(rgb[3 * x], rgb[3 * x + 1], rgb[3 * x + 2]) * 2.0f - 1.0f;
+}
+
+// Level 1 for texel x of row `mid` between rows `up` and `down`.
+bool refine(const Row& up, const Row& mid, const Row& down, int x, int width, const AdaptiveOptions& o) {
+  if (mid.state[x] == FirstPass::miss || o.normal_threshold <= 0.0f) return true;
+  const auto state = [&](const Row& r, int i) {
+    return r.state != nullptr && i >= 0 && i < width ? r.state[i] : std::uint8_t{FirstPass::none};
+  };
+  for (const Row* r : {&up, &mid, &down}) {
+    for (int i = x - 1; i <= x + 1; ++i) {
+      if (state(*r, i) == FirstPass::miss) return true;
+    }
   }
+  const glm::vec3 centre = stored(mid.rgb, x);
+  const float depth = mid.depth[x];
   // Opposite pairs: left/right, up/down and the two diagonals.
-  static constexpr int kPairs[4][2] = {{3, 4}, {1, 6}, {0, 7}, {2, 5}};
-  for (const auto& pair : kPairs) {
-    const Sample& a = around[pair[0]];
-    const Sample& b = around[pair[1]];
-    const bool has_a = a.state == FirstPass::hit, has_b = b.state == FirstPass::hit;
+  const struct {
+    const Row* a;
+    int ax;
+    const Row* b;
+    int bx;
+  } pairs[4] = {
+      {&mid, x - 1, &mid, x + 1}, {&up, x, &down, x}, {&up, x - 1, &down, x + 1}, {&up, x + 1, &down, x - 1}};
+  for (const auto& p : pairs) {
+    const bool has_a = state(*p.a, p.ax) == FirstPass::hit, has_b = state(*p.b, p.bx) == FirstPass::hit;
     if (has_a && has_b) {
-      if (glm::length(a.normal + b.normal - 2.0f * centre.normal) > o.normal_threshold) return true;
-      if (std::fabs(a.depth + b.depth - 2.0f * centre.depth) > o.depth_threshold) return true;
+      if (glm::length(stored(p.a->rgb, p.ax) + stored(p.b->rgb, p.bx) - 2.0f * centre) > o.normal_threshold)
+        return true;
+      if (std::fabs(p.a->depth[p.ax] + p.b->depth[p.bx] - 2.0f * depth) > o.depth_threshold) return true;
     } else if (has_a || has_b) {
-      const Sample& one = has_a ? a : b;
-      if (glm::length(one.normal - centre.normal) > o.border_threshold) return true;
-      if (std::fabs(one.depth - centre.depth) > o.depth_threshold) return true;
+      const Row& one = has_a ? *p.a : *p.b;
+      const int i = has_a ? p.ax : p.bx;
+      if (glm::length(stored(one.rgb, i) - centre) > o.border_threshold) return true;
+      if (std::fabs(one.depth[i] - depth) > o.depth_threshold) return true;
     }
   }
   return false;
@@ -141,46 +148,79 @@ void refine_texels(const FirstPass& above, const FirstPass& band, const FirstPas
                    const AdaptiveOptions& options, std::vector<std::uint32_t>& refined) {
   const int width = band.width;
   const int rows = band.rows;
-  // Row y of the band, -1 = above, rows = below.
-  const auto at = [&](int x, int y) {
-    Sample s;
-    if (x < 0 || x >= width) return s;
-    const FirstPass* from = &band;
-    int row = y;
-    if (y < 0) {
-      from = &above;
-      row = 0;
-    } else if (y >= rows) {
-      from = &below;
-      row = 0;
-    }
-    if (from->rows == 0) return s;
-    const std::size_t i = static_cast<std::size_t>(row) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x);
-    s.state = from->state[i];
-    s.normal = from->normal[i];
-    s.depth = from->depth[i];
-    s.turn = from->turn[i];
-    return s;
-  };
   // Per row, then joined in row order: the list is the same for any thread count.
   std::vector<std::vector<std::uint32_t>> per_row(static_cast<std::size_t>(rows));
   tbb::parallel_for(0, rows, [&](int y) {
+    const Row up = y > 0 ? row_of(band, y - 1) : row_of(above, 0);
+    const Row mid = row_of(band, y);
+    const Row down = y + 1 < rows ? row_of(band, y + 1) : row_of(below, 0);
     std::vector<std::uint32_t>& list = per_row[static_cast<std::size_t>(y)];
+    const std::size_t first = static_cast<std::size_t>(y) * static_cast<std::size_t>(width);
     for (int x = 0; x < width; ++x) {
-      const Sample centre = at(x, y);
-      if (centre.state == FirstPass::none) continue;
-      // Neighbours in reading order: row above (left, centre, right), then
-      // left and right, then the row below.
-      const Sample around[8] = {at(x - 1, y - 1), at(x, y - 1), at(x + 1, y - 1), at(x - 1, y),
-                                at(x + 1, y),     at(x - 1, y + 1), at(x, y + 1), at(x + 1, y + 1)};
-      if (refine(centre, around, options)) {
-        list.push_back(static_cast<std::uint32_t>(static_cast<std::size_t>(y) * static_cast<std::size_t>(width) +
-                                                  static_cast<std::size_t>(x)));
+      if (mid.state[x] != FirstPass::none && refine(up, mid, down, x, width, options)) {
+        list.push_back(static_cast<std::uint32_t>(first + static_cast<std::size_t>(x)));
       }
     }
   });
   refined.clear();
-  for (const std::vector<std::uint32_t>& list : per_row) refined.insert(refined.end(), list.begin(), list.end());
+  for (const std::vector<std::uint32_t>& list : per_row)
+    refined.insert(refined.end(), list.begin(), list.end());
+}
+
+void spread_texels(const TexelSamples& samples, const Hits& hits, const Mesh& high, bool smooth_high,
+                   const std::uint32_t* texels, const AdaptiveOptions& options,
+                   std::vector<std::uint32_t>& out) {
+  const std::size_t count = static_cast<std::size_t>(samples.width);
+  const std::size_t spp = static_cast<std::size_t>(samples.samples);
+  const bool smooth = smooth_high && high.has_normals();
+  std::vector<std::uint8_t> spread(count, 0);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 1024),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      glm::vec3 normal[64];
+                      for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                        int found = 0, missed = 0;
+                        glm::vec3 sum(0.0f);
+                        for (std::size_t k = 0; k < spp && k < 64; ++k) {
+                          const std::size_t s = i * spp + k;
+                          if (samples.triangle[s] < 0) continue;
+                          const std::int32_t tri = hits.triangle[s];
+                          if (tri < 0) {
+                            ++missed;
+                            continue;
+                          }
+                          const std::uint32_t* v = &high.indices[3 * static_cast<std::size_t>(tri)];
+                          const glm::vec2 b = hits.bary[s];
+                          glm::vec3 n = smooth ? high.normals[v[0]] * (1.0f - b.x - b.y) +
+                                                     high.normals[v[1]] * b.x + high.normals[v[2]] * b.y
+                                               : glm::cross(high.positions[v[1]] - high.positions[v[0]],
+                                                            high.positions[v[2]] - high.positions[v[0]]);
+                          const float l = glm::length(n);
+                          if (!(l > 0.0f) || !std::isfinite(l)) {
+                            ++missed;  // no normal: treated like a miss
+                            continue;
+                          }
+                          normal[found++] = n / l;
+                          sum += n / l;
+                        }
+                        if ((found > 0 && missed > 0) || options.spread_threshold <= 0.0f) {
+                          spread[i] = 1;
+                          continue;
+                        }
+                        const float l = glm::length(sum);
+                        if (found < 2 || !(l > 0.0f)) continue;
+                        const glm::vec3 mean = sum / l;
+                        // |a - b| of unit vectors is 2 sin(angle / 2): about the angle.
+                        for (int k = 0; k < found; ++k) {
+                          if (glm::length(normal[k] - mean) > options.spread_threshold) {
+                            spread[i] = 1;
+                            break;
+                          }
+                        }
+                      }
+                    });
+  for (std::size_t i = 0; i < count; ++i) {
+    if (spread[i]) out.push_back(texels[i]);
+  }
 }
 
 }  // namespace nmbake

@@ -3,27 +3,27 @@
 // this file only wires them, times them and collects their counters.
 #include "nmbake/bake.hpp"
 
-#include "huge_pages.hpp"
-#include "nmbake/budget.hpp"
-#include "nmbake/task.hpp"
-#include "nmbake/udim.hpp"
-
-#include <cctype>
-#include <cerrno>
-#include <charconv>
-#include <cstdio>
-#include <cstring>
-#include <chrono>
-#include <cmath>
-#include <algorithm>
-#include <filesystem>
-#include <memory>
-#include <string>
-
 #include <sys/resource.h>
 #include <tbb/global_control.h>
 #include <tbb/info.h>
 #include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <charconv>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <memory>
+#include <string>
+
+#include "huge_pages.hpp"
+#include "nmbake/budget.hpp"
+#include "nmbake/task.hpp"
+#include "nmbake/udim.hpp"
 
 namespace nmbake {
 
@@ -50,9 +50,12 @@ bool parse_distance(const std::string& text, Distance& out) {
 
 std::string to_string(const Distance& distance) {
   switch (distance.kind) {
-    case Distance::Kind::automatic: return "auto";
-    case Distance::Kind::percent: return std::to_string(distance.value) + "%";
-    case Distance::Kind::absolute: break;
+    case Distance::Kind::automatic:
+      return "auto";
+    case Distance::Kind::percent:
+      return std::to_string(distance.value) + "%";
+    case Distance::Kind::absolute:
+      break;
   }
   return std::to_string(distance.value);
 }
@@ -70,9 +73,10 @@ std::string number_text(double value) {
 Status check_distance(const char* name, const Distance& d, float diagonal) {
   const double limit = static_cast<double>(kMaxDistanceDiagonals) * diagonal;
   if (d.kind != Distance::Kind::absolute || diagonal <= 0.0f || d.value <= limit) return Status::ok();
-  return Status::bad_input(std::string(name) + " distance " + number_text(d.value) + " is out of range: at most " +
-                           number_text(kMaxDistanceDiagonals) + " times the low mesh's diagonal " +
-                           number_text(diagonal) + " = " + number_text(limit) + " scene units");
+  return Status::bad_input(std::string(name) + " distance " + number_text(d.value) +
+                           " is out of range: at most " + number_text(kMaxDistanceDiagonals) +
+                           " times the low mesh's diagonal " + number_text(diagonal) + " = " +
+                           number_text(limit) + " scene units");
 }
 
 }  // namespace
@@ -92,16 +96,19 @@ Status validate_options(const BakeOptions& o) {
       return Status::bad_input("--adaptive-max " + std::to_string(m) + " is not supported: use 4, 16 or 64");
     }
     const AdaptiveOptions& a = o.adaptive_options;
-    for (const float t : {a.normal_threshold, a.depth_threshold, a.border_threshold}) {
-      if (!(t >= 0.0f) || !std::isfinite(t)) return Status::bad_input("adaptive thresholds must be finite and >= 0");
+    for (const float t : {a.normal_threshold, a.depth_threshold, a.border_threshold, a.spread_threshold}) {
+      if (!(t >= 0.0f) || !std::isfinite(t))
+        return Status::bad_input("adaptive thresholds must be finite and >= 0");
     }
   } else if (!is_supported_sample_count(o.samples)) {
-    return Status::bad_input("--samples " + std::to_string(o.samples) + " is not supported: use 1, 4, 16 or 64");
+    return Status::bad_input("--samples " + std::to_string(o.samples) +
+                             " is not supported: use 1, 4, 16 or 64");
   }
   // Against the map size only when an unwrap happens (bake()): a small map
   // of a mesh with UVs must not be refused for a gutter it never uses.
   if (o.unwrap_gutter < 0) {
-    return Status::bad_input("unwrap gutter " + std::to_string(o.unwrap_gutter) + " is out of range (0 to size / 4)");
+    return Status::bad_input("unwrap gutter " + std::to_string(o.unwrap_gutter) +
+                             " is out of range (0 to size / 4)");
   }
   const auto check_limit = [](const char* name, const Distance& d) {
     if (d.kind == Distance::Kind::absolute && !(d.value <= kMaxDistance)) {
@@ -125,9 +132,11 @@ Status validate_options(const BakeOptions& o) {
     if (out.path.find('\0') != std::string::npos) {
       return Status::bad_input(printable_text(out.path) + ": the output path holds a NUL byte");
     }
-    if (const Status target = check_output_target(out.path); !target) return Status::bad_input(target.message());
+    if (const Status target = check_output_target(out.path); !target)
+      return Status::bad_input(target.message());
     if (!format_matches_extension(out.format, out.path)) {
-      return Status::bad_input(out.path + ": format " + to_string(out.format) + " cannot be written to a file with this extension");
+      return Status::bad_input(out.path + ": format " + to_string(out.format) +
+                               " cannot be written to a file with this extension");
     }
     std::filesystem::path folder = std::filesystem::path(out.path).parent_path();
     if (folder.empty()) folder = ".";
@@ -169,7 +178,8 @@ Status check_mesh_input(const char* what, const std::string& path) {
     return Status::bad_input(shown(path) + ": the " + what + " mesh is not a regular file");
   }
   std::FILE* file = std::fopen(path.c_str(), "rb");
-  if (!file) return Status::bad_input(shown(path) + ": cannot open the " + what + " mesh: " + std::strerror(errno));
+  if (!file)
+    return Status::bad_input(shown(path) + ": cannot open the " + what + " mesh: " + std::strerror(errno));
   char head[4096];
   const std::size_t got = std::fread(head, 1, sizeof head, file);
   std::fclose(file);
@@ -182,8 +192,8 @@ Status check_mesh_input(const char* what, const std::string& path) {
     return Status::bad_input(shown(path) + ": not a binary glTF file (it does not start with \"glTF\")");
   }
   if (extension == ".obj" && bytes.find('\0') != std::string_view::npos) {
-    return Status::bad_input(shown(path) + ": not an OBJ file (a NUL byte in its first " + std::to_string(got) +
-                             " bytes: binary data)");
+    return Status::bad_input(shown(path) + ": not an OBJ file (a NUL byte in its first " +
+                             std::to_string(got) + " bytes: binary data)");
   }
   return Status::ok();
 }
@@ -231,9 +241,12 @@ class StageTimer {
 
 float resolve(const Distance& d, float diagonal, float estimated) {
   switch (d.kind) {
-    case Distance::Kind::absolute: return d.value;
-    case Distance::Kind::percent: return d.value * 0.01f * diagonal;
-    case Distance::Kind::automatic: break;
+    case Distance::Kind::absolute:
+      return d.value;
+    case Distance::Kind::percent:
+      return d.value * 0.01f * diagonal;
+    case Distance::Kind::automatic:
+      break;
   }
   return estimated;
 }
@@ -286,12 +299,13 @@ struct DebugImages {
       }
     }
   }
-  // Adaptive sampling: the texels the first pass chose (band indices of
-  // the band starting at image row `row_begin`).
-  void add_refined(int row_begin, const std::vector<std::uint32_t>& texels) {
+  // Adaptive sampling: the texels a level chose (band indices of the band
+  // starting at image row `row_begin`), drawn with `value` (the last level
+  // white).
+  void add_refined(int row_begin, const std::vector<std::uint32_t>& texels, float value) {
     const std::size_t offset = static_cast<std::size_t>(row_begin) * refined.width;
     for (const std::uint32_t t : texels) {
-      for (int ch = 0; ch < 3; ++ch) refined.pixels[(offset + t) * 3 + ch] = 1.0f;
+      for (int ch = 0; ch < 3; ++ch) refined.pixels[(offset + t) * 3 + ch] = value;
     }
   }
   Status write(const std::string& prefix) const {
@@ -344,11 +358,12 @@ struct Prepared {
 // Adaptive sampling (adaptive.hpp), rows [first_row, last_row) of the map
 // into `image` and `coverage` (which hold only those rows), band by band:
 // each band's first pass (one sample a texel: rasterize, trace, encode),
-// then its chosen texels again with the fixed pattern of max_samples, in
-// chunks, compactly (rasterize_selected), their values written over the
-// first pass's. The rule reads the row above and below each band, so the
-// next band's first pass runs before a band is refined, and a tile of rows
-// first traces the rows just outside it (not counted as its rays).
+// then the texels level 1 chose again with the 4-sample pattern, in chunks,
+// compactly (rasterize_selected), and of those the ones level 2 chose with
+// max_samples; each level's values written over the one before. Level 1
+// reads the row above and below each band, so the next band's first pass
+// runs before a band is refined, and a tile of rows first traces the rows
+// just outside it (not counted as its rays).
 class AdaptiveRows {
  public:
   AdaptiveRows(const Prepared& p, const LowSurface& surface, BakeReport& r, Image& image,
@@ -361,13 +376,16 @@ class AdaptiveRows {
         coverage_(coverage),
         encode_(encode_options),
         debug_(debug),
-        texel_size_(texel_sizes(surface, p.options.width, p.options.height)) {}
+        texel_size_(texel_sizes(surface, p.options.width, p.options.height)),
+        levels_(adaptive_levels(p.options.adaptive_options)) {}
 
   void run(int first_row, int last_row, StageTimer& timer, const ProgressFn& progress,
            std::uint64_t& covered_texels) {
     timer_ = &timer;
     const int rows_per_band = band_rows(o_.width, o_.height, 1, o_.band_samples);
     r_.adaptive.max_samples = o_.adaptive_options.max_samples;
+    r_.adaptive.level_texels.assign(levels_.size(), 0);
+    r_.adaptive.level_rays.assign(levels_.size(), 0);
     FirstPass above, below;
     if (first_row > 0) {
       first_pass(halo_, std::max(0, first_row - kRasterTileSize), first_row, false);
@@ -389,32 +407,36 @@ class AdaptiveRows {
         below = FirstPass{};
       }
       timer.start_quietly("adaptive");
-      refine_texels(above, band.values, below, o_.adaptive_options, refined_);
+      refine_texels(above, band.values, below, o_.adaptive_options, chosen_);
       timer.stop(false);
       // The first pass's values, then the refined texels' over them.
-      std::copy(band.rgb.begin(), band.rgb.end(),
+      std::copy(band.values.rgb.begin(), band.values.rgb.end(),
                 image_.pixels.begin() + static_cast<std::ptrdiff_t>(row - first_row) * o_.width * 3);
       covered_texels += band.covered;
       std::copy(band.samples.coverage.begin(), band.samples.coverage.end(),
                 coverage_.begin() + static_cast<std::ptrdiff_t>(row - first_row) * o_.width);
-      if (debug_ != nullptr) {
-        debug_->add_band(band.samples, band.hits);
-        debug_->add_refined(row, refined_);
-      }
-      refine(row, row_end, first_row);
+      if (debug_ != nullptr) debug_->add_band(band.samples, band.hits);
+      refine_level(0, chosen_, row, row_end, first_row);
       above = first_pass_row(band.values, band.values.rows - 1);
       if (progress) progress("trace", static_cast<double>(row_end - first_row) / (last_row - first_row));
     }
+    r_.adaptive.refined_texels = r_.adaptive.level_texels[0];
   }
 
  private:
   struct Band {
     TexelSamples samples;
     Hits hits;
-    FirstPass values;
-    std::vector<float> rgb;  // the encoded one-sample values (a band is encoded before the one above is written)
-    Image image;             // scratch of the encode
+    FirstPass values;  // with the encoded first pass (kept: the rule needs it after the next band's)
+    Image image;       // scratch of the encode
     std::uint64_t covered = 0;
+  };
+  // The compact buffers of one level.
+  struct Level {
+    TexelSamples samples;
+    Hits hits;
+    Image image;
+    std::vector<std::uint32_t> next;  // the texels of the level after this one
   };
 
   // One sample a texel for rows [row_begin, row_end), encoded; `counted`:
@@ -428,17 +450,17 @@ class AdaptiveRows {
     TraceStats traced;
     trace(p_.scene, surface_, band.samples, p_.rays, band.hits, traced);
     timer_->stop(false);
-    timer_->start_quietly("adaptive");
-    first_pass_values(band.samples, band.hits, p_.high, encode_.high_normals == HighNormals::smooth, texel_size_,
-                      band.values);
-    timer_->stop(false);
     timer_->start_quietly("encode");
     EncodeOptions band_encode = encode_;
     band_encode.out_row_begin = row_begin;
     band.image.height = 0;
     EncodeStats encoded;
-    encode(surface_, band.samples, p_.high, band.hits, band_encode, band.image, counted ? r_.encode : encoded);
-    band.rgb.swap(band.image.pixels);
+    encode(surface_, band.samples, p_.high, band.hits, band_encode, band.image,
+           counted ? r_.encode : encoded);
+    band.values.rgb.swap(band.image.pixels);
+    timer_->stop(false);
+    timer_->start_quietly("adaptive");
+    first_pass_values(band.samples, band.hits, texel_size_, band.values);
     timer_->stop(false);
     band.covered = raster.covered_texels;
     if (!counted) {
@@ -453,40 +475,54 @@ class AdaptiveRows {
     r_.adaptive.first_pass_rays += traced.rays;
   }
 
-  // The band's chosen texels with the fixed pattern, in chunks of about a
-  // band's samples, each written over its first-pass value.
-  void refine(int row_begin, int row_end, int first_row) {
-    const int n = o_.adaptive_options.max_samples;
+  // `texels` (band indices, ascending) with level `level`'s pattern, in
+  // chunks of about a band's samples, each value written over the one
+  // before; the texels the next level takes go on to it chunk by chunk.
+  void refine_level(std::size_t level, const std::vector<std::uint32_t>& texels, int row_begin, int row_end,
+                    int first_row) {
+    if (level >= std::size(level_)) return;  // levels_ holds at most two refinement levels
+    const int n = levels_[level];
+    const bool last = level + 1 == levels_.size();
+    Level& l = level_[level];
     const std::size_t band_samples = o_.band_samples > 0 ? o_.band_samples : std::size_t{1} << 20;
     const std::size_t chunk = std::max<std::size_t>(1, band_samples / static_cast<std::size_t>(n));
-    r_.adaptive.refined_texels += refined_.size();
+    r_.adaptive.level_texels[level] += texels.size();
+    if (debug_ != nullptr)
+      debug_->add_refined(row_begin, texels, static_cast<float>(level + 1) / levels_.size());
     EncodeOptions compact_encode = encode_;
     compact_encode.out_row_begin = 0;
-    for (std::size_t begin = 0; begin < refined_.size(); begin += chunk) {
-      const std::size_t count = std::min(chunk, refined_.size() - begin);
+    for (std::size_t begin = 0; begin < texels.size(); begin += chunk) {
+      const std::size_t count = std::min(chunk, texels.size() - begin);
       timer_->start_quietly("raster");
       RasterStats raster;
-      rasterize_selected(surface_, o_.width, o_.height, n, row_begin, row_end, refined_.data() + begin, count,
-                         compact_, raster, slot_);
+      rasterize_selected(surface_, o_.width, o_.height, n, row_begin, row_end, texels.data() + begin, count,
+                         l.samples, raster, slot_);
       r_.raster.border_samples += raster.border_samples;
       r_.raster.overlapping_samples += raster.overlapping_samples;
       timer_->stop(false);
       timer_->start_quietly("trace");
       TraceStats traced;
-      trace(p_.scene, surface_, compact_, p_.rays, compact_hits_, traced);
+      trace(p_.scene, surface_, l.samples, p_.rays, l.hits, traced);
       add(r_.trace, traced);
-      r_.adaptive.refine_rays += traced.rays;
+      r_.adaptive.level_rays[level] += traced.rays;
       timer_->stop(false);
       timer_->start_quietly("encode");
-      compact_image_.height = 0;
-      encode(surface_, compact_, p_.high, compact_hits_, compact_encode, compact_image_, r_.encode);
+      l.image.height = 0;
+      encode(surface_, l.samples, p_.high, l.hits, compact_encode, l.image, r_.encode);
       // Into the image rows of the band (the image holds rows from first_row).
-      const std::size_t offset = static_cast<std::size_t>(row_begin - first_row) * static_cast<std::size_t>(o_.width);
+      const std::size_t offset =
+          static_cast<std::size_t>(row_begin - first_row) * static_cast<std::size_t>(o_.width);
       for (std::size_t i = 0; i < count; ++i) {
-        const std::size_t to = (offset + refined_[begin + i]) * 3;
-        std::copy_n(&compact_image_.pixels[i * 3], 3, &image_.pixels[to]);
+        std::copy_n(&l.image.pixels[i * 3], 3, &image_.pixels[(offset + texels[begin + i]) * 3]);
       }
       timer_->stop(false);
+      if (last) continue;
+      timer_->start_quietly("adaptive");
+      l.next.clear();
+      spread_texels(l.samples, l.hits, p_.high, encode_.high_normals == HighNormals::smooth,
+                    texels.data() + begin, o_.adaptive_options, l.next);
+      timer_->stop(false);
+      refine_level(level + 1, l.next, row_begin, row_end, first_row);
     }
   }
 
@@ -508,11 +544,10 @@ class AdaptiveRows {
   DebugImages* debug_;
   StageTimer* timer_ = nullptr;
   std::vector<float> texel_size_;
+  std::vector<int> levels_;
   Band bands_[2], halo_;
-  std::vector<std::uint32_t> refined_, slot_;
-  TexelSamples compact_;
-  Hits compact_hits_;
-  Image compact_image_;
+  Level level_[2];
+  std::vector<std::uint32_t> chosen_, slot_;
 };
 
 // raster -> trace -> encode, band of rows by band of rows, then dilate and
@@ -524,8 +559,9 @@ class AdaptiveRows {
 // image and coverage hold only those rows, and nothing is dilated or
 // written: `tile` gets them).
 Status bake_tile(const Prepared& p, const LowSurface& surface, const std::vector<OutputSpec>& outputs,
-                 const std::string& debug_prefix, BakeReport& r, StageTimer& timer, const ProgressFn& progress,
-                 std::uint64_t& covered_texels, int first_row, int last_row, TileData* tile) {
+                 const std::string& debug_prefix, BakeReport& r, StageTimer& timer,
+                 const ProgressFn& progress, std::uint64_t& covered_texels, int first_row, int last_row,
+                 TileData* tile) {
   const BakeOptions& o = p.options;
   const int rows = last_row - first_row;
   Image image;
@@ -594,8 +630,9 @@ Status bake_tile(const Prepared& p, const LowSurface& surface, const std::vector
   // Every output is written at once (each writer is single-threaded).
   timer.start("write");
   std::vector<Status> written(outputs.size());
-  tbb::parallel_for(std::size_t{0}, outputs.size(),
-                    [&](std::size_t i) { written[i] = write_image(image, outputs[i].path, outputs[i].format); });
+  tbb::parallel_for(std::size_t{0}, outputs.size(), [&](std::size_t i) {
+    written[i] = write_image(image, outputs[i].path, outputs[i].format);
+  });
   for (const Status& s : written) NMBAKE_TRY(s);
   timer.stop();
   return Status::ok();
@@ -609,12 +646,13 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   const bool tiled = o.tile_count > 0;
   if (tiled) {
     if (o.tile_index < 0 || o.tile_index >= o.tile_count || o.tile_count > 4096) {
-      return Status::bad_input("tile " + std::to_string(o.tile_index + 1) + "/" + std::to_string(o.tile_count) +
-                               " does not exist (1/N to N/N, N up to 4096)");
+      return Status::bad_input("tile " + std::to_string(o.tile_index + 1) + "/" +
+                               std::to_string(o.tile_count) + " does not exist (1/N to N/N, N up to 4096)");
     }
     if (o.tile_path.empty()) return Status::bad_input("a tile bake needs a tile file to write");
     for (const OutputSpec& out : o.outputs) {
-      if (has_udim_token(out.path)) return Status::bad_input(out.path + ": <UDIM> maps cannot be baked in tiles yet");
+      if (has_udim_token(out.path))
+        return Status::bad_input(out.path + ": <UDIM> maps cannot be baked in tiles yet");
     }
   }
   r = BakeReport{};
@@ -654,7 +692,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   NMBAKE_TRY(check_coordinate_range(high, o.high_path));
   if (use_cage_mesh) NMBAKE_TRY(check_coordinate_range(cage, o.cage_path));
   NMBAKE_TRY(check_bake_memory(o, MeshSize{low.vertex_count(), low.triangle_count()},
-                                MeshSize{high.vertex_count(), high.triangle_count()}));
+                               MeshSize{high.vertex_count(), high.triangle_count()}));
   {
     const float diagonal = compute_bounds(low).diagonal();
     NMBAKE_TRY(check_distance("front", o.front, diagonal));
@@ -670,10 +708,11 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   if (!low.has_uvs()) {
     const int side = std::min(o.width, o.height);
     if (o.unwrap_gutter > side / 4) {
-      return Status::bad_input(o.low_path + ": the low mesh has no UVs and a " + std::to_string(o.width) + "x" +
-                               std::to_string(o.height) + " map is too small to unwrap it into: unwrap gutter " +
-                               std::to_string(o.unwrap_gutter) + " is out of range (0 to size / 4 = " +
-                               std::to_string(side / 4) + ")");
+      return Status::bad_input(o.low_path + ": the low mesh has no UVs and a " + std::to_string(o.width) +
+                               "x" + std::to_string(o.height) +
+                               " map is too small to unwrap it into: unwrap gutter " +
+                               std::to_string(o.unwrap_gutter) +
+                               " is out of range (0 to size / 4 = " + std::to_string(side / 4) + ")");
     }
     timer.start("unwrap");
     // No UV layout: make one; the map is useless without the mesh, so it is
@@ -693,7 +732,8 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   }
   if (o.tangent_basis == TangentBasis::file && !low.has_tangents()) {
     // Checked after unwrap: a mesh unwrapped here has no file tangents either.
-    return Status::bad_input(o.low_path + ": --tangents file, but the low mesh has no tangents (glTF TANGENT or FBX "
+    return Status::bad_input(o.low_path +
+                             ": --tangents file, but the low mesh has no tangents (glTF TANGENT or FBX "
                              "tangents on every part, and UVs)");
   }
   std::vector<int> tiles;
@@ -717,7 +757,8 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   r.high_triangles_used = high.triangle_count();
   pad_for_embree(high);
   SurfaceStats surface_stats;
-  LowSurface surface = build_low_surface(low, use_cage_mesh ? &cage : nullptr, o.tangent_basis, surface_stats);
+  LowSurface surface =
+      build_low_surface(low, use_cage_mesh ? &cage : nullptr, o.tangent_basis, surface_stats);
   surface.group = groups.low_group;
   r.low_mesh.zero_area_triangles += surface_stats.mesh.zero_area_triangles;
   r.low_mesh.zero_length_normals += surface_stats.mesh.zero_length_normals;
@@ -740,7 +781,8 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   rays.hit = o.hit;
   rays.ignore_backfaces = o.ignore_backfaces;
   DistanceEstimate estimate;
-  const bool need_estimate = o.front.kind == Distance::Kind::automatic || o.back.kind == Distance::Kind::automatic;
+  const bool need_estimate =
+      o.front.kind == Distance::Kind::automatic || o.back.kind == Distance::Kind::automatic;
   if (need_estimate) {
     timer.start("distances");
     estimate = estimate_distances(scene, surface, r.low_diagonal);
@@ -755,7 +797,8 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   r.back = rays.back;
   for (std::size_t g = 0; g < groups.groups.size(); ++g) {
     const GroupDistances e = need_estimate ? estimate.groups[g] : GroupDistances{};
-    rays.groups.push_back({resolve(o.front, r.low_diagonal, e.front), resolve(o.back, r.low_diagonal, e.back)});
+    rays.groups.push_back(
+        {resolve(o.front, r.low_diagonal, e.front), resolve(o.back, r.low_diagonal, e.back)});
     r.groups.push_back({groups.groups[g], rays.groups.back().front, rays.groups.back().back});
   }
   r.unused_high_parts = groups.unused_high_parts;
@@ -807,8 +850,8 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
       r.outputs = {o.tile_path};
       done.outputs = {o.tile_path};
     } else {
-      NMBAKE_TRY(bake_tile(prepared, surface, outputs, debug_prefix, r, timer, progress, done.covered_texels, 0,
-                           o.height, nullptr));
+      NMBAKE_TRY(bake_tile(prepared, surface, outputs, debug_prefix, r, timer, progress, done.covered_texels,
+                           0, o.height, nullptr));
     }
     r.tiles.push_back(std::move(done));
   }

@@ -1,6 +1,5 @@
 // The bake report: every counter of every stage, as JSON and as one line.
 #include <cstdio>
-
 #include <nlohmann/json.hpp>
 
 #include "nmbake/bake.hpp"
@@ -12,7 +11,9 @@ double BakeReport::miss_rate() const {
 }
 
 double BakeReport::rays_per_texel() const {
-  return raster.covered_texels > 0 ? static_cast<double>(trace.rays) / static_cast<double>(raster.covered_texels) : 0.0;
+  return raster.covered_texels > 0
+             ? static_cast<double>(trace.rays) / static_cast<double>(raster.covered_texels)
+             : 0.0;
 }
 
 double BakeReport::coverage() const {
@@ -31,15 +32,24 @@ std::string BakeReport::to_json() const {
   j["height"] = height;
   if (adaptive.max_samples > 0) {
     j["samples_per_texel"] = "adaptive";
-    j["adaptive"] = {{"max_samples", adaptive.max_samples},
-                     {"first_pass_rays", adaptive.first_pass_rays},
-                     {"refined_texels", adaptive.refined_texels},
-                     {"refined_fraction", raster.covered_texels > 0 ? static_cast<double>(adaptive.refined_texels) /
-                                                                          static_cast<double>(raster.covered_texels)
-                                                                    : 0.0},
-                     {"refine_rays", adaptive.refine_rays},
-                     {"halo_rays", adaptive.halo_rays},
-                     {"rays_per_texel", rays_per_texel()}};
+    ordered_json levels = ordered_json::array();
+    const std::vector<int> level_samples =
+        adaptive.max_samples > 4 ? std::vector<int>{4, adaptive.max_samples} : std::vector<int>{4};
+    for (std::size_t l = 0; l < adaptive.level_texels.size() && l < level_samples.size(); ++l) {
+      levels.push_back({{"samples", level_samples[l]},
+                        {"texels", adaptive.level_texels[l]},
+                        {"rays", adaptive.level_rays.size() > l ? adaptive.level_rays[l] : 0}});
+    }
+    j["adaptive"] = {
+        {"max_samples", adaptive.max_samples},
+        {"first_pass_rays", adaptive.first_pass_rays},
+        {"refined_texels", adaptive.refined_texels},
+        {"refined_fraction", raster.covered_texels > 0 ? static_cast<double>(adaptive.refined_texels) /
+                                                             static_cast<double>(raster.covered_texels)
+                                                       : 0.0},
+        {"levels", levels},
+        {"halo_rays", adaptive.halo_rays},
+        {"rays_per_texel", rays_per_texel()}};
   } else {
     j["samples_per_texel"] = samples;
   }
@@ -83,7 +93,9 @@ std::string BakeReport::to_json() const {
   if (!key.empty()) j["key"] = key;
   j["cached"] = cached;
   if (tile_count > 0) {
-    j["tile"] = {{"index", tile_index + 1}, {"count", tile_count}, {"rows", {tile_row_begin, tile_row_end}},
+    j["tile"] = {{"index", tile_index + 1},
+                 {"count", tile_count},
+                 {"rows", {tile_row_begin, tile_row_end}},
                  {"file", tile_path}};
   }
   j["high_triangles_used"] = high_triangles_used;
@@ -136,10 +148,12 @@ std::string BakeReport::summary_line() const {
   double trace_seconds = 0.0;
   for (const StageTime& s : stages)
     if (s.name == "trace") trace_seconds = s.seconds;
-  const double mrays_per_second = trace_seconds > 0.0 ? 1e-6 * static_cast<double>(trace.rays) / trace_seconds : 0.0;
+  const double mrays_per_second =
+      trace_seconds > 0.0 ? 1e-6 * static_cast<double>(trace.rays) / trace_seconds : 0.0;
   char spp[64];
   if (adaptive.max_samples > 0) {
-    std::snprintf(spp, sizeof spp, "adaptive (1-%d spp, %.2f rays a texel)", adaptive.max_samples, rays_per_texel());
+    std::snprintf(spp, sizeof spp, "adaptive (1-%d spp, %.2f rays a texel)", adaptive.max_samples,
+                  rays_per_texel());
   } else {
     std::snprintf(spp, sizeof spp, "x%d spp", samples);
   }
@@ -147,8 +161,8 @@ std::string BakeReport::summary_line() const {
                 "baked %dx%d %s: %.1f%% texels covered, %llu rays (%.1f Mrays/s), %llu misses (%.3f%%), "
                 "front %.4g back %.4g%s, %.2f s, peak %.0f MiB",
                 width, height, spp, 100.0 * coverage(), static_cast<unsigned long long>(trace.rays),
-                mrays_per_second, static_cast<unsigned long long>(trace.misses), 100.0 * miss_rate(), front, back,
-                distances_estimated ? " (auto)" : "", total_seconds,
+                mrays_per_second, static_cast<unsigned long long>(trace.misses), 100.0 * miss_rate(), front,
+                back, distances_estimated ? " (auto)" : "", total_seconds,
                 static_cast<double>(peak_rss_bytes) / (1024.0 * 1024.0));
   std::string text = line;
   if (!groups.empty()) {
@@ -164,7 +178,8 @@ std::string BakeReport::summary_line() const {
                   tiles.back().tile);
     text += line;
   }
-  if (low_load.unit_meters > 0.0 && high_load.unit_meters > 0.0 && low_load.unit_meters != high_load.unit_meters) {
+  if (low_load.unit_meters > 0.0 && high_load.unit_meters > 0.0 &&
+      low_load.unit_meters != high_load.unit_meters) {
     std::snprintf(line, sizeof line, "; WARNING: low unit %g m, high unit %g m (positions are not rescaled)",
                   low_load.unit_meters, high_load.unit_meters);
     text += line;

@@ -1,17 +1,18 @@
 // Adaptive sampling (adaptive.hpp): the compact raster, the refinement rule,
 // and bakes that must equal fixed ones where the rule says all or nothing,
 // whatever the threads, bands and tiles.
-#include <algorithm>
-#include <fstream>
-#include <iterator>
+#include "nmbake/adaptive.hpp"
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
-#include "nmbake/adaptive.hpp"
+#include <algorithm>
+#include <fstream>
+#include <iterator>
+
+#include "lab_scenes.hpp"
 #include "nmbake/bake.hpp"
 #include "nmbake/task.hpp"
-#include "lab_scenes.hpp"
 #include "scenes.hpp"
 #include "test_util.hpp"
 
@@ -73,8 +74,8 @@ TEST(AdaptiveRaster, SelectedTexelsEqualTheFullRaster) {
         if (t % 3 == 0 || (t > 500 && t < 540)) texels.push_back(t);
       }
       std::vector<std::uint32_t> slot;
-      rasterize_selected(surface, width, height, samples, band_begin, band_end, texels.data(), texels.size(), compact,
-                         compact_stats, slot);
+      rasterize_selected(surface, width, height, samples, band_begin, band_end, texels.data(), texels.size(),
+                         compact, compact_stats, slot);
       ASSERT_EQ(compact.width, static_cast<int>(texels.size()));
       ASSERT_EQ(compact.height, 1);
       ASSERT_EQ(compact.samples, samples);
@@ -112,9 +113,16 @@ TEST(AdaptiveBake, AllOrNothingEqualsTheFixedBakes) {
     all.adaptive_options = {n, 0.0f, 0.0f, 0.0f, 0.0f};
     BakeReport adaptive;
     EXPECT_EQ(bake_to(all, dir.file("all.exr"), adaptive), expected) << n;
-    EXPECT_EQ(adaptive.adaptive.refined_texels, adaptive.raster.covered_texels);
-    EXPECT_EQ(adaptive.adaptive.refine_rays, adaptive.raster.covered_texels * static_cast<std::uint64_t>(n));
-    EXPECT_EQ(adaptive.trace.rays, adaptive.adaptive.first_pass_rays + adaptive.adaptive.refine_rays);
+    const std::uint64_t covered = adaptive.raster.covered_texels;
+    EXPECT_EQ(adaptive.adaptive.refined_texels, covered);
+    // Every texel through every level: 4 samples, then 16.
+    const std::vector<std::uint64_t> texels =
+        n == 4 ? std::vector<std::uint64_t>{covered} : std::vector<std::uint64_t>{covered, covered};
+    EXPECT_EQ(adaptive.adaptive.level_texels, texels);
+    std::uint64_t rays = adaptive.adaptive.first_pass_rays;
+    for (const std::uint64_t r : adaptive.adaptive.level_rays) rays += r;
+    EXPECT_EQ(adaptive.trace.rays, rays);
+    EXPECT_EQ(adaptive.adaptive.level_rays.back(), covered * static_cast<std::uint64_t>(n));
   }
   BakeOptions one = o;
   one.adaptive = false;
@@ -133,7 +141,8 @@ TEST(AdaptiveBake, AllOrNothingEqualsTheFixedBakes) {
 TEST(AdaptiveBake, SameBytesForThreadsBandsAndTiles) {
   test::TempDir dir;
   BakeOptions o = scene_bake(dir, small_sphere(), 150, 140);
-  o.adaptive_options.normal_threshold = 0.003f;  // this coarse sphere refines a few texels at the default
+  o.adaptive_options.normal_threshold = 0.001f;  // this coarse sphere refines a few texels at the default
+  o.adaptive_options.spread_threshold = 0.005f;
   BakeReport report;
   std::string whole;
   {
@@ -142,6 +151,9 @@ TEST(AdaptiveBake, SameBytesForThreadsBandsAndTiles) {
   }
   EXPECT_GT(report.adaptive.refined_texels, 0u);
   EXPECT_LT(report.adaptive.refined_texels, report.raster.covered_texels / 2);
+  ASSERT_EQ(report.adaptive.level_texels.size(), 2u);
+  EXPECT_GT(report.adaptive.level_texels[1], 0u);
+  EXPECT_LT(report.adaptive.level_texels[1], report.adaptive.level_texels[0]);
   const std::uint64_t refined = report.adaptive.refined_texels;
   EXPECT_EQ(bake_to(o, dir.file("all_threads.exr"), report), whole);
   for (const std::size_t band : {std::size_t{150 * 32}, std::size_t{150 * 64}, std::size_t{1}}) {
@@ -162,7 +174,9 @@ TEST(AdaptiveBake, SameBytesForThreadsBandsAndTiles) {
       tile.tile_path = dir.file(std::to_string(i) + ".tile");
       const Status s = bake(tile, report);
       ASSERT_TRUE(s.is_ok()) << s.message();
-      if (i > 0) EXPECT_GT(report.adaptive.halo_rays, 0u);
+      if (i > 0) {
+        EXPECT_GT(report.adaptive.halo_rays, 0u);
+      }
       tiles.push_back(tile.tile_path);
     }
     MergeReport merged;
@@ -186,11 +200,14 @@ TEST(AdaptiveBake, RefinesTheBevelsOfTheBox) {
   EXPECT_LT(fraction, 0.5);
   Image mask;
   ASSERT_TRUE(read_image(dir.file("dump_refined.png"), mask).is_ok());
-  std::uint64_t marked = 0;
+  // Level 1 grey, level 2 white.
+  std::uint64_t marked = 0, white = 0;
   for (std::size_t i = 0; i < mask.pixels.size(); i += static_cast<std::size_t>(mask.channels)) {
-    marked += mask.pixels[i] > 0.5f ? 1 : 0;
+    marked += mask.pixels[i] > 0.25f ? 1 : 0;
+    white += mask.pixels[i] > 0.75f ? 1 : 0;
   }
-  EXPECT_EQ(marked, report.adaptive.refined_texels);
+  EXPECT_EQ(marked, report.adaptive.level_texels[0]);
+  EXPECT_EQ(white, report.adaptive.level_texels[1]);
   EXPECT_NE(report.to_json().find("\"refined_texels\""), std::string::npos);
   EXPECT_NE(report.summary_line().find("adaptive (1-16 spp"), std::string::npos);
 }
@@ -199,8 +216,8 @@ TEST(AdaptiveCli, FlagsJobFilesAndBadValues) {
   test::TempDir dir;
   ASSERT_TRUE(save_mesh(dir.file("low.obj"), small_sphere().low).is_ok());
   ASSERT_TRUE(save_mesh(dir.file("high.ply"), small_sphere().high).is_ok());
-  const std::string base = test::cli_path() + " bake --low " + dir.file("low.obj") + " --high " + dir.file("high.ply") +
-                           " --size 64 -o " + dir.file("m.png");
+  const std::string base = test::cli_path() + " bake --low " + dir.file("low.obj") + " --high " +
+                           dir.file("high.ply") + " --size 64 -o " + dir.file("m.png");
   test::CommandResult r = test::run_command(base + " --samples adaptive --adaptive-max 4");
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("adaptive (1-4 spp"), std::string::npos) << r.output;
@@ -210,8 +227,9 @@ TEST(AdaptiveCli, FlagsJobFilesAndBadValues) {
   r = test::run_command(base + " --samples lots");
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("expected 1, 4, 16, 64 or adaptive"), std::string::npos) << r.output;
-  test::write_text(dir.file("job.toml"), "[[bake]]\nlow = \"low.obj\"\nhigh = \"high.ply\"\nsize = 64\nsamples = "
-                                         "\"adaptive\"\nadaptive_max = 64\noutputs = [\"j.png\"]\n");
+  test::write_text(dir.file("job.toml"),
+                   "[[bake]]\nlow = \"low.obj\"\nhigh = \"high.ply\"\nsize = 64\nsamples = "
+                   "\"adaptive\"\nadaptive_max = 64\noutputs = [\"j.png\"]\n");
   r = test::run_command(test::cli_path() + " bake " + dir.file("job.toml"));
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("adaptive (1-64 spp"), std::string::npos) << r.output;

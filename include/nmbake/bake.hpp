@@ -71,9 +71,11 @@ struct BakeOptions {
   bool ignore_backfaces = false;
   HighNormals high_normals = HighNormals::smooth;
   TangentEncode tangent_encode = TangentEncode::inverse;
-  TangentBasis tangent_basis = TangentBasis::mikktspace;  // file: the low mesh's own tangents; others: comparison only
-  int uv_set = 0;  // the low mesh's UV set (glTF TEXCOORD_N, FBX UV channel N)
-  BuildQuality build_quality = BuildQuality::low;  // measured: 4-6x faster builds than medium, rays as fast (BENCHMARKS.md)
+  TangentBasis tangent_basis =
+      TangentBasis::mikktspace;  // file: the low mesh's own tangents; others: comparison only
+  int uv_set = 0;                // the low mesh's UV set (glTF TEXCOORD_N, FBX UV channel N)
+  BuildQuality build_quality =
+      BuildQuality::low;  // measured: 4-6x faster builds than medium, rays as fast (BENCHMARKS.md)
   BvhMemory bvh_memory = BvhMemory::automatic;
   int padding = 16;
   // A low mesh without UVs is unwrapped (atlas of the map's smaller side,
@@ -140,13 +142,14 @@ struct BakeReport {
   struct Adaptive {
     int max_samples = 0;
     std::uint64_t first_pass_rays = 0;
-    std::uint64_t refined_texels = 0;
-    std::uint64_t refine_rays = 0;
+    std::uint64_t refined_texels = 0;  // taken by level 1 (4 samples)
+    // Per level (adaptive_levels(): 4, then max_samples): texels and rays.
+    std::vector<std::uint64_t> level_texels, level_rays;
     std::uint64_t halo_rays = 0;  // a tile's first pass of the rows just outside it (not in `trace`)
   } adaptive;
-  double rays_per_texel() const;  // rays traced / covered texels
-  bool unwrapped = false;           // the low mesh had no UVs and was unwrapped
-  std::string unwrapped_low_path;   // where the unwrapped low mesh was written
+  double rays_per_texel() const;   // rays traced / covered texels
+  bool unwrapped = false;          // the low mesh had no UVs and was unwrapped
+  std::string unwrapped_low_path;  // where the unwrapped low mesh was written
   UnwrapReport unwrap;
   // Bake groups (empty: every low triangle against every high triangle).
   struct Group {
@@ -174,8 +177,8 @@ struct BakeReport {
   std::uint64_t peak_rss_bytes = 0;
   int threads = 0;
 
-  double miss_rate() const;   // misses / samples traced
-  double coverage() const;    // covered texels / all texels
+  double miss_rate() const;  // misses / samples traced
+  double coverage() const;   // covered texels / all texels
   std::string to_json() const;
   std::string summary_line() const;
 };
