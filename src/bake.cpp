@@ -3,27 +3,27 @@
 // this file only wires them, times them and collects their counters.
 #include "nmbake/bake.hpp"
 
-#include <sys/resource.h>
-#include <tbb/global_control.h>
-#include <tbb/info.h>
-#include <tbb/parallel_for.h>
-
-#include <algorithm>
-#include <cctype>
-#include <cerrno>
-#include <charconv>
-#include <chrono>
-#include <cmath>
-#include <cstdio>
-#include <cstring>
-#include <filesystem>
-#include <memory>
-#include <string>
-
 #include "huge_pages.hpp"
 #include "nmbake/budget.hpp"
 #include "nmbake/task.hpp"
 #include "nmbake/udim.hpp"
+
+#include <cctype>
+#include <cerrno>
+#include <charconv>
+#include <cstdio>
+#include <cstring>
+#include <chrono>
+#include <cmath>
+#include <algorithm>
+#include <filesystem>
+#include <memory>
+#include <string>
+
+#include <sys/resource.h>
+#include <tbb/global_control.h>
+#include <tbb/info.h>
+#include <tbb/parallel_for.h>
 
 namespace nmbake {
 
@@ -50,12 +50,9 @@ bool parse_distance(const std::string& text, Distance& out) {
 
 std::string to_string(const Distance& distance) {
   switch (distance.kind) {
-    case Distance::Kind::automatic:
-      return "auto";
-    case Distance::Kind::percent:
-      return std::to_string(distance.value) + "%";
-    case Distance::Kind::absolute:
-      break;
+    case Distance::Kind::automatic: return "auto";
+    case Distance::Kind::percent: return std::to_string(distance.value) + "%";
+    case Distance::Kind::absolute: break;
   }
   return std::to_string(distance.value);
 }
@@ -73,10 +70,9 @@ std::string number_text(double value) {
 Status check_distance(const char* name, const Distance& d, float diagonal) {
   const double limit = static_cast<double>(kMaxDistanceDiagonals) * diagonal;
   if (d.kind != Distance::Kind::absolute || diagonal <= 0.0f || d.value <= limit) return Status::ok();
-  return Status::bad_input(std::string(name) + " distance " + number_text(d.value) +
-                           " is out of range: at most " + number_text(kMaxDistanceDiagonals) +
-                           " times the low mesh's diagonal " + number_text(diagonal) + " = " +
-                           number_text(limit) + " scene units");
+  return Status::bad_input(std::string(name) + " distance " + number_text(d.value) + " is out of range: at most " +
+                           number_text(kMaxDistanceDiagonals) + " times the low mesh's diagonal " +
+                           number_text(diagonal) + " = " + number_text(limit) + " scene units");
 }
 
 }  // namespace
@@ -107,8 +103,7 @@ Status validate_options(const BakeOptions& o) {
   // Against the map size only when an unwrap happens (bake()): a small map
   // of a mesh with UVs must not be refused for a gutter it never uses.
   if (o.unwrap_gutter < 0) {
-    return Status::bad_input("unwrap gutter " + std::to_string(o.unwrap_gutter) +
-                             " is out of range (0 to size / 4)");
+    return Status::bad_input("unwrap gutter " + std::to_string(o.unwrap_gutter) + " is out of range (0 to size / 4)");
   }
   const auto check_limit = [](const char* name, const Distance& d) {
     if (d.kind == Distance::Kind::absolute && !(d.value <= kMaxDistance)) {
@@ -132,11 +127,9 @@ Status validate_options(const BakeOptions& o) {
     if (out.path.find('\0') != std::string::npos) {
       return Status::bad_input(printable_text(out.path) + ": the output path holds a NUL byte");
     }
-    if (const Status target = check_output_target(out.path); !target)
-      return Status::bad_input(target.message());
+    if (const Status target = check_output_target(out.path); !target) return Status::bad_input(target.message());
     if (!format_matches_extension(out.format, out.path)) {
-      return Status::bad_input(out.path + ": format " + to_string(out.format) +
-                               " cannot be written to a file with this extension");
+      return Status::bad_input(out.path + ": format " + to_string(out.format) + " cannot be written to a file with this extension");
     }
     std::filesystem::path folder = std::filesystem::path(out.path).parent_path();
     if (folder.empty()) folder = ".";
@@ -178,8 +171,7 @@ Status check_mesh_input(const char* what, const std::string& path) {
     return Status::bad_input(shown(path) + ": the " + what + " mesh is not a regular file");
   }
   std::FILE* file = std::fopen(path.c_str(), "rb");
-  if (!file)
-    return Status::bad_input(shown(path) + ": cannot open the " + what + " mesh: " + std::strerror(errno));
+  if (!file) return Status::bad_input(shown(path) + ": cannot open the " + what + " mesh: " + std::strerror(errno));
   char head[4096];
   const std::size_t got = std::fread(head, 1, sizeof head, file);
   std::fclose(file);
@@ -192,8 +184,8 @@ Status check_mesh_input(const char* what, const std::string& path) {
     return Status::bad_input(shown(path) + ": not a binary glTF file (it does not start with \"glTF\")");
   }
   if (extension == ".obj" && bytes.find('\0') != std::string_view::npos) {
-    return Status::bad_input(shown(path) + ": not an OBJ file (a NUL byte in its first " +
-                             std::to_string(got) + " bytes: binary data)");
+    return Status::bad_input(shown(path) + ": not an OBJ file (a NUL byte in its first " + std::to_string(got) +
+                             " bytes: binary data)");
   }
   return Status::ok();
 }
@@ -241,12 +233,9 @@ class StageTimer {
 
 float resolve(const Distance& d, float diagonal, float estimated) {
   switch (d.kind) {
-    case Distance::Kind::absolute:
-      return d.value;
-    case Distance::Kind::percent:
-      return d.value * 0.01f * diagonal;
-    case Distance::Kind::automatic:
-      break;
+    case Distance::Kind::absolute: return d.value;
+    case Distance::Kind::percent: return d.value * 0.01f * diagonal;
+    case Distance::Kind::automatic: break;
   }
   return estimated;
 }
@@ -559,9 +548,8 @@ class AdaptiveRows {
 // image and coverage hold only those rows, and nothing is dilated or
 // written: `tile` gets them).
 Status bake_tile(const Prepared& p, const LowSurface& surface, const std::vector<OutputSpec>& outputs,
-                 const std::string& debug_prefix, BakeReport& r, StageTimer& timer,
-                 const ProgressFn& progress, std::uint64_t& covered_texels, int first_row, int last_row,
-                 TileData* tile) {
+                 const std::string& debug_prefix, BakeReport& r, StageTimer& timer, const ProgressFn& progress,
+                 std::uint64_t& covered_texels, int first_row, int last_row, TileData* tile) {
   const BakeOptions& o = p.options;
   const int rows = last_row - first_row;
   Image image;
@@ -630,9 +618,8 @@ Status bake_tile(const Prepared& p, const LowSurface& surface, const std::vector
   // Every output is written at once (each writer is single-threaded).
   timer.start("write");
   std::vector<Status> written(outputs.size());
-  tbb::parallel_for(std::size_t{0}, outputs.size(), [&](std::size_t i) {
-    written[i] = write_image(image, outputs[i].path, outputs[i].format);
-  });
+  tbb::parallel_for(std::size_t{0}, outputs.size(),
+                    [&](std::size_t i) { written[i] = write_image(image, outputs[i].path, outputs[i].format); });
   for (const Status& s : written) NMBAKE_TRY(s);
   timer.stop();
   return Status::ok();
@@ -646,13 +633,12 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   const bool tiled = o.tile_count > 0;
   if (tiled) {
     if (o.tile_index < 0 || o.tile_index >= o.tile_count || o.tile_count > 4096) {
-      return Status::bad_input("tile " + std::to_string(o.tile_index + 1) + "/" +
-                               std::to_string(o.tile_count) + " does not exist (1/N to N/N, N up to 4096)");
+      return Status::bad_input("tile " + std::to_string(o.tile_index + 1) + "/" + std::to_string(o.tile_count) +
+                               " does not exist (1/N to N/N, N up to 4096)");
     }
     if (o.tile_path.empty()) return Status::bad_input("a tile bake needs a tile file to write");
     for (const OutputSpec& out : o.outputs) {
-      if (has_udim_token(out.path))
-        return Status::bad_input(out.path + ": <UDIM> maps cannot be baked in tiles yet");
+      if (has_udim_token(out.path)) return Status::bad_input(out.path + ": <UDIM> maps cannot be baked in tiles yet");
     }
   }
   r = BakeReport{};
@@ -692,7 +678,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   NMBAKE_TRY(check_coordinate_range(high, o.high_path));
   if (use_cage_mesh) NMBAKE_TRY(check_coordinate_range(cage, o.cage_path));
   NMBAKE_TRY(check_bake_memory(o, MeshSize{low.vertex_count(), low.triangle_count()},
-                               MeshSize{high.vertex_count(), high.triangle_count()}));
+                                MeshSize{high.vertex_count(), high.triangle_count()}));
   {
     const float diagonal = compute_bounds(low).diagonal();
     NMBAKE_TRY(check_distance("front", o.front, diagonal));
@@ -708,11 +694,10 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   if (!low.has_uvs()) {
     const int side = std::min(o.width, o.height);
     if (o.unwrap_gutter > side / 4) {
-      return Status::bad_input(o.low_path + ": the low mesh has no UVs and a " + std::to_string(o.width) +
-                               "x" + std::to_string(o.height) +
-                               " map is too small to unwrap it into: unwrap gutter " +
-                               std::to_string(o.unwrap_gutter) +
-                               " is out of range (0 to size / 4 = " + std::to_string(side / 4) + ")");
+      return Status::bad_input(o.low_path + ": the low mesh has no UVs and a " + std::to_string(o.width) + "x" +
+                               std::to_string(o.height) + " map is too small to unwrap it into: unwrap gutter " +
+                               std::to_string(o.unwrap_gutter) + " is out of range (0 to size / 4 = " +
+                               std::to_string(side / 4) + ")");
     }
     timer.start("unwrap");
     // No UV layout: make one; the map is useless without the mesh, so it is
@@ -732,8 +717,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   }
   if (o.tangent_basis == TangentBasis::file && !low.has_tangents()) {
     // Checked after unwrap: a mesh unwrapped here has no file tangents either.
-    return Status::bad_input(o.low_path +
-                             ": --tangents file, but the low mesh has no tangents (glTF TANGENT or FBX "
+    return Status::bad_input(o.low_path + ": --tangents file, but the low mesh has no tangents (glTF TANGENT or FBX "
                              "tangents on every part, and UVs)");
   }
   std::vector<int> tiles;
@@ -757,8 +741,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   r.high_triangles_used = high.triangle_count();
   pad_for_embree(high);
   SurfaceStats surface_stats;
-  LowSurface surface =
-      build_low_surface(low, use_cage_mesh ? &cage : nullptr, o.tangent_basis, surface_stats);
+  LowSurface surface = build_low_surface(low, use_cage_mesh ? &cage : nullptr, o.tangent_basis, surface_stats);
   surface.group = groups.low_group;
   r.low_mesh.zero_area_triangles += surface_stats.mesh.zero_area_triangles;
   r.low_mesh.zero_length_normals += surface_stats.mesh.zero_length_normals;
@@ -781,8 +764,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   rays.hit = o.hit;
   rays.ignore_backfaces = o.ignore_backfaces;
   DistanceEstimate estimate;
-  const bool need_estimate =
-      o.front.kind == Distance::Kind::automatic || o.back.kind == Distance::Kind::automatic;
+  const bool need_estimate = o.front.kind == Distance::Kind::automatic || o.back.kind == Distance::Kind::automatic;
   if (need_estimate) {
     timer.start("distances");
     estimate = estimate_distances(scene, surface, r.low_diagonal);
@@ -797,8 +779,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   r.back = rays.back;
   for (std::size_t g = 0; g < groups.groups.size(); ++g) {
     const GroupDistances e = need_estimate ? estimate.groups[g] : GroupDistances{};
-    rays.groups.push_back(
-        {resolve(o.front, r.low_diagonal, e.front), resolve(o.back, r.low_diagonal, e.back)});
+    rays.groups.push_back({resolve(o.front, r.low_diagonal, e.front), resolve(o.back, r.low_diagonal, e.back)});
     r.groups.push_back({groups.groups[g], rays.groups.back().front, rays.groups.back().back});
   }
   r.unused_high_parts = groups.unused_high_parts;
@@ -850,8 +831,8 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
       r.outputs = {o.tile_path};
       done.outputs = {o.tile_path};
     } else {
-      NMBAKE_TRY(bake_tile(prepared, surface, outputs, debug_prefix, r, timer, progress, done.covered_texels,
-                           0, o.height, nullptr));
+      NMBAKE_TRY(bake_tile(prepared, surface, outputs, debug_prefix, r, timer, progress, done.covered_texels, 0,
+                           o.height, nullptr));
     }
     r.tiles.push_back(std::move(done));
   }

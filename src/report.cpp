@@ -1,5 +1,6 @@
 // The bake report: every counter of every stage, as JSON and as one line.
 #include <cstdio>
+
 #include <nlohmann/json.hpp>
 
 #include "nmbake/bake.hpp"
@@ -93,9 +94,7 @@ std::string BakeReport::to_json() const {
   if (!key.empty()) j["key"] = key;
   j["cached"] = cached;
   if (tile_count > 0) {
-    j["tile"] = {{"index", tile_index + 1},
-                 {"count", tile_count},
-                 {"rows", {tile_row_begin, tile_row_end}},
+    j["tile"] = {{"index", tile_index + 1}, {"count", tile_count}, {"rows", {tile_row_begin, tile_row_end}},
                  {"file", tile_path}};
   }
   j["high_triangles_used"] = high_triangles_used;
@@ -178,8 +177,7 @@ std::string BakeReport::summary_line() const {
                   tiles.back().tile);
     text += line;
   }
-  if (low_load.unit_meters > 0.0 && high_load.unit_meters > 0.0 &&
-      low_load.unit_meters != high_load.unit_meters) {
+  if (low_load.unit_meters > 0.0 && high_load.unit_meters > 0.0 && low_load.unit_meters != high_load.unit_meters) {
     std::snprintf(line, sizeof line, "; WARNING: low unit %g m, high unit %g m (positions are not rescaled)",
                   low_load.unit_meters, high_load.unit_meters);
     text += line;

@@ -12,12 +12,6 @@
 // allocated, and the trailing hash finds a torn or altered file.
 #include "nmbake/task.hpp"
 
-#include <fcntl.h>
-#include <sys/stat.h>
-#include <tbb/parallel_for.h>
-#include <unistd.h>
-#include <xxhash.h>
-
 #include <algorithm>
 #include <bit>
 #include <chrono>
@@ -25,15 +19,21 @@
 #include <cstring>
 #include <fstream>
 #include <memory>
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <nlohmann/json.hpp>
+#include <tbb/parallel_for.h>
+#include <xxhash.h>
 
 #include "nmbake/cleanup.hpp"
 #include "nmbake/udim.hpp"
 
 namespace nmbake {
 
-static_assert(std::endian::native == std::endian::little,
-              "tile files are written in the machine's byte order");
+static_assert(std::endian::native == std::endian::little, "tile files are written in the machine's byte order");
 
 std::string BakeKey::hex() const {
   char text[33];
@@ -72,7 +72,7 @@ std::string bake_key_text(const BakeOptions& o) {
   for (const auto& [name, d] : {std::pair{"front", o.front}, std::pair{"back", o.back}}) {
     line(name, d.kind == Distance::Kind::automatic ? std::string("auto")
                : d.kind == Distance::Kind::percent ? number(d.value) + "%"
-                                                   : number(d.value));
+                                                    : number(d.value));
   }
   line("hit", o.hit == HitRule::first ? "first" : "nearest");
   line("cage_mode", o.cage_mode == CageMode::averaged ? "averaged" : "interpolated");
@@ -219,8 +219,8 @@ Status write_tile(const std::string& path, const TileData& tile) {
   std::string header(kMagic, sizeof kMagic);
   put(header, tile.key.high);
   put(header, tile.key.low);
-  for (const int v : {tile.width, tile.height, tile.row_begin, tile.row_end, tile.index, tile.count,
-                      tile.padding, static_cast<int>(tile.outputs.size())}) {
+  for (const int v : {tile.width, tile.height, tile.row_begin, tile.row_end, tile.index, tile.count, tile.padding,
+                      static_cast<int>(tile.outputs.size())}) {
     put(header, static_cast<std::int32_t>(v));
   }
   for (const OutputSpec& out : tile.outputs) {
@@ -230,8 +230,7 @@ Status write_tile(const std::string& path, const TileData& tile) {
   }
   const std::uint64_t check = tile_checksum(header, tile);
 
-  const std::string_view pixels(reinterpret_cast<const char*>(tile.pixels.data()),
-                                tile.pixels.size() * sizeof(float));
+  const std::string_view pixels(reinterpret_cast<const char*>(tile.pixels.data()), tile.pixels.size() * sizeof(float));
   const std::string_view coverage(reinterpret_cast<const char*>(tile.coverage.data()), tile.coverage.size());
   const std::string_view trailer(reinterpret_cast<const char*>(&check), sizeof check);
   return write_file_atomically(path, {header, pixels, coverage, trailer}, "the tile file");
@@ -244,9 +243,7 @@ Status read_tile(const std::string& path, TileData& tile) {
   in.seekg(0, std::ios::end);
   const auto file_size = static_cast<std::uint64_t>(in.tellg());
   in.seekg(0);
-  const auto bad = [&](const std::string& why) {
-    return Status::bad_input(path + ": not a complete nmbake tile file: " + why);
-  };
+  const auto bad = [&](const std::string& why) { return Status::bad_input(path + ": not a complete nmbake tile file: " + why); };
   std::string header(sizeof kMagic + 16 + 8 * 4, '\0');
   if (!in.read(header.data(), static_cast<std::streamsize>(header.size()))) return bad("too short");
   if (std::memcmp(header.data(), kMagic, sizeof kMagic) != 0) return bad("wrong magic bytes");
@@ -263,19 +260,16 @@ Status read_tile(const std::string& path, TileData& tile) {
   tile.count = v[5];
   tile.padding = v[6];
   const std::int32_t output_count = v[7];
-  if (tile.width <= 0 || tile.height <= 0 || tile.width > 65536 || tile.height > 65536 ||
-      tile.row_begin < 0 || tile.row_end < tile.row_begin || tile.row_end > tile.height || tile.count < 1 ||
-      tile.count > 4096 || tile.index < 0 || tile.index >= tile.count || tile.padding < 0 ||
-      output_count < 0 || output_count > 64) {
+  if (tile.width <= 0 || tile.height <= 0 || tile.width > 65536 || tile.height > 65536 || tile.row_begin < 0 ||
+      tile.row_end < tile.row_begin || tile.row_end > tile.height || tile.count < 1 || tile.count > 4096 ||
+      tile.index < 0 || tile.index >= tile.count || tile.padding < 0 || output_count < 0 || output_count > 64) {
     return bad("header values out of range");
   }
   for (std::int32_t i = 0; i < output_count; ++i) {
     std::uint8_t format = 0;
     std::uint32_t length = 0;
-    if (!in.read(reinterpret_cast<char*>(&format), 1) || !in.read(reinterpret_cast<char*>(&length), 4))
-      return bad("too short");
-    if (format > static_cast<std::uint8_t>(PixelFormat::exr_float_piz) || length > 65536)
-      return bad("bad output entry");
+    if (!in.read(reinterpret_cast<char*>(&format), 1) || !in.read(reinterpret_cast<char*>(&length), 4)) return bad("too short");
+    if (format > static_cast<std::uint8_t>(PixelFormat::exr_float_piz) || length > 65536) return bad("bad output entry");
     OutputSpec out;
     out.format = static_cast<PixelFormat>(format);
     out.path.resize(length);
@@ -297,8 +291,7 @@ Status read_tile(const std::string& path, TileData& tile) {
   in.read(reinterpret_cast<char*>(tile.coverage.data()), static_cast<std::streamsize>(texels));
   in.read(reinterpret_cast<char*>(&check), sizeof check);
   if (!in) return bad("too short");
-  if (tile_checksum(header, tile) != check)
-    return bad("its checksum does not match (a torn or altered file)");
+  if (tile_checksum(header, tile) != check) return bad("its checksum does not match (a torn or altered file)");
   for (const std::uint8_t c : tile.coverage) {
     if (c > 1) return bad("coverage values other than 0 and 1");
   }
@@ -347,27 +340,22 @@ Status merge_tiles(const std::vector<std::string>& tile_paths, const std::vector
     }
     const std::string& path = tile_paths[i];
     if (!(tile.key == report.key) && i > 0) {
-      return Status::bad_input(path + ": a tile of another bake (key " + tile.key.hex() + ", not " +
-                               report.key.hex() + ")");
+      return Status::bad_input(path + ": a tile of another bake (key " + tile.key.hex() + ", not " + report.key.hex() + ")");
     }
     report.key = tile.key;
-    if (tile.width != width || tile.height != height || tile.count != count ||
-        tile.padding != first.padding) {
+    if (tile.width != width || tile.height != height || tile.count != count || tile.padding != first.padding) {
       return Status::bad_input(path + ": a tile of another bake (size, tile count or padding differ)");
     }
     if (!seen[tile.index].empty()) {
-      return Status::bad_input(path + ": tile " + std::to_string(tile.index + 1) + "/" +
-                               std::to_string(count) + " is given twice (also " + seen[tile.index] + ")");
+      return Status::bad_input(path + ": tile " + std::to_string(tile.index + 1) + "/" + std::to_string(count) +
+                               " is given twice (also " + seen[tile.index] + ")");
     }
     seen[tile.index] = path;
     int b = 0, e = 0;
     tile_rows(height, tile.index, count, b, e);
-    if (tile.row_begin != b || tile.row_end != e)
-      return Status::bad_input(path + ": its rows are not those of its tile");
-    std::copy(tile.pixels.begin(), tile.pixels.end(),
-              image.pixels.begin() + static_cast<std::ptrdiff_t>(b) * width * 3);
-    std::copy(tile.coverage.begin(), tile.coverage.end(),
-              coverage.begin() + static_cast<std::ptrdiff_t>(b) * width);
+    if (tile.row_begin != b || tile.row_end != e) return Status::bad_input(path + ": its rows are not those of its tile");
+    std::copy(tile.pixels.begin(), tile.pixels.end(), image.pixels.begin() + static_cast<std::ptrdiff_t>(b) * width * 3);
+    std::copy(tile.coverage.begin(), tile.coverage.end(), coverage.begin() + static_cast<std::ptrdiff_t>(b) * width);
     if (i == 0) {
       first.padding = tile.padding;
       first.outputs = tile.outputs;
@@ -377,8 +365,7 @@ Status merge_tiles(const std::vector<std::string>& tile_paths, const std::vector
   const std::vector<OutputSpec>& targets = outputs.empty() ? first.outputs : outputs;
   if (targets.empty()) return Status::bad_input("merge: no output map given (-o) and the tiles name none");
   for (const OutputSpec& out : targets) {
-    if (const Status writer = check_image_writer(out.format); !writer)
-      return Status::internal(out.path + ": " + writer.message());
+    if (const Status writer = check_image_writer(out.format); !writer) return Status::internal(out.path + ": " + writer.message());
   }
   report.width = width;
   report.height = height;
@@ -388,9 +375,8 @@ Status merge_tiles(const std::vector<std::string>& tile_paths, const std::vector
   report.dilate_seconds = std::chrono::duration<double>(Clock::now() - begin).count();
   begin = Clock::now();
   std::vector<Status> written(targets.size());
-  tbb::parallel_for(std::size_t{0}, targets.size(), [&](std::size_t i) {
-    written[i] = write_image(image, targets[i].path, targets[i].format);
-  });
+  tbb::parallel_for(std::size_t{0}, targets.size(),
+                    [&](std::size_t i) { written[i] = write_image(image, targets[i].path, targets[i].format); });
   for (const Status& s : written) NMBAKE_TRY(s);
   report.write_seconds = std::chrono::duration<double>(Clock::now() - begin).count();
   for (const OutputSpec& out : targets) report.outputs.push_back(out.path);

@@ -71,11 +71,9 @@ struct BakeOptions {
   bool ignore_backfaces = false;
   HighNormals high_normals = HighNormals::smooth;
   TangentEncode tangent_encode = TangentEncode::inverse;
-  TangentBasis tangent_basis =
-      TangentBasis::mikktspace;  // file: the low mesh's own tangents; others: comparison only
-  int uv_set = 0;                // the low mesh's UV set (glTF TEXCOORD_N, FBX UV channel N)
-  BuildQuality build_quality =
-      BuildQuality::low;  // measured: 4-6x faster builds than medium, rays as fast (BENCHMARKS.md)
+  TangentBasis tangent_basis = TangentBasis::mikktspace;  // file: the low mesh's own tangents; others: comparison only
+  int uv_set = 0;  // the low mesh's UV set (glTF TEXCOORD_N, FBX UV channel N)
+  BuildQuality build_quality = BuildQuality::low;  // measured: 4-6x faster builds than medium, rays as fast (BENCHMARKS.md)
   BvhMemory bvh_memory = BvhMemory::automatic;
   int padding = 16;
   // A low mesh without UVs is unwrapped (atlas of the map's smaller side,
@@ -177,8 +175,8 @@ struct BakeReport {
   std::uint64_t peak_rss_bytes = 0;
   int threads = 0;
 
-  double miss_rate() const;  // misses / samples traced
-  double coverage() const;   // covered texels / all texels
+  double miss_rate() const;   // misses / samples traced
+  double coverage() const;    // covered texels / all texels
   std::string to_json() const;
   std::string summary_line() const;
 };

@@ -1,6 +1,4 @@
 // `nmbake bake`: one bake from flags, or every bake of a job file.
-#include <unistd.h>
-
 #include <algorithm>
 #include <charconv>
 #include <cmath>
@@ -9,10 +7,12 @@
 #include <string>
 #include <vector>
 
+#include <unistd.h>
+
 #include "commands.hpp"
 #include "nmbake/bake.hpp"
-#include "nmbake/budget.hpp"
 #include "nmbake/cache.hpp"
+#include "nmbake/budget.hpp"
 #include "nmbake/cleanup.hpp"
 #include "nmbake/job.hpp"
 #include "nmbake/task.hpp"
@@ -31,8 +31,7 @@ struct BakeFlags {
   int adaptive_max = 16;
   AdaptiveOptions adaptive;  // thresholds (experts; adaptive.hpp)
   std::string space = "tangent", green = "up", front = "auto", back = "auto", hit = "first";
-  std::string cage_mode = "averaged", high_normals = "smooth", build_quality = "low", encode = "inverse",
-              bvh = "auto";
+  std::string cage_mode = "averaged", high_normals = "smooth", build_quality = "low", encode = "inverse", bvh = "auto";
   std::string format;
   std::string tangent_basis = "mikktspace";
   std::string tangents = "mikktspace";
@@ -42,13 +41,12 @@ struct BakeFlags {
   std::string report;
   std::string debug_dump;
   double max_miss_rate = -1.0;  // < 0: no gate
-  std::string match = "auto", unmatched = "error", low_suffix = "_low", high_suffix = "_high",
-              cage_suffix = "_cage";
+  std::string match = "auto", unmatched = "error", low_suffix = "_low", high_suffix = "_high", cage_suffix = "_cage";
   int groups_per_scene = 0;
   std::string only, tile, tile_file, cache;
-  bool keep_going = false;  // a job: run the other bakes after one fails
-  std::string job_report;   // a job: write each bake's status here (JSON)
-  std::string max_memory;   // empty: the memory available to the process
+  bool keep_going = false;      // a job: run the other bakes after one fails
+  std::string job_report;       // a job: write each bake's status here (JSON)
+  std::string max_memory;       // empty: the memory available to the process
 };
 
 int fail(const Status& status) {
@@ -118,16 +116,11 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
     return Status::bad_input("--tangents " + f.tangents + ": expected mikktspace or file");
   if (f.tangents == "file") o.tangent_basis = TangentBasis::file;
   o.uv_set = f.uv_set;
-  if (!parse_distance(f.front, o.front))
-    return Status::bad_input("--front " + f.front + ": expected a distance, N% or auto");
-  if (!parse_distance(f.back, o.back))
-    return Status::bad_input("--back " + f.back + ": expected a distance, N% or auto");
-  if (!parse_match_mode(f.match, o.match.mode))
-    return Status::bad_input("--match " + f.match + ": expected auto, name or off");
-  if (!parse_unmatched(f.unmatched, o.match.unmatched))
-    return Status::bad_input("--unmatched " + f.unmatched + ": expected error or all");
-  if (f.low_suffix.empty() || f.high_suffix.empty())
-    return Status::bad_input("--low-suffix and --high-suffix must not be empty");
+  if (!parse_distance(f.front, o.front)) return Status::bad_input("--front " + f.front + ": expected a distance, N% or auto");
+  if (!parse_distance(f.back, o.back)) return Status::bad_input("--back " + f.back + ": expected a distance, N% or auto");
+  if (!parse_match_mode(f.match, o.match.mode)) return Status::bad_input("--match " + f.match + ": expected auto, name or off");
+  if (!parse_unmatched(f.unmatched, o.match.unmatched)) return Status::bad_input("--unmatched " + f.unmatched + ": expected error or all");
+  if (f.low_suffix.empty() || f.high_suffix.empty()) return Status::bad_input("--low-suffix and --high-suffix must not be empty");
   o.groups_per_scene = f.groups_per_scene;
   o.match.low_suffix = f.low_suffix;
   if (f.cage_suffix.empty()) return Status::bad_input("--cage-suffix must not be empty");
@@ -137,16 +130,14 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
   o.padding = f.padding;
   o.debug_dump_prefix = f.debug_dump;
   if (!f.max_memory.empty() && !parse_memory_size(f.max_memory, o.max_memory_bytes)) {
-    return Status::bad_input("--max-memory " + f.max_memory +
-                             ": expected bytes, or a number with K, M, G or T");
+    return Status::bad_input("--max-memory " + f.max_memory + ": expected bytes, or a number with K, M, G or T");
   }
   for (const std::string& path : f.outputs) {
     OutputSpec out;
     out.path = path;
     if (!f.format.empty()) {
       if (!parse_pixel_format(f.format, out.format)) {
-        return Status::bad_input("--format " + f.format +
-                                 ": expected png8, png16, tiff16, exr-half, exr-float or exr-float-piz");
+        return Status::bad_input("--format " + f.format + ": expected png8, png16, tiff16, exr-half, exr-float or exr-float-piz");
       }
     } else if (!pixel_format_from_path(path, out.format)) {
       return Status::bad_input(path + ": unknown image extension (use .png, .tif, .tiff or .exr)");
@@ -163,8 +154,8 @@ Status write_text(const std::string& path, const std::string& text) {
 
 // A bake through the cache (cache.hpp): fetched when its key is there,
 // else baked and stored. Without a cache folder, or for a tile, just bake().
-Status bake_or_fetch(const BakeJob& job, const std::string& cache_dir, BakeReport& report,
-                     const ProgressFn& listener, bool& cached) {
+Status bake_or_fetch(const BakeJob& job, const std::string& cache_dir, BakeReport& report, const ProgressFn& listener,
+                     bool& cached) {
   cached = false;
   if (cache_dir.empty() || job.options.tile_count > 0) return bake(job.options, report, listener);
   BakeKey key;
@@ -185,9 +176,7 @@ Status bake_or_fetch(const BakeJob& job, const std::string& cache_dir, BakeRepor
   return Status::ok();
 }
 
-Status write_report(const std::string& path, const BakeReport& report) {
-  return write_text(path, report.to_json());
-}
+Status write_report(const std::string& path, const BakeReport& report) { return write_text(path, report.to_json()); }
 
 // What became of each bake of a job.
 struct JobOutcome {
@@ -200,12 +189,9 @@ struct JobOutcome {
 
 const char* state_name(JobOutcome::State state) {
   switch (state) {
-    case JobOutcome::State::done:
-      return "done";
-    case JobOutcome::State::failed:
-      return "failed";
-    case JobOutcome::State::not_run:
-      break;
+    case JobOutcome::State::done: return "done";
+    case JobOutcome::State::failed: return "failed";
+    case JobOutcome::State::not_run: break;
   }
   return "not run";
 }
@@ -248,8 +234,7 @@ std::string outcomes_json(const std::vector<JobOutcome>& outcomes) {
     out += "    {\"name\": " + json_string(o.name) + ", \"status\": \"" + state_name(o.state) + "\"";
     if (o.state == JobOutcome::State::failed) out += ", \"error\": " + json_string(o.message);
     out += ", \"outputs\": [";
-    for (std::size_t k = 0; k < o.outputs.size(); ++k)
-      out += (k == 0 ? "" : ", ") + json_string(o.outputs[k]);
+    for (std::size_t k = 0; k < o.outputs.size(); ++k) out += (k == 0 ? "" : ", ") + json_string(o.outputs[k]);
     out += "]}";
   }
   return out + "\n  ]\n}\n";
@@ -260,8 +245,7 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
   if (!flags.job_file.empty()) {
     for (const char* flag : {"--low", "--high", "--cage", "--output"}) {
       if (command.count(flag) > 0) {
-        return usage_error(std::string(flag) +
-                           " cannot be combined with a job file: the job file names the meshes and maps");
+        return usage_error(std::string(flag) + " cannot be combined with a job file: the job file names the meshes and maps");
       }
     }
     const Status s = load_job_file(flags.job_file, jobs);
@@ -285,8 +269,7 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
       names += (names.empty() ? "" : ", ") + job.name;
       if (job.name == flags.only) kept.push_back(std::move(job));
     }
-    if (kept.empty())
-      return usage_error("--only " + flags.only + ": no bake of that name (bakes: " + names + ")");
+    if (kept.empty()) return usage_error("--only " + flags.only + ": no bake of that name (bakes: " + names + ")");
     jobs = std::move(kept);
   }
   // --tile I/N: one band of rows of one bake, written as a tile file.
@@ -300,8 +283,8 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
     o.tile_index = index;
     o.tile_count = count;
     o.tile_path = !flags.tile_file.empty() ? flags.tile_file
-                                           : o.outputs.front().path + ".tile-" + std::to_string(index + 1) +
-                                                 "-of-" + std::to_string(count);
+                                           : o.outputs.front().path + ".tile-" + std::to_string(index + 1) + "-of-" +
+                                                 std::to_string(count);
   } else if (!flags.tile_file.empty()) {
     return usage_error("--tile-file needs --tile I/N");
   }
@@ -338,16 +321,15 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
     ProgressFn listener;
     if (show_progress) listener = [&](const char* stage, double f) { bar.update(stage, f); };
     bool cached = false;
-    Status s = bake_or_fetch(job, !flags.cache.empty() ? flags.cache : resolve_cache_dir(job.cache_dir),
-                             report, listener, cached);
+    Status s = bake_or_fetch(job, !flags.cache.empty() ? flags.cache : resolve_cache_dir(job.cache_dir), report,
+                             listener, cached);
     bar.finish();
     if (s && !cached && !job.report_path.empty()) s = write_report(job.report_path, report);
     if (!s) {
       outcome.state = JobOutcome::State::failed;
       outcome.message = s.message();
       const int code = fail(jobs.size() > 1 ? Status::bad_input(job.name + ": " + s.message()) : s);
-      failure_code =
-          std::max(failure_code, s.code() == StatusCode::internal ? static_cast<int>(kInternal) : code);
+      failure_code = std::max(failure_code, s.code() == StatusCode::internal ? static_cast<int>(kInternal) : code);
       if (!flags.keep_going) break;
       continue;
     }
@@ -368,8 +350,7 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
     if (!global.quiet) {
       std::printf("%s: %s\n", printable_text(job.name).c_str(), report.summary_line().c_str());
       if (global.verbose) {
-        for (const StageTime& st : report.stages)
-          std::printf("  %-10s %8.3f s\n", st.name.c_str(), st.seconds);
+        for (const StageTime& st : report.stages) std::printf("  %-10s %8.3f s\n", st.name.c_str(), st.seconds);
         const auto print_load = [](const char* which, const LoadStats& load) {
           std::printf("  load %-5s %8.3f s  %.1f MB at %.0f MB/s\n", which, load.seconds,
                       static_cast<double>(load.bytes) * 1e-6, load.mb_per_second());
@@ -392,14 +373,12 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
       }
     }
     if (report.trace.samples > 0 && report.trace.misses == report.trace.samples) {
-      std::fprintf(
-          stderr,
-          "nmbake: warning: %s: every ray missed the high mesh: is it within front %.4g / back %.4g of "
-          "the low mesh, in the same place and scale?\n",
-          printable_text(job.name).c_str(), report.front, report.back);
-    } else if (report.miss_rate() > 0.01) {
       std::fprintf(stderr,
-                   "nmbake: warning: %s: %.2f%% of the rays missed the high mesh (kept the low normal)\n",
+                   "nmbake: warning: %s: every ray missed the high mesh: is it within front %.4g / back %.4g of "
+                   "the low mesh, in the same place and scale?\n",
+                   printable_text(job.name).c_str(), report.front, report.back);
+    } else if (report.miss_rate() > 0.01) {
+      std::fprintf(stderr, "nmbake: warning: %s: %.2f%% of the rays missed the high mesh (kept the low normal)\n",
                    printable_text(job.name).c_str(), 100.0 * report.miss_rate());
     }
     if (flags.max_miss_rate >= 0.0 && report.miss_rate() > flags.max_miss_rate) {
@@ -422,17 +401,12 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
 
 Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
   auto flags = std::make_shared<BakeFlags>();
-  CLI::App* cmd =
-      app.add_subcommand("bake", "bake a normal map (from flags, or every bake of a TOML job file)");
-  cmd->add_option("job", flags->job_file, "job file (TOML) describing one or several bakes")
-      ->check(CLI::ExistingFile);
+  CLI::App* cmd = app.add_subcommand("bake", "bake a normal map (from flags, or every bake of a TOML job file)");
+  cmd->add_option("job", flags->job_file, "job file (TOML) describing one or several bakes")->check(CLI::ExistingFile);
   cmd->add_option("--low", flags->low, "low-poly mesh with UVs (OBJ, PLY, glTF/GLB, FBX, DAE, 3DS)");
   cmd->add_option("--high", flags->high, "high-poly mesh (OBJ, PLY, glTF/GLB, FBX, DAE, 3DS, STL)");
-  cmd->add_option("--cage", flags->cage,
-                  "cage mesh with the low mesh's topology (default: averaged-normal cage)");
-  cmd->add_option("-o,--output", flags->outputs,
-                  "output map(s): .png (16-bit), .tif, .exr; repeat for several")
-      ->allow_extra_args(false);
+  cmd->add_option("--cage", flags->cage, "cage mesh with the low mesh's topology (default: averaged-normal cage)");
+  cmd->add_option("-o,--output", flags->outputs, "output map(s): .png (16-bit), .tif, .exr; repeat for several")->allow_extra_args(false);
   cmd->add_option("--size", flags->size, "map size, N or WxH")->default_val("2048");
   cmd->add_option(
          "--samples", flags->samples,
@@ -455,82 +429,44 @@ Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
                   "at a chart border, refine where the normal's first difference exceeds this")
       ->default_val(AdaptiveOptions{}.border_threshold);
   cmd->add_option("--space", flags->space, "tangent | object")->default_val("tangent");
-  cmd->add_option("--green", flags->green, "up (OpenGL: Blender, Unity, glTF) | down (DirectX: Unreal)")
-      ->default_val("up");
-  cmd->add_option("--front", flags->front,
-                  "cage distance outside the low surface: units, N% of the bbox diagonal, auto")
-      ->default_val("auto");
-  cmd->add_option("--back", flags->back, "search distance inside the low surface: units, N%, auto")
-      ->default_val("auto");
-  cmd->add_option("--hit", flags->hit, "first (from the cage) | nearest (to the low surface)")
-      ->default_val("first");
-  cmd->add_option("--cage-mode", flags->cage_mode, "averaged | interpolated normals push the default cage")
-      ->default_val("averaged");
-  cmd->add_flag("--ignore-backfaces", flags->ignore_backfaces,
-                "skip high triangles that face away from the ray");
-  cmd->add_option("--high-normals", flags->high_normals, "smooth (interpolated vertex normals) | face")
-      ->default_val("smooth");
+  cmd->add_option("--green", flags->green, "up (OpenGL: Blender, Unity, glTF) | down (DirectX: Unreal)")->default_val("up");
+  cmd->add_option("--front", flags->front, "cage distance outside the low surface: units, N% of the bbox diagonal, auto")->default_val("auto");
+  cmd->add_option("--back", flags->back, "search distance inside the low surface: units, N%, auto")->default_val("auto");
+  cmd->add_option("--hit", flags->hit, "first (from the cage) | nearest (to the low surface)")->default_val("first");
+  cmd->add_option("--cage-mode", flags->cage_mode, "averaged | interpolated normals push the default cage")->default_val("averaged");
+  cmd->add_flag("--ignore-backfaces", flags->ignore_backfaces, "skip high triangles that face away from the ray");
+  cmd->add_option("--high-normals", flags->high_normals, "smooth (interpolated vertex normals) | face")->default_val("smooth");
   cmd->add_option("--padding", flags->padding, "texels of dilation around charts")->default_val(16);
-  cmd->add_option(
-      "--format", flags->format,
-      "png8 | png16 | tiff16 | exr-half | exr-float | exr-float-piz (default: from the extension)");
+  cmd->add_option("--format", flags->format, "png8 | png16 | tiff16 | exr-half | exr-float | exr-float-piz (default: from the extension)");
   cmd->add_option("--report", flags->report, "write the bake report (JSON) here");
-  cmd->add_option("--max-miss-rate", flags->max_miss_rate,
-                  "exit 1 when more than this share of rays miss (0..1)")
-      ->check(CLI::Range(0.0, 1.0));
-  cmd->add_option("--build-quality", flags->build_quality, "BVH build quality: low | medium | high")
-      ->default_val("low");
-  cmd->add_option(
-         "--bvh", flags->bvh,
-         "BVH memory: fast (vertices copied into leaves) | compact (indices only, about a third of the "
-         "memory, slower rays) | auto (compact above 16M high triangles)")
+  cmd->add_option("--max-miss-rate", flags->max_miss_rate, "exit 1 when more than this share of rays miss (0..1)")->check(CLI::Range(0.0, 1.0));
+  cmd->add_option("--build-quality", flags->build_quality, "BVH build quality: low | medium | high")->default_val("low");
+  cmd->add_option("--bvh", flags->bvh,
+                  "BVH memory: fast (vertices copied into leaves) | compact (indices only, about a third of the "
+                  "memory, slower rays) | auto (compact above 16M high triangles)")
       ->default_val("auto");
-  cmd->add_option("--encode", flags->encode,
-                  "tangent-space encode: inverse (exact) | transpose (for comparison)")
-      ->default_val("inverse");
-  cmd->add_option("--tangent-basis", flags->tangent_basis,
-                  "basis the map is encoded in: mikktspace | lengyel | face (comparison only)")
-      ->default_val("mikktspace");
-  cmd->add_option(
-         "--match", flags->match,
-         "parts into bake groups: auto (by name when a low part ends in the low suffix) | name | off")
-      ->default_val("auto");
-  cmd->add_option("--low-suffix", flags->low_suffix,
-                  "name suffix of low parts (X_low bakes from X_high, X_high_1, X_high.001)")
-      ->default_val("_low");
+  cmd->add_option("--encode", flags->encode, "tangent-space encode: inverse (exact) | transpose (for comparison)")->default_val("inverse");
+  cmd->add_option("--tangent-basis", flags->tangent_basis, "basis the map is encoded in: mikktspace | lengyel | face (comparison only)")->default_val("mikktspace");
+  cmd->add_option("--match", flags->match, "parts into bake groups: auto (by name when a low part ends in the low suffix) | name | off")->default_val("auto");
+  cmd->add_option("--low-suffix", flags->low_suffix, "name suffix of low parts (X_low bakes from X_high, X_high_1, X_high.001)")->default_val("_low");
   cmd->add_option("--high-suffix", flags->high_suffix, "name suffix of high parts")->default_val("_high");
-  cmd->add_option("--cage-suffix", flags->cage_suffix,
-                  "name suffix of cage parts (X_cage is the cage of X_low)")
-      ->default_val("_cage");
-  cmd->add_option("--unmatched", flags->unmatched,
-                  "low parts with no high match: error | all (bake them against every unused high part)")
-      ->default_val("error");
-  cmd->add_option("--groups-per-scene", flags->groups_per_scene,
-                  "bake groups sharing one BVH through ray masks, 1-32 (0: auto; for benchmarks)")
-      ->default_val(0)
-      ->check(CLI::Range(0, 32));
+  cmd->add_option("--cage-suffix", flags->cage_suffix, "name suffix of cage parts (X_cage is the cage of X_low)")->default_val("_cage");
+  cmd->add_option("--unmatched", flags->unmatched, "low parts with no high match: error | all (bake them against every unused high part)")->default_val("error");
+  cmd->add_option("--groups-per-scene", flags->groups_per_scene, "bake groups sharing one BVH through ray masks, 1-32 (0: auto; for benchmarks)")->default_val(0)->check(CLI::Range(0, 32));
   cmd->add_option("--only", flags->only, "of a job file, bake only the bake of this name");
-  cmd->add_option("--tile", flags->tile,
-                  "bake only tile I of N (bands of rows) into a tile file, for nmbake merge");
+  cmd->add_option("--tile", flags->tile, "bake only tile I of N (bands of rows) into a tile file, for nmbake merge");
   cmd->add_option("--tile-file", flags->tile_file, "where --tile writes (default: FIRST_OUTPUT.tile-I-of-N)");
-  cmd->add_option(
-      "--cache", flags->cache,
-      "content-addressed cache folder: a bake whose key is there is copied, not baked (also NMBAKE_CACHE)");
+  cmd->add_option("--cache", flags->cache, "content-addressed cache folder: a bake whose key is there is copied, not baked (also NMBAKE_CACHE)");
   cmd->add_option("--tangents", flags->tangents,
-                  "tangent frame of the map: mikktspace (computed) | file (the low mesh's glTF TANGENT / FBX "
-                  "tangents)")
+                  "tangent frame of the map: mikktspace (computed) | file (the low mesh's glTF TANGENT / FBX tangents)")
       ->default_val("mikktspace");
   cmd->add_option("--uv-set", flags->uv_set, "the low mesh's UV set: glTF TEXCOORD_N, FBX UV channel N")
-      ->default_val(0)
-      ->check(CLI::Range(0, 7));
-  cmd->add_flag("--keep-going", flags->keep_going,
-                "a job: run the other bakes when one fails (exit 2 at the end)");
-  cmd->add_option("--job-report", flags->job_report,
-                  "a job: write each bake's status and outputs here (JSON)");
+      ->default_val(0)->check(CLI::Range(0, 7));
+  cmd->add_flag("--keep-going", flags->keep_going, "a job: run the other bakes when one fails (exit 2 at the end)");
+  cmd->add_option("--job-report", flags->job_report, "a job: write each bake's status and outputs here (JSON)");
   cmd->add_option("--max-memory", flags->max_memory,
                   "refuse a bake whose estimated memory is above this (e.g. 8G; default: what is available)");
-  cmd->add_option("--debug-dump", flags->debug_dump,
-                  "also write PREFIX_coverage.png, PREFIX_misses.png, PREFIX_distance.exr");
+  cmd->add_option("--debug-dump", flags->debug_dump, "also write PREFIX_coverage.png, PREFIX_misses.png, PREFIX_distance.exr");
   return [flags, &global, cmd]() { return run_bake(*flags, global, *cmd); };
 }
 

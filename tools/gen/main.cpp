@@ -23,10 +23,11 @@
 #include <cstdio>
 #include <exception>
 #include <filesystem>
-#include <fstream>
 #include <memory>
-#include <nlohmann/json.hpp>
 #include <string>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
 
 #include "convert.hpp"
 #include "eval.hpp"
@@ -97,8 +98,7 @@ int generate_and_write(const Options& options, const std::string& scene, const G
   const scenes::LabDistances distances = scenes::lab_distances(scene);
   if (distances.front > 0.0f) {
     const nmbake::Mesh cage = scenes::make_offset_cage(pair.low, distances.front);
-    if (const int code = write_mesh(options.out_dir, scene + "_cage.obj", cage, generate_seconds))
-      return code;
+    if (const int code = write_mesh(options.out_dir, scene + "_cage.obj", cage, generate_seconds)) return code;
   }
   return write_mesh(options.out_dir, scene + "_high" + high_extension, pair.high, generate_seconds);
 }
@@ -135,8 +135,7 @@ int run_eval(const std::string& scene, const std::string& map_path, const std::s
   if (space != "tangent" && space != "object") return fail_with("--space: expected tangent or object");
   o.space = space == "object" ? nmbake::NormalSpace::object : nmbake::NormalSpace::tangent;
   o.green = green == "down" ? nmbake::GreenChannel::down : nmbake::GreenChannel::up;
-  if (cage_mode != "averaged" && cage_mode != "interpolated")
-    return fail_with("--cage-mode: expected averaged or interpolated");
+  if (cage_mode != "averaged" && cage_mode != "interpolated") return fail_with("--cage-mode: expected averaged or interpolated");
   o.rays.cage = cage_mode == "interpolated" ? nmbake::CageMode::interpolated : nmbake::CageMode::averaged;
   if (!report_path.empty()) {
     std::ifstream in(report_path);
@@ -149,25 +148,20 @@ int run_eval(const std::string& scene, const std::string& map_path, const std::s
       return fail_with(report_path + ": not a bake report (" + e.what() + ")");
     }
   }
-  if (!(front >= 0.0f) || !(back >= 0.0f))
-    return fail_with("eval needs the bake's distances: --front F --back B or --report");
+  if (!(front >= 0.0f) || !(back >= 0.0f)) return fail_with("eval needs the bake's distances: --front F --back B or --report");
   o.rays.front = front;
   o.rays.back = back;
 
   nmbake::Mesh low, cage;
   nmbake::LoadStats load_stats;
-  if (const nmbake::Status st = nmbake::load_mesh(low_path, nmbake::LoadOptions{true, true}, low, load_stats);
-      !st)
+  if (const nmbake::Status st = nmbake::load_mesh(low_path, nmbake::LoadOptions{true, true}, low, load_stats); !st)
     return fail_with(st.message());
   nmbake::MeshStats mesh_stats;
   nmbake::prepare_low_normals(low, mesh_stats);
   if (!cage_path.empty()) {
-    if (const nmbake::Status st =
-            nmbake::load_mesh(cage_path, nmbake::LoadOptions{false, false}, cage, load_stats);
-        !st)
+    if (const nmbake::Status st = nmbake::load_mesh(cage_path, nmbake::LoadOptions{false, false}, cage, load_stats); !st)
       return fail_with(st.message());
-    if (const nmbake::Status st = nmbake::check_cage_topology(low, cage, cage_path); !st)
-      return fail_with(st.message());
+    if (const nmbake::Status st = nmbake::check_cage_topology(low, cage, cage_path); !st) return fail_with(st.message());
   }
   nmbake::Image map;
   if (!map_path.empty()) {
@@ -191,8 +185,7 @@ int run_eval(const std::string& scene, const std::string& map_path, const std::s
                           stamp(cage_path);
   if (cache.empty() || !scenes::load_expected(cache, key, expected)) {
     expected = scenes::compute_expected(*truth, low, cage_path.empty() ? nullptr : &cage, width, height, o);
-    if (!cache.empty() && !scenes::save_expected(cache, key, expected))
-      return fail_with(cache + ": cannot write");
+    if (!cache.empty() && !scenes::save_expected(cache, key, expected)) return fail_with(cache + ": cannot write");
   }
   if (!truth_map.empty()) {
     // The perfect map as the evaluator sees it (float), for analyses of
@@ -213,8 +206,7 @@ int run_eval(const std::string& scene, const std::string& map_path, const std::s
     const nmbake::Image perfect = scenes::expected_image(expected, o);
     const std::pair<const char*, int> levels[] = {{"float", 0}, {"16bit", 65535}, {"8bit", 255}};
     for (const auto& [name, n] : levels) {
-      const scenes::EvalResult r =
-          scenes::evaluate(expected, n == 0 ? perfect : scenes::quantize(perfect, n), o);
+      const scenes::EvalResult r = scenes::evaluate(expected, n == 0 ? perfect : scenes::quantize(perfect, n), o);
       std::printf("floor %-6s %s\n", name, r.error.to_text().c_str());
       out["floors"][name] = nlohmann::json::parse(r.to_json());
     }
@@ -266,25 +258,18 @@ int main(int argc, char** argv) {
 
   CLI::App* torus = app.add_subcommand("torus", "Torus with smooth bumps on the tube, analytic normals");
   add_common_options(*torus, options, options.torus.high_cells, options.torus.low_cells);
-  CLI::App* craters =
-      app.add_subcommand("craters", "Cube-sphere moon with C1-smooth craters, analytic normals");
+  CLI::App* craters = app.add_subcommand("craters", "Cube-sphere moon with C1-smooth craters, analytic normals");
   add_common_options(*craters, options, options.craters.high_cells, options.craters.low_cells);
   CLI::App* box = app.add_subcommand("box", "Hard-edged low cube over a bevelled (rounded) high cube");
   add_common_options(*box, options, options.box.high_cells, options.box.low_cells);
   CLI::App* slot = app.add_subcommand("slot", "Concave U groove with bumps: long rays cross the far wall");
   add_common_options(*slot, options, options.slot.high_cells, options.slot.low_cells);
 
-  CLI::App* parts = app.add_subcommand(
-      "parts", "Many heightfield plates, each a named part (p<i>_low / p<i>_high, high as OBJ)");
-  parts->add_option("--out-dir", options.out_dir, "Folder to write parts_low.obj and parts_high.obj into")
-      ->required();
-  parts->add_option("--count", options.parts.count, "Number of parts")
-      ->check(CLI::Range(1, 10000))
-      ->capture_default_str();
-  parts->add_option("--high-triangles", options.parts.high_triangles, "High triangles in all (about)")
-      ->capture_default_str();
-  parts->add_option("--threads", options.threads, "Worker threads, 0 = all cores")
-      ->check(CLI::Range(0, 1024));
+  CLI::App* parts = app.add_subcommand("parts", "Many heightfield plates, each a named part (p<i>_low / p<i>_high, high as OBJ)");
+  parts->add_option("--out-dir", options.out_dir, "Folder to write parts_low.obj and parts_high.obj into")->required();
+  parts->add_option("--count", options.parts.count, "Number of parts")->check(CLI::Range(1, 10000))->capture_default_str();
+  parts->add_option("--high-triangles", options.parts.high_triangles, "High triangles in all (about)")->capture_default_str();
+  parts->add_option("--threads", options.threads, "Worker threads, 0 = all cores")->check(CLI::Range(0, 1024));
 
   // The lab's evaluator (eval.hpp).
   struct EvalFlags {
@@ -295,33 +280,28 @@ int main(int argc, char** argv) {
     float front = -1.0f, back = -1.0f;
     bool floors = false;
   } ev;
-  CLI::App* eval_cmd =
-      app.add_subcommand("eval", "Coverage and angular error of a baked map of an analytic scene");
+  CLI::App* eval_cmd = app.add_subcommand("eval", "Coverage and angular error of a baked map of an analytic scene");
   eval_cmd->add_option("scene", ev.scene, "heightfield | sphere | torus | craters | box | slot")
       ->required()
       ->check(CLI::IsMember(scenes::lab_scene_names()));
   eval_cmd->add_option("--map", ev.map, "the baked map (EXR for the exact value)");
   eval_cmd->add_option("--low", ev.low, "the low mesh that was baked")->required();
   eval_cmd->add_option("--cage", ev.cage, "the explicit cage the bake used, if any");
-  eval_cmd
-      ->add_option("--truth-samples", ev.samples, "samples per texel of the truth (box filter): 1, 4, 16, 64")
+  eval_cmd->add_option("--truth-samples", ev.samples, "samples per texel of the truth (box filter): 1, 4, 16, 64")
       ->capture_default_str();
   eval_cmd->add_option("--cache", ev.cache,
                        "keep the computed truth in this file and reuse it when it matches");
   eval_cmd->add_option("--truth-map", ev.truth_map, "also write the perfect map (the truth, float EXR) here");
   eval_cmd->add_option("--space", ev.space, "tangent | object")->capture_default_str();
   eval_cmd->add_option("--green", ev.green, "up | down")->capture_default_str();
-  eval_cmd->add_option("--cage-mode", ev.cage_mode, "averaged | interpolated (the bake's)")
-      ->capture_default_str();
+  eval_cmd->add_option("--cage-mode", ev.cage_mode, "averaged | interpolated (the bake's)")->capture_default_str();
   eval_cmd->add_option("--front", ev.front, "the bake's front distance, scene units");
   eval_cmd->add_option("--back", ev.back, "the bake's back distance, scene units");
   eval_cmd->add_option("--report", ev.report, "read the resolved front/back from this bake report");
   eval_cmd->add_option("--json", ev.json, "also write the figures here");
   eval_cmd->add_option("--size", ev.size, "--floors without --map: map size")->capture_default_str();
-  eval_cmd->add_option("--threads", options.threads, "Worker threads, 0 = all cores")
-      ->check(CLI::Range(0, 1024));
-  eval_cmd->add_flag("--floors", ev.floors,
-                     "score the perfect map as float, 16-bit and 8-bit (the evaluator's floors)");
+  eval_cmd->add_option("--threads", options.threads, "Worker threads, 0 = all cores")->check(CLI::Range(0, 1024));
+  eval_cmd->add_flag("--floors", ev.floors, "score the perfect map as float, 16-bit and 8-bit (the evaluator's floors)");
 
   // Scoring a bake of an analytic scene against its true normals.
   struct ScoreOptions {
@@ -329,13 +309,9 @@ int main(int argc, char** argv) {
     int samples = 4;
     float front = 0.0f, back = 0.0f;
   } score;
-  CLI::App* score_cmd =
-      app.add_subcommand("score", "Angular error of a baked map of the heightfield or sphere scene");
-  score_cmd->add_option("scene", score.scene, "heightfield | sphere")
-      ->required()
-      ->check(CLI::IsMember({"heightfield", "sphere"}));
-  score_cmd->add_option("--map", score.map, "the baked tangent-space map (EXR for the exact value)")
-      ->required();
+  CLI::App* score_cmd = app.add_subcommand("score", "Angular error of a baked map of the heightfield or sphere scene");
+  score_cmd->add_option("scene", score.scene, "heightfield | sphere")->required()->check(CLI::IsMember({"heightfield", "sphere"}));
+  score_cmd->add_option("--map", score.map, "the baked tangent-space map (EXR for the exact value)")->required();
   score_cmd->add_option("--samples", score.samples, "samples per texel of the bake")->capture_default_str();
   score_cmd->add_option("--low", score.low, "sphere: the low mesh that was baked");
   score_cmd->add_option("--front", score.front, "sphere: the bake's front distance (from its report)");
@@ -346,8 +322,7 @@ int main(int argc, char** argv) {
 
   std::string convert_in, convert_out, load_file;
   bool load_low = false;
-  CLI::App* convert_cmd =
-      app.add_subcommand("convert", "Convert a mesh: .obj .ply .glb .gltf(+.bin) .fbx (Assimp)");
+  CLI::App* convert_cmd = app.add_subcommand("convert", "Convert a mesh: .obj .ply .glb .gltf(+.bin) .fbx (Assimp)");
   convert_cmd->add_option("in", convert_in, "input mesh")->required();
   convert_cmd->add_option("out", convert_out, "output mesh, format by extension")->required();
   CLI::App* load_cmd = app.add_subcommand("load", "Load a mesh and print its counts and load time");
@@ -409,13 +384,10 @@ int main(int argc, char** argv) {
       return generate_and_write(options, "craters", [&] { return scenes::make_craters(options.craters); });
     }
     if (parts->parsed()) {
-      return generate_and_write(
-          options, "parts", [&] { return scenes::make_parts(options.parts); }, ".obj");
+      return generate_and_write(options, "parts", [&] { return scenes::make_parts(options.parts); }, ".obj");
     }
-    if (box->parsed())
-      return generate_and_write(options, "box", [&] { return scenes::make_box(options.box); });
-    if (slot->parsed())
-      return generate_and_write(options, "slot", [&] { return scenes::make_slot(options.slot); });
+    if (box->parsed()) return generate_and_write(options, "box", [&] { return scenes::make_box(options.box); });
+    if (slot->parsed()) return generate_and_write(options, "slot", [&] { return scenes::make_slot(options.slot); });
     if (moon->parsed()) {
       return generate_and_write(options, "moon", [&] { return scenes::make_moon(options.moon); });
     }
