@@ -86,8 +86,19 @@ Status validate_options(const BakeOptions& o) {
     return Status::bad_input("map size " + std::to_string(o.width) + "x" + std::to_string(o.height) +
                              " is out of range: width and height must be 1 to " + std::to_string(kMaxSize));
   }
-  if (!is_supported_sample_count(o.samples)) {
-    return Status::bad_input("--samples " + std::to_string(o.samples) + " is not supported: use 1, 4, 16 or 64");
+  if (o.adaptive) {
+    const int m = o.adaptive_options.max_samples;
+    if (m != 4 && m != 16 && m != 64) {
+      return Status::bad_input("--adaptive-max " + std::to_string(m) + " is not supported: use 4, 16 or 64");
+    }
+    const AdaptiveOptions& a = o.adaptive_options;
+    for (const float t : {a.normal_threshold, a.depth_threshold, a.border_threshold, a.spread_threshold}) {
+      if (!(t >= 0.0f) || !std::isfinite(t))
+        return Status::bad_input("adaptive thresholds must be finite and >= 0");
+    }
+  } else if (!is_supported_sample_count(o.samples)) {
+    return Status::bad_input("--samples " + std::to_string(o.samples) +
+                             " is not supported: use 1, 4, 16 or 64");
   }
   // Against the map size only when an unwrap happens (bake()): a small map
   // of a mesh with UVs must not be refused for a gutter it never uses.
@@ -241,9 +252,10 @@ void prepare_high_normals(Mesh& mesh, MeshStats& stats) {
 // Per texel: covered, share of missed samples, mean signed hit distance;
 // filled band by band.
 struct DebugImages {
-  Image coverage, misses, distance;
-  DebugImages(int width, int height) {
-    for (Image* image : {&coverage, &misses, &distance}) {
+  Image coverage, misses, distance, refined;
+  bool adaptive = false;
+  DebugImages(int width, int height, bool adaptive_bake) : adaptive(adaptive_bake) {
+    for (Image* image : {&coverage, &misses, &distance, &refined}) {
       image->width = width;
       image->height = height;
       image->channels = 3;
@@ -276,7 +288,17 @@ struct DebugImages {
       }
     }
   }
+  // Adaptive sampling: the texels a level chose (band indices of the band
+  // starting at image row `row_begin`), drawn with `value` (the last level
+  // white).
+  void add_refined(int row_begin, const std::vector<std::uint32_t>& texels, float value) {
+    const std::size_t offset = static_cast<std::size_t>(row_begin) * refined.width;
+    for (const std::uint32_t t : texels) {
+      for (int ch = 0; ch < 3; ++ch) refined.pixels[(offset + t) * 3 + ch] = value;
+    }
+  }
   Status write(const std::string& prefix) const {
+    if (adaptive) NMBAKE_TRY(write_image(refined, prefix + "_refined.png", PixelFormat::png8));
     NMBAKE_TRY(write_image(coverage, prefix + "_coverage.png", PixelFormat::png8));
     NMBAKE_TRY(write_image(misses, prefix + "_misses.png", PixelFormat::png8));
     NMBAKE_TRY(write_image(distance, prefix + "_distance.exr", PixelFormat::exr_float));
@@ -322,6 +344,201 @@ struct Prepared {
   EncodeOptions encode;
 };
 
+// Adaptive sampling (adaptive.hpp), rows [first_row, last_row) of the map
+// into `image` and `coverage` (which hold only those rows), band by band:
+// each band's first pass (one sample a texel: rasterize, trace, encode),
+// then the texels level 1 chose again with the 4-sample pattern, in chunks,
+// compactly (rasterize_selected), and of those the ones level 2 chose with
+// max_samples; each level's values written over the one before. Level 1
+// reads the row above and below each band, so the next band's first pass
+// runs before a band is refined, and a tile of rows first traces the rows
+// just outside it (not counted as its rays).
+class AdaptiveRows {
+ public:
+  AdaptiveRows(const Prepared& p, const LowSurface& surface, BakeReport& r, Image& image,
+               std::vector<std::uint8_t>& coverage, const EncodeOptions& encode_options, DebugImages* debug)
+      : p_(p),
+        o_(p.options),
+        surface_(surface),
+        r_(r),
+        image_(image),
+        coverage_(coverage),
+        encode_(encode_options),
+        debug_(debug),
+        texel_size_(texel_sizes(surface, p.options.width, p.options.height)),
+        levels_(adaptive_levels(p.options.adaptive_options)) {}
+
+  void run(int first_row, int last_row, StageTimer& timer, const ProgressFn& progress,
+           std::uint64_t& covered_texels) {
+    timer_ = &timer;
+    const int rows_per_band = band_rows(o_.width, o_.height, 1, o_.band_samples);
+    r_.adaptive.max_samples = o_.adaptive_options.max_samples;
+    r_.adaptive.level_texels.assign(levels_.size(), 0);
+    r_.adaptive.level_rays.assign(levels_.size(), 0);
+    FirstPass above, below;
+    if (first_row > 0) {
+      first_pass(halo_, std::max(0, first_row - kRasterTileSize), first_row, false);
+      above = first_pass_row(halo_.values, halo_.values.rows - 1);
+    }
+    first_pass(bands_[0], first_row, std::min(first_row + rows_per_band, last_row), true);
+    int k = 0;
+    for (int row = first_row; row < last_row; row += rows_per_band, ++k) {
+      Band& band = bands_[k % 2];
+      const int row_end = std::min(row + rows_per_band, last_row);
+      if (row_end < last_row) {
+        Band& next = bands_[(k + 1) % 2];
+        first_pass(next, row_end, std::min(row_end + rows_per_band, last_row), true);
+        below = first_pass_row(next.values, 0);
+      } else if (last_row < o_.height) {
+        first_pass(halo_, last_row, std::min(last_row + kRasterTileSize, o_.height), false);
+        below = first_pass_row(halo_.values, 0);
+      } else {
+        below = FirstPass{};
+      }
+      timer.start_quietly("adaptive");
+      refine_texels(above, band.values, below, o_.adaptive_options, chosen_);
+      timer.stop(false);
+      // The first pass's values, then the refined texels' over them.
+      std::copy(band.values.rgb.begin(), band.values.rgb.end(),
+                image_.pixels.begin() + static_cast<std::ptrdiff_t>(row - first_row) * o_.width * 3);
+      covered_texels += band.covered;
+      std::copy(band.samples.coverage.begin(), band.samples.coverage.end(),
+                coverage_.begin() + static_cast<std::ptrdiff_t>(row - first_row) * o_.width);
+      if (debug_ != nullptr) debug_->add_band(band.samples, band.hits);
+      refine_level(0, chosen_, row, row_end, first_row);
+      above = first_pass_row(band.values, band.values.rows - 1);
+      if (progress) progress("trace", static_cast<double>(row_end - first_row) / (last_row - first_row));
+    }
+    r_.adaptive.refined_texels = r_.adaptive.level_texels[0];
+  }
+
+ private:
+  struct Band {
+    TexelSamples samples;
+    Hits hits;
+    FirstPass values;  // with the encoded first pass (kept: the rule needs it after the next band's)
+    Image image;       // scratch of the encode
+    std::uint64_t covered = 0;
+  };
+  // The compact buffers of one level.
+  struct Level {
+    TexelSamples samples;
+    Hits hits;
+    Image image;
+    std::vector<std::uint32_t> next;  // the texels of the level after this one
+  };
+
+  // One sample a texel for rows [row_begin, row_end), encoded; `counted`:
+  // rows of this bake (not the halo of a tile).
+  void first_pass(Band& band, int row_begin, int row_end, bool counted) {
+    timer_->start_quietly("raster");
+    RasterStats raster;
+    rasterize(surface_, o_.width, o_.height, 1, band.samples, raster, row_begin, row_end);
+    timer_->stop(false);
+    timer_->start_quietly("trace");
+    TraceStats traced;
+    trace(p_.scene, surface_, band.samples, p_.rays, band.hits, traced);
+    timer_->stop(false);
+    timer_->start_quietly("encode");
+    EncodeOptions band_encode = encode_;
+    band_encode.out_row_begin = row_begin;
+    band.image.height = 0;
+    EncodeStats encoded;
+    encode(surface_, band.samples, p_.high, band.hits, band_encode, band.image,
+           counted ? r_.encode : encoded);
+    band.values.rgb.swap(band.image.pixels);
+    timer_->stop(false);
+    timer_->start_quietly("adaptive");
+    first_pass_values(band.samples, band.hits, texel_size_, band.values);
+    timer_->stop(false);
+    band.covered = raster.covered_texels;
+    if (!counted) {
+      r_.adaptive.halo_rays += traced.rays;
+      return;
+    }
+    r_.raster.covered_texels += raster.covered_texels;
+    r_.raster.border_samples += raster.border_samples;
+    r_.raster.overlapping_samples += raster.overlapping_samples;
+    r_.raster.degenerate_uv_triangles = raster.degenerate_uv_triangles;
+    add(r_.trace, traced);
+    r_.adaptive.first_pass_rays += traced.rays;
+  }
+
+  // `texels` (band indices, ascending) with level `level`'s pattern, in
+  // chunks of about a band's samples, each value written over the one
+  // before; the texels the next level takes go on to it chunk by chunk.
+  void refine_level(std::size_t level, const std::vector<std::uint32_t>& texels, int row_begin, int row_end,
+                    int first_row) {
+    if (level >= std::size(level_)) return;  // levels_ holds at most two refinement levels
+    const int n = levels_[level];
+    const bool last = level + 1 == levels_.size();
+    Level& l = level_[level];
+    const std::size_t band_samples = o_.band_samples > 0 ? o_.band_samples : std::size_t{1} << 20;
+    const std::size_t chunk = std::max<std::size_t>(1, band_samples / static_cast<std::size_t>(n));
+    r_.adaptive.level_texels[level] += texels.size();
+    if (debug_ != nullptr)
+      debug_->add_refined(row_begin, texels, static_cast<float>(level + 1) / levels_.size());
+    EncodeOptions compact_encode = encode_;
+    compact_encode.out_row_begin = 0;
+    for (std::size_t begin = 0; begin < texels.size(); begin += chunk) {
+      const std::size_t count = std::min(chunk, texels.size() - begin);
+      timer_->start_quietly("raster");
+      RasterStats raster;
+      rasterize_selected(surface_, o_.width, o_.height, n, row_begin, row_end, texels.data() + begin, count,
+                         l.samples, raster, slot_);
+      r_.raster.border_samples += raster.border_samples;
+      r_.raster.overlapping_samples += raster.overlapping_samples;
+      timer_->stop(false);
+      timer_->start_quietly("trace");
+      TraceStats traced;
+      trace(p_.scene, surface_, l.samples, p_.rays, l.hits, traced);
+      add(r_.trace, traced);
+      r_.adaptive.level_rays[level] += traced.rays;
+      timer_->stop(false);
+      timer_->start_quietly("encode");
+      l.image.height = 0;
+      encode(surface_, l.samples, p_.high, l.hits, compact_encode, l.image, r_.encode);
+      // Into the image rows of the band (the image holds rows from first_row).
+      const std::size_t offset =
+          static_cast<std::size_t>(row_begin - first_row) * static_cast<std::size_t>(o_.width);
+      for (std::size_t i = 0; i < count; ++i) {
+        std::copy_n(&l.image.pixels[i * 3], 3, &image_.pixels[(offset + texels[begin + i]) * 3]);
+      }
+      timer_->stop(false);
+      if (last) continue;
+      timer_->start_quietly("adaptive");
+      l.next.clear();
+      spread_texels(l.samples, l.hits, p_.high, encode_.high_normals == HighNormals::smooth,
+                    texels.data() + begin, o_.adaptive_options, l.next);
+      timer_->stop(false);
+      refine_level(level + 1, l.next, row_begin, row_end, first_row);
+    }
+  }
+
+  static void add(TraceStats& to, const TraceStats& from) {
+    to.rays += from.rays;
+    to.samples += from.samples;
+    to.hits += from.hits;
+    to.misses += from.misses;
+    to.ray_fallbacks += from.ray_fallbacks;
+  }
+
+  const Prepared& p_;
+  const BakeOptions& o_;
+  const LowSurface& surface_;
+  BakeReport& r_;
+  Image& image_;
+  std::vector<std::uint8_t>& coverage_;
+  const EncodeOptions& encode_;
+  DebugImages* debug_;
+  StageTimer* timer_ = nullptr;
+  std::vector<float> texel_size_;
+  std::vector<int> levels_;
+  Band bands_[2], halo_;
+  Level level_[2];
+  std::vector<std::uint32_t> chosen_, slot_;
+};
+
 // raster -> trace -> encode, band of rows by band of rows, then dilate and
 // write, for one map (a UDIM tile: `surface` has the tile's UVs shifted
 // into [0, 1]^2). The per-sample arrays are reused and bounded, so a 16384^2
@@ -343,41 +560,46 @@ Status bake_tile(const Prepared& p, const LowSurface& surface, const std::vector
   detail::size_output(image.pixels, static_cast<std::size_t>(o.width) * rows * 3);
   std::vector<std::uint8_t> coverage(static_cast<std::size_t>(o.width) * rows, 0);
   std::unique_ptr<DebugImages> debug;
-  if (!debug_prefix.empty()) debug = std::make_unique<DebugImages>(o.width, o.height);
+  if (!debug_prefix.empty()) debug = std::make_unique<DebugImages>(o.width, o.height, o.adaptive);
   EncodeOptions encode_options = p.encode;
   encode_options.out_row_begin = first_row;
   TexelSamples samples;
   Hits hits;
   covered_texels = 0;
-  const int rows_per_band = band_rows(o.width, o.height, o.samples, o.band_samples);
-  for (int row = first_row; row < last_row; row += rows_per_band) {
-    const int row_end = std::min(row + rows_per_band, last_row);
-    timer.start_quietly("raster");
-    RasterStats band_raster;
-    rasterize(surface, o.width, o.height, o.samples, samples, band_raster, row, row_end);
-    covered_texels += band_raster.covered_texels;
-    r.raster.covered_texels += band_raster.covered_texels;
-    r.raster.border_samples += band_raster.border_samples;
-    r.raster.overlapping_samples += band_raster.overlapping_samples;
-    r.raster.degenerate_uv_triangles = band_raster.degenerate_uv_triangles;  // the same in every band
-    std::copy(samples.coverage.begin(), samples.coverage.end(),
-              coverage.begin() + static_cast<std::ptrdiff_t>(row - first_row) * o.width);
-    timer.stop(false);
+  if (o.adaptive) {
+    AdaptiveRows(p, surface, r, image, coverage, encode_options, debug.get())
+        .run(first_row, last_row, timer, progress, covered_texels);
+  } else {
+    const int rows_per_band = band_rows(o.width, o.height, o.samples, o.band_samples);
+    for (int row = first_row; row < last_row; row += rows_per_band) {
+      const int row_end = std::min(row + rows_per_band, last_row);
+      timer.start_quietly("raster");
+      RasterStats band_raster;
+      rasterize(surface, o.width, o.height, o.samples, samples, band_raster, row, row_end);
+      covered_texels += band_raster.covered_texels;
+      r.raster.covered_texels += band_raster.covered_texels;
+      r.raster.border_samples += band_raster.border_samples;
+      r.raster.overlapping_samples += band_raster.overlapping_samples;
+      r.raster.degenerate_uv_triangles = band_raster.degenerate_uv_triangles;  // the same in every band
+      std::copy(samples.coverage.begin(), samples.coverage.end(),
+                coverage.begin() + static_cast<std::ptrdiff_t>(row - first_row) * o.width);
+      timer.stop(false);
 
-    timer.start_quietly("trace");
-    // Without a listener trace() gets none: it then runs each band as one
-    // parallel loop instead of 100 batches with a barrier each.
-    std::function<void(double)> trace_progress;
-    if (progress) {
-      trace_progress = [&](double f) { progress("trace", (row + f * (row_end - row)) / o.height); };
+      timer.start_quietly("trace");
+      // Without a listener trace() gets none: it then runs each band as one
+      // parallel loop instead of 100 batches with a barrier each.
+      std::function<void(double)> trace_progress;
+      if (progress) {
+        trace_progress = [&](double f) { progress("trace", (row + f * (row_end - row)) / o.height); };
+      }
+      trace(p.scene, surface, samples, p.rays, hits, r.trace, trace_progress);
+      timer.stop(false);
+
+      timer.start_quietly("encode");
+      encode(surface, samples, p.high, hits, encode_options, image, r.encode);
+      timer.stop(false);
+      if (debug) debug->add_band(samples, hits);
     }
-    trace(p.scene, surface, samples, p.rays, hits, r.trace, trace_progress);
-    timer.stop(false);
-
-    timer.start_quietly("encode");
-    encode(surface, samples, p.high, hits, encode_options, image, r.encode);
-    timer.stop(false);
-    if (debug) debug->add_band(samples, hits);
   }
   if (debug) NMBAKE_TRY(debug->write(debug_prefix));
   if (tile != nullptr) {

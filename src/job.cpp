@@ -105,7 +105,16 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
   } else if (key == "height") {
     if (!get_int(o.height)) return bad("expected an integer");
   } else if (key == "samples") {
-    if (!get_int(o.samples)) return bad("expected an integer");
+    if (get_string(text)) {
+      if (text != "adaptive") return bad("expected an integer or \"adaptive\"");
+      o.adaptive = true;
+    } else if (get_int(o.samples)) {
+      o.adaptive = false;
+    } else {
+      return bad("expected an integer or \"adaptive\"");
+    }
+  } else if (key == "adaptive_max") {
+    if (!get_int(o.adaptive_options.max_samples)) return bad("expected an integer");
   } else if (key == "padding") {
     if (!get_int(o.padding)) return bad("expected an integer");
   } else if (key == "space") {

@@ -382,8 +382,17 @@ std::vector<glm::vec2> sample_offsets(int samples) {
 
 namespace {
 
+// Texels chosen for a compact raster (rasterize_selected): `slot` holds, per
+// texel of the band, its index in the output or kNotSelected.
+constexpr std::uint32_t kNotSelected = 0xffffffffu;
+struct Selection {
+  const std::uint32_t* slot = nullptr;  // null: every texel, in image order
+  std::size_t count = 0;
+};
+
 void rasterize_impl(const LowSurface& surface, int width, int height, int samples, TexelSamples& out,
-                    RasterStats& stats, int row_begin, int row_end, bool per_sample) {
+                    RasterStats& stats, int row_begin, int row_end, bool per_sample,
+                    const Selection& selection = {}) {
   NMBAKE_CHECK(width > 0 && height > 0, "raster size must be positive");
   if (row_end < 0) row_end = height;
   NMBAKE_CHECK(row_begin >= 0 && row_begin < row_end && row_end <= height && row_begin % kRasterTileSize == 0,
@@ -396,11 +405,14 @@ void rasterize_impl(const LowSurface& surface, int width, int height, int sample
 
   stats = RasterStats{};
   const int rows = row_end - row_begin;
-  const std::size_t texel_count = static_cast<std::size_t>(width) * static_cast<std::size_t>(rows);
+  const bool compact = selection.slot != nullptr;
+  // A compact output is one row of the selected texels.
+  const std::size_t texel_count =
+      compact ? selection.count : static_cast<std::size_t>(width) * static_cast<std::size_t>(rows);
   const std::size_t sample_total = texel_count * static_cast<std::size_t>(samples);
-  out.width = width;
-  out.height = rows;
-  out.row_begin = row_begin;
+  out.width = compact ? static_cast<int>(selection.count) : width;
+  out.height = compact ? 1 : rows;
+  out.row_begin = compact ? 0 : row_begin;
   out.samples = samples;
   // A reused `out` keeps its allocation; every element is rewritten by its
   // tile below.
@@ -466,6 +478,18 @@ void rasterize_impl(const LowSurface& surface, int width, int height, int sample
     }
   }
 
+  // Tiles without a selected texel have nothing to do.
+  std::vector<std::uint8_t> tile_selected;
+  if (compact) {
+    tile_selected.assign(tile_count, 0);
+    for (int y = row_begin; y < row_end; ++y) {
+      for (int x = 0; x < width; ++x) {
+        if (selection.slot[static_cast<std::size_t>(y - row_begin) * width + x] == kNotSelected) continue;
+        tile_selected[static_cast<std::size_t>(y / tile_size - tile_row0) * tiles_x + x / tile_size] = 1;
+      }
+    }
+  }
+
   const std::size_t tile_samples = static_cast<std::size_t>(tile_size) * tile_size * samples;
   tbb::enumerable_thread_specific<TileScratch> scratch_pool([tile_samples] {
     TileScratch s;
@@ -483,6 +507,7 @@ void rasterize_impl(const LowSurface& surface, int width, int height, int sample
       tbb::blocked_range<std::size_t>(0, tile_count), [&](const tbb::blocked_range<std::size_t>& r) {
         TileScratch& scratch = scratch_pool.local();
         for (std::size_t tile = r.begin(); tile != r.end(); ++tile) {
+          if (compact && !tile_selected[tile]) continue;
           const int tx0 = static_cast<int>(tile % tiles_x) * tile_size;
           const int ty0 = (tile_row0 + static_cast<int>(tile / tiles_x)) * tile_size;
           const int tx1 = std::min(tx0 + tile_size, width) - 1;
@@ -490,9 +515,16 @@ void rasterize_impl(const LowSurface& surface, int width, int height, int sample
           const auto local_texel = [&](int x, int y) {
             return static_cast<std::size_t>(y - ty0) * tile_size + static_cast<std::size_t>(x - tx0);
           };
-          const auto first_sample = [&](int x, int y) {
-            return (static_cast<std::size_t>(y - row_begin) * width + static_cast<std::size_t>(x)) * sample_stride;
+          const auto band_texel = [&](int x, int y) {
+            return static_cast<std::size_t>(y - row_begin) * width + static_cast<std::size_t>(x);
           };
+          const auto selected = [&](int x, int y) {
+            return !compact || selection.slot[band_texel(x, y)] != kNotSelected;
+          };
+          const auto out_texel = [&](int x, int y) {
+            return compact ? static_cast<std::size_t>(selection.slot[band_texel(x, y)]) : band_texel(x, y);
+          };
+          const auto first_sample = [&](int x, int y) { return out_texel(x, y) * sample_stride; };
 
           std::fill(scratch.best_distance2.begin(), scratch.best_distance2.end(),
                     std::numeric_limits<double>::infinity());
@@ -521,6 +553,7 @@ void rasterize_impl(const LowSurface& surface, int width, int height, int sample
               int span_begin, span_end;
               if (!overlap_span(tri, y, x_begin, x_end, span_begin, span_end)) continue;
               for (int x = span_begin; x <= span_end; ++x) {
+                if (!selected(x, y)) continue;
                 const std::size_t texel = local_texel(x, y);
                 covered[texel] = 1;
                 const std::size_t local0 = texel * sample_stride;
@@ -566,7 +599,7 @@ void rasterize_impl(const LowSurface& surface, int width, int height, int sample
             for (int y = y_begin; y <= y_end; ++y) {
               for (int x = x_begin; x <= x_end; ++x) {
                 const std::size_t texel = local_texel(x, y);
-                if (inside_count[texel] == samples || !box_overlaps(tri, x, y, 1.0)) continue;
+                if (inside_count[texel] == samples || !selected(x, y) || !box_overlaps(tri, x, y, 1.0)) continue;
                 const std::size_t local0 = texel * sample_stride;
                 const std::size_t global0 = first_sample(x, y);
                 for (int s = 0; s < samples; ++s) {
@@ -589,8 +622,9 @@ void rasterize_impl(const LowSurface& surface, int width, int height, int sample
           std::uint64_t covered_texels = 0;
           for (int y = ty0; y <= ty1; ++y) {
             for (int x = tx0; x <= tx1; ++x) {
+              if (!selected(x, y)) continue;
               const std::size_t texel = local_texel(x, y);
-              out.coverage[static_cast<std::size_t>(y - row_begin) * width + x] = covered[texel];
+              out.coverage[out_texel(x, y)] = covered[texel];
               if (!covered[texel]) {
                 // Every sample of a covered texel was written by pass 1 or 2.
                 const std::size_t first = first_sample(x, y);
@@ -628,6 +662,21 @@ void rasterize_impl(const LowSurface& surface, int width, int height, int sample
 void rasterize(const LowSurface& surface, int width, int height, int samples, TexelSamples& out,
                RasterStats& stats, int row_begin, int row_end) {
   rasterize_impl(surface, width, height, samples, out, stats, row_begin, row_end, false);
+}
+
+void rasterize_selected(const LowSurface& surface, int width, int height, int samples, int row_begin, int row_end,
+                        const std::uint32_t* texels, std::size_t count, TexelSamples& out, RasterStats& stats,
+                        std::vector<std::uint32_t>& slot) {
+  NMBAKE_CHECK(row_begin >= 0 && row_begin < row_end && row_end <= height, "row band must lie in the image");
+  const std::size_t band_texels = static_cast<std::size_t>(width) * static_cast<std::size_t>(row_end - row_begin);
+  if (slot.size() != band_texels) slot.assign(band_texels, kNotSelected);
+  for (std::size_t i = 0; i < count; ++i) {
+    NMBAKE_CHECK(texels[i] < band_texels && (i == 0 || texels[i] > texels[i - 1]),
+                 "selected texels lie in the band, ascending");
+    slot[texels[i]] = static_cast<std::uint32_t>(i);
+  }
+  rasterize_impl(surface, width, height, samples, out, stats, row_begin, row_end, false, Selection{slot.data(), count});
+  for (std::size_t i = 0; i < count; ++i) slot[texels[i]] = kNotSelected;
 }
 
 namespace detail {

@@ -12,6 +12,12 @@ double BakeReport::miss_rate() const {
   return trace.samples > 0 ? static_cast<double>(trace.misses) / static_cast<double>(trace.samples) : 0.0;
 }
 
+double BakeReport::rays_per_texel() const {
+  return raster.covered_texels > 0
+             ? static_cast<double>(trace.rays) / static_cast<double>(raster.covered_texels)
+             : 0.0;
+}
+
 double BakeReport::coverage() const {
   const double texels = static_cast<double>(width) * static_cast<double>(height);
   return texels > 0.0 ? static_cast<double>(raster.covered_texels) / texels : 0.0;
@@ -26,7 +32,29 @@ std::string BakeReport::to_json() const {
   j["outputs"] = outputs;
   j["width"] = width;
   j["height"] = height;
-  j["samples_per_texel"] = samples;
+  if (adaptive.max_samples > 0) {
+    j["samples_per_texel"] = "adaptive";
+    ordered_json levels = ordered_json::array();
+    const std::vector<int> level_samples =
+        adaptive.max_samples > 4 ? std::vector<int>{4, adaptive.max_samples} : std::vector<int>{4};
+    for (std::size_t l = 0; l < adaptive.level_texels.size() && l < level_samples.size(); ++l) {
+      levels.push_back({{"samples", level_samples[l]},
+                        {"texels", adaptive.level_texels[l]},
+                        {"rays", adaptive.level_rays.size() > l ? adaptive.level_rays[l] : 0}});
+    }
+    j["adaptive"] = {
+        {"max_samples", adaptive.max_samples},
+        {"first_pass_rays", adaptive.first_pass_rays},
+        {"refined_texels", adaptive.refined_texels},
+        {"refined_fraction", raster.covered_texels > 0 ? static_cast<double>(adaptive.refined_texels) /
+                                                             static_cast<double>(raster.covered_texels)
+                                                       : 0.0},
+        {"levels", levels},
+        {"halo_rays", adaptive.halo_rays},
+        {"rays_per_texel", rays_per_texel()}};
+  } else {
+    j["samples_per_texel"] = samples;
+  }
   j["threads"] = threads;
   j["low_triangles"] = low_triangles;
   j["high_triangles"] = high_triangles;
@@ -129,13 +157,21 @@ std::string BakeReport::summary_line() const {
   double trace_seconds = 0.0;
   for (const StageTime& s : stages)
     if (s.name == "trace") trace_seconds = s.seconds;
-  const double mrays_per_second = trace_seconds > 0.0 ? 1e-6 * static_cast<double>(trace.rays) / trace_seconds : 0.0;
+  const double mrays_per_second =
+      trace_seconds > 0.0 ? 1e-6 * static_cast<double>(trace.rays) / trace_seconds : 0.0;
+  char spp[64];
+  if (adaptive.max_samples > 0) {
+    std::snprintf(spp, sizeof spp, "adaptive (1-%d spp, %.2f rays a texel)", adaptive.max_samples,
+                  rays_per_texel());
+  } else {
+    std::snprintf(spp, sizeof spp, "x%d spp", samples);
+  }
   std::snprintf(line, sizeof line,
-                "baked %dx%d x%d spp: %.1f%% texels covered, %llu rays (%.1f Mrays/s), %llu misses (%.3f%%), "
+                "baked %dx%d %s: %.1f%% texels covered, %llu rays (%.1f Mrays/s), %llu misses (%.3f%%), "
                 "front %.4g back %.4g%s, %.2f s, peak %.0f MiB",
-                width, height, samples, 100.0 * coverage(), static_cast<unsigned long long>(trace.rays),
-                mrays_per_second, static_cast<unsigned long long>(trace.misses), 100.0 * miss_rate(), front, back,
-                distances_estimated ? " (auto)" : "", total_seconds,
+                width, height, spp, 100.0 * coverage(), static_cast<unsigned long long>(trace.rays),
+                mrays_per_second, static_cast<unsigned long long>(trace.misses), 100.0 * miss_rate(), front,
+                back, distances_estimated ? " (auto)" : "", total_seconds,
                 static_cast<double>(peak_rss_bytes) / (1024.0 * 1024.0));
   std::string text = line;
   if (!groups.empty()) {

@@ -58,7 +58,16 @@ std::string bake_key_text(const BakeOptions& o) {
   };
   line("nmbake", kNmbakeVersion);
   line("size", std::to_string(o.width) + "x" + std::to_string(o.height));
-  line("samples", std::to_string(o.samples));
+  if (o.adaptive) {
+    // The thresholds are part of the rule: a change of them changes bytes.
+    line("samples", "adaptive " + std::to_string(o.adaptive_options.max_samples) + " " +
+                        number(o.adaptive_options.normal_threshold) + " " +
+                        number(o.adaptive_options.depth_threshold) + " " +
+                        number(o.adaptive_options.border_threshold) + " " +
+                        number(o.adaptive_options.spread_threshold));
+  } else {
+    line("samples", std::to_string(o.samples));
+  }
   line("space", o.space == NormalSpace::tangent ? "tangent" : "object");
   line("green", o.green == GreenChannel::up ? "up" : "down");
   for (const auto& [name, d] : {std::pair{"front", o.front}, std::pair{"back", o.back}}) {

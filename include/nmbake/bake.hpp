@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "nmbake/adaptive.hpp"
 #include "nmbake/common.hpp"
 #include "nmbake/dilate.hpp"
 #include "nmbake/encode.hpp"
@@ -56,6 +57,11 @@ struct BakeOptions {
   int width = 2048;
   int height = 2048;
   int samples = 4;
+  // `--samples adaptive`: one sample per texel, then adaptive.max_samples
+  // (the fixed pattern) where the first pass says the normal varies
+  // (adaptive.hpp); `samples` is then unused.
+  bool adaptive = false;
+  AdaptiveOptions adaptive_options;
   NormalSpace space = NormalSpace::tangent;
   GreenChannel green = GreenChannel::up;
   Distance front;  // auto
@@ -143,8 +149,18 @@ struct BakeReport {
   NormalDecode decode;
   bool dither = true;
   std::uint64_t estimate_probes = 0, estimate_probe_misses = 0;
-  bool unwrapped = false;           // the low mesh had no UVs and was unwrapped
-  std::string unwrapped_low_path;   // where the unwrapped low mesh was written
+  // Adaptive sampling: max_samples > 0 when it ran.
+  struct Adaptive {
+    int max_samples = 0;
+    std::uint64_t first_pass_rays = 0;
+    std::uint64_t refined_texels = 0;  // taken by level 1 (4 samples)
+    // Per level (adaptive_levels(): 4, then max_samples): texels and rays.
+    std::vector<std::uint64_t> level_texels, level_rays;
+    std::uint64_t halo_rays = 0;  // a tile's first pass of the rows just outside it (not in `trace`)
+  } adaptive;
+  double rays_per_texel() const;   // rays traced / covered texels
+  bool unwrapped = false;          // the low mesh had no UVs and was unwrapped
+  std::string unwrapped_low_path;  // where the unwrapped low mesh was written
   UnwrapReport unwrap;
   // Bake groups (empty: every low triangle against every high triangle).
   struct Group {

@@ -83,6 +83,19 @@ struct RasterStats {
 void rasterize(const LowSurface& surface, int width, int height, int samples, TexelSamples& out,
                RasterStats& stats, int row_begin = 0, int row_end = -1);
 
+// Rasterizes only some texels of rows [row_begin, row_end), compactly: the
+// `count` texels listed in `texels` (indices into the band, y * width + x
+// with y counted from row_begin, ascending) become one row of `count`
+// texels in `out` (out.width = count, out.height = 1, out.row_begin = 0), in
+// the order listed, each with `samples` samples bit for bit equal to what
+// rasterize() gives that texel. For adaptive sampling (adaptive.hpp): the
+// texels the first pass chose get their fixed pattern, without a pass over
+// the others. `slot` is scratch (one entry per texel of the band, reused
+// between calls). row_begin is a multiple of kRasterTileSize.
+void rasterize_selected(const LowSurface& surface, int width, int height, int samples, int row_begin, int row_end,
+                        const std::uint32_t* texels, std::size_t count, TexelSamples& out, RasterStats& stats,
+                        std::vector<std::uint32_t>& slot);
+
 namespace detail {
 // The reference for tests: rasterize() with every sample tested on its own.
 // rasterize() tests the samples of a texel four at a time (4, 16 and 64

@@ -28,7 +28,9 @@ struct BakeFlags {
   std::string low, high, cage;
   std::vector<std::string> outputs;
   std::string size = "2048";
-  int samples = 4;
+  std::string samples = "4";
+  int adaptive_max = 16;
+  AdaptiveOptions adaptive;  // thresholds (experts; adaptive.hpp)
   std::string space = "tangent", front = "auto", back = "auto", hit = "first";
   std::string cage_mode = "averaged", high_normals = "smooth", build_quality = "low", encode = "inverse", bvh = "auto";
   std::string format;
@@ -84,7 +86,17 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
   o.high_path = f.high;
   o.cage_path = f.cage;
   if (!parse_size(f.size, o.width, o.height)) return Status::bad_input("--size " + f.size + ": expected N or WxH");
-  o.samples = f.samples;
+  if (f.samples == "adaptive") {
+    o.adaptive = true;
+    o.adaptive_options = f.adaptive;
+    o.adaptive_options.max_samples = f.adaptive_max;
+  } else {
+    const char* end = f.samples.data() + f.samples.size();
+    const auto parsed = std::from_chars(f.samples.data(), end, o.samples);
+    if (parsed.ec != std::errc() || parsed.ptr != end) {
+      return Status::bad_input("--samples " + f.samples + ": expected 1, 4, 16, 64 or adaptive");
+    }
+  }
   if (!parse_normal_space(f.space, o.space)) return Status::bad_input("--space " + f.space + ": expected tangent or object");
   if (!f.preset.empty()) {
     EnginePreset preset;
@@ -410,7 +422,26 @@ Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--cage", flags->cage, "cage mesh with the low mesh's topology (default: averaged-normal cage)");
   cmd->add_option("-o,--output", flags->outputs, "output map(s): .png (16-bit), .tif, .exr, .tga (8-bit); repeat for several")->allow_extra_args(false);
   cmd->add_option("--size", flags->size, "map size, N or WxH")->default_val("2048");
-  cmd->add_option("--samples", flags->samples, "samples per texel: 1, 4, 16, 64")->default_val(4);
+  cmd->add_option(
+         "--samples", flags->samples,
+         "samples per texel: 1, 4, 16, 64, or adaptive (1, then --adaptive-max where the normal varies)")
+      ->default_val("4");
+  cmd->add_option("--adaptive-max", flags->adaptive_max,
+                  "samples of a refined texel with --samples adaptive: 4, 16, 64")
+      ->default_val(16);
+  cmd->add_option("--adaptive-normal", flags->adaptive.normal_threshold,
+                  "refine where the stored vector's second difference between texels exceeds this")
+      ->default_val(AdaptiveOptions{}.normal_threshold);
+  cmd->add_option("--adaptive-depth", flags->adaptive.depth_threshold,
+                  "refine where the hit distance's second difference exceeds this many texels")
+      ->default_val(AdaptiveOptions{}.depth_threshold);
+  cmd->add_option(
+         "--adaptive-spread", flags->adaptive.spread_threshold,
+         "take --adaptive-max samples where a refined texel's 4 samples spread more than this (radians)")
+      ->default_val(AdaptiveOptions{}.spread_threshold);
+  cmd->add_option("--adaptive-border", flags->adaptive.border_threshold,
+                  "at a chart border, refine where the normal's first difference exceeds this")
+      ->default_val(AdaptiveOptions{}.border_threshold);
   cmd->add_option("--space", flags->space, "tangent | object")->default_val("tangent");
   cmd->add_option("--front", flags->front, "cage distance outside the low surface: units, N% of the bbox diagonal, auto")->default_val("auto");
   cmd->add_option("--back", flags->back, "search distance inside the low surface: units, N%, auto")->default_val("auto");

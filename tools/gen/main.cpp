@@ -126,8 +126,9 @@ int fail_with(const std::string& message) {
 
 int run_eval(const std::string& scene, const std::string& map_path, const std::string& low_path,
              const std::string& cage_path, const std::string& report_path, const std::string& json_path,
-             const std::string& space, const std::string& green, const std::string& cage_mode, int samples, int size,
-             float front, float back, bool floors, const std::string& cache) {
+             const std::string& space, const std::string& green, const std::string& cage_mode, int samples,
+             int size, float front, float back, bool floors, const std::string& cache,
+             const std::string& truth_map) {
   scenes::EvalOptions o;
   o.samples = samples;
   if (!nmbake::is_supported_sample_count(samples)) return fail_with("--truth-samples: use 1, 4, 16 or 64");
@@ -185,6 +186,15 @@ int run_eval(const std::string& scene, const std::string& map_path, const std::s
   if (cache.empty() || !scenes::load_expected(cache, key, expected)) {
     expected = scenes::compute_expected(*truth, low, cage_path.empty() ? nullptr : &cage, width, height, o);
     if (!cache.empty() && !scenes::save_expected(cache, key, expected)) return fail_with(cache + ": cannot write");
+  }
+  if (!truth_map.empty()) {
+    // The perfect map as the evaluator sees it (float), for analyses of
+    // texel errors outside this tool.
+    if (const nmbake::Status st = nmbake::write_image(scenes::expected_image(expected, o), truth_map,
+                                                      nmbake::PixelFormat::exr_float);
+        !st) {
+      return fail_with(st.message());
+    }
   }
   nlohmann::ordered_json out;
   if (!map_path.empty()) {
@@ -266,6 +276,7 @@ int main(int argc, char** argv) {
     std::string scene, map, low, cage, report, json, space = "tangent", cage_mode = "averaged", green = "up";
     int samples = 64, size = 512;
     std::string cache;
+    std::string truth_map;
     float front = -1.0f, back = -1.0f;
     bool floors = false;
   } ev;
@@ -278,7 +289,9 @@ int main(int argc, char** argv) {
   eval_cmd->add_option("--cage", ev.cage, "the explicit cage the bake used, if any");
   eval_cmd->add_option("--truth-samples", ev.samples, "samples per texel of the truth (box filter): 1, 4, 16, 64")
       ->capture_default_str();
-  eval_cmd->add_option("--cache", ev.cache, "keep the computed truth in this file and reuse it when it matches");
+  eval_cmd->add_option("--cache", ev.cache,
+                       "keep the computed truth in this file and reuse it when it matches");
+  eval_cmd->add_option("--truth-map", ev.truth_map, "also write the perfect map (the truth, float EXR) here");
   eval_cmd->add_option("--space", ev.space, "tangent | object")->capture_default_str();
   eval_cmd->add_option("--green", ev.green, "up | down")->capture_default_str();
   eval_cmd->add_option("--cage-mode", ev.cage_mode, "averaged | interpolated (the bake's)")->capture_default_str();
@@ -362,9 +375,11 @@ int main(int argc, char** argv) {
       std::printf("%s %s: %s\n", score.scene.c_str(), score.map.c_str(), e.to_text().c_str());
       return 0;
     }
-    if (eval_cmd->parsed()) return run_eval(ev.scene, ev.map, ev.low, ev.cage, ev.report, ev.json, ev.space, ev.green,
-                                            ev.cage_mode, ev.samples, ev.size, ev.front, ev.back, ev.floors, ev.cache);
-    if (torus->parsed()) return generate_and_write(options, "torus", [&] { return scenes::make_torus(options.torus); });
+    if (eval_cmd->parsed())
+      return run_eval(ev.scene, ev.map, ev.low, ev.cage, ev.report, ev.json, ev.space, ev.green, ev.cage_mode,
+                      ev.samples, ev.size, ev.front, ev.back, ev.floors, ev.cache, ev.truth_map);
+    if (torus->parsed())
+      return generate_and_write(options, "torus", [&] { return scenes::make_torus(options.torus); });
     if (craters->parsed()) {
       return generate_and_write(options, "craters", [&] { return scenes::make_craters(options.craters); });
     }
