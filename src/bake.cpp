@@ -5,6 +5,7 @@
 
 #include "huge_pages.hpp"
 #include "nmbake/budget.hpp"
+#include "nmbake/maps.hpp"
 #include "nmbake/task.hpp"
 #include "nmbake/udim.hpp"
 
@@ -75,7 +76,78 @@ Status check_distance(const char* name, const Distance& d, float diagonal) {
                            number_text(diagonal) + " = " + number_text(limit) + " scene units");
 }
 
+// The map set's options (maps.hpp).
+Status validate_map_set(const BakeOptions& o) {
+  if (o.maps.empty()) return Status::bad_input("no map to bake (--map)");
+  for (const MapKind map : o.maps) {
+    if (!map_traits(map).implemented) {
+      return Status::bad_input(std::string("--map ") + to_string(map) +
+                               ": not implemented yet (it needs vertex colours and parts from the loaders)");
+    }
+  }
+  if (o.maps.size() > 1) {
+    for (const OutputSpec& out : o.outputs) {
+      if (!has_map_token(out.path)) {
+        return Status::bad_input(printable_text(out.path) + ": " + std::to_string(o.maps.size()) + " maps are baked (" +
+                                 map_list_text(o.maps) + "): the output path needs the " + kMapToken +
+                                 " token, e.g. asset_" + kMapToken + ".png");
+      }
+    }
+  }
+  for (const MapOutput& out : map_outputs(o)) {
+    if (const Status target = check_output_target(out.path); !target) return Status::bad_input(target.message());
+  }
+  const auto check_range = [](const char* name, float value) {
+    if (!(value >= 0.0f) || !std::isfinite(value)) {
+      return Status::bad_input(std::string(name) + " " + number_text(value) + " is out of range: a number > 0, or auto");
+    }
+    return Status::ok();
+  };
+  NMBAKE_TRY(check_range("--height-range", o.height_range));
+  NMBAKE_TRY(check_range("--curvature-range", o.curvature_range));
+  for (const auto& [name, rays] : {std::pair{"--ao-rays", o.ao_rays}, std::pair{"--thickness-rays", o.thickness_rays}}) {
+    if (rays < 1 || rays > kMaxOcclusionRays) {
+      return Status::bad_input(std::string(name) + " " + std::to_string(rays) + " is out of range (1 to " +
+                               std::to_string(kMaxOcclusionRays) + ")");
+    }
+  }
+  for (const auto& [name, d] :
+       {std::pair{"--ao-distance", o.ao_distance}, std::pair{"--thickness-distance", o.thickness_distance}}) {
+    if (d.kind != Distance::Kind::automatic && !(d.value > 0.0f)) {
+      return Status::bad_input(std::string(name) + " " + to_string(d) + " is out of range: a distance > 0, N% or auto");
+    }
+    if (d.kind == Distance::Kind::absolute && !(d.value <= kMaxDistance)) {
+      return Status::bad_input(std::string(name) + " " + number_text(d.value) + " is out of range: at most " +
+                               number_text(kMaxDistance) + " scene units");
+    }
+    if (d.kind == Distance::Kind::percent && !(d.value <= 100.0f * kMaxDistanceDiagonals)) {
+      return Status::bad_input(std::string(name) + " " + number_text(d.value) + "% is out of range: at most " +
+                               number_text(100.0f * kMaxDistanceDiagonals) + "% of the low mesh's diagonal");
+    }
+  }
+  if (o.tile_count > 0 && (o.maps.size() != 1 || o.maps.front() != MapKind::normal)) {
+    return Status::bad_input("the map set (" + map_list_text(o.maps) +
+                             ") cannot be baked in tiles (--tile) yet: bake it whole, or tile a bake of the normal map "
+                             "alone");
+  }
+  return Status::ok();
+}
+
 }  // namespace
+
+std::vector<MapOutput> map_outputs(const BakeOptions& o) {
+  std::vector<MapOutput> out;
+  for (const OutputSpec& spec : o.outputs) {
+    for (const MapKind map : o.maps) {
+      MapOutput m;
+      m.path = map_path(spec.path, map);
+      m.format = map_format(map, spec.format, spec.format_given, spec.path);
+      m.map = map;
+      out.push_back(std::move(m));
+    }
+  }
+  return out;
+}
 
 Status validate_options(const BakeOptions& o) {
   if (o.low_path.empty()) return Status::bad_input("no low mesh given (--low)");
@@ -131,7 +203,7 @@ Status validate_options(const BakeOptions& o) {
       return Status::internal(out.path + ": " + writer.message());  // names the output once
     }
   }
-  return Status::ok();
+  return validate_map_set(o);
 }
 
 namespace {
@@ -319,33 +391,27 @@ struct Prepared {
   const Mesh& high;
   const HighScene& scene;
   const RayOptions& rays;
-  EncodeOptions encode;
+  MapSettings maps;  // the map set, with the normal map's encode options
 };
 
-// raster -> trace -> encode, band of rows by band of rows, then dilate and
-// write, for one map (a UDIM tile: `surface` has the tile's UVs shifted
-// into [0, 1]^2). The per-sample arrays are reused and bounded, so a 16384^2
-// map bakes in the memory of a small one. Bands change nothing in the
-// result: raster tiles and ray packets both start on band rows.
+// raster -> trace -> [occlusion rays] -> encode (every map of the set),
+// band of rows by band of rows, then dilate and write, for one map (a UDIM
+// tile: `surface` has the tile's UVs shifted into [0, 1]^2). The per-sample
+// arrays are reused and bounded, so a 16384^2 map bakes in the memory of a
+// small one. Bands change nothing in the result: raster tiles and ray
+// packets both start on band rows.
 // Rows [first_row, last_row) of the map (all of it, or a tile's: then the
 // image and coverage hold only those rows, and nothing is dilated or
 // written: `tile` gets them).
-Status bake_tile(const Prepared& p, const LowSurface& surface, const std::vector<OutputSpec>& outputs,
+Status bake_tile(const Prepared& p, const LowSurface& surface, const std::vector<MapOutput>& outputs,
                  const std::string& debug_prefix, BakeReport& r, StageTimer& timer, const ProgressFn& progress,
-                 std::uint64_t& covered_texels, int first_row, int last_row, TileData* tile) {
+                 std::uint64_t& covered_texels, int first_row, int last_row, int udim_tile, TileData* tile) {
   const BakeOptions& o = p.options;
   const int rows = last_row - first_row;
-  Image image;
-  image.width = o.width;
-  image.height = rows;
-  image.channels = 3;
-  // Every texel is written by encode; huge pages make the first touch cheap.
-  detail::size_output(image.pixels, static_cast<std::size_t>(o.width) * rows * 3);
+  MapSet maps(p.maps, o.width, first_row, last_row);
   std::vector<std::uint8_t> coverage(static_cast<std::size_t>(o.width) * rows, 0);
   std::unique_ptr<DebugImages> debug;
   if (!debug_prefix.empty()) debug = std::make_unique<DebugImages>(o.width, o.height);
-  EncodeOptions encode_options = p.encode;
-  encode_options.out_row_begin = first_row;
   TexelSamples samples;
   Hits hits;
   covered_texels = 0;
@@ -374,32 +440,46 @@ Status bake_tile(const Prepared& p, const LowSurface& surface, const std::vector
     trace(p.scene, surface, samples, p.rays, hits, r.trace, trace_progress);
     timer.stop(false);
 
+    if (maps.needs_rays()) {
+      // AO, bent normals, thickness: their own rays from this band's hits.
+      timer.start_quietly("occlusion");
+      maps.trace_rays(p.scene, p.high, surface, samples, hits);
+      timer.stop(false);
+      if (progress) progress("occlusion", static_cast<double>(row_end) / o.height);
+    }
+
     timer.start_quietly("encode");
-    encode(surface, samples, p.high, hits, encode_options, image, r.encode);
+    maps.encode_band(surface, samples, p.high, hits, r.encode);
     timer.stop(false);
     if (debug) debug->add_band(samples, hits);
   }
   if (debug) NMBAKE_TRY(debug->write(debug_prefix));
   if (tile != nullptr) {
-    tile->pixels = std::move(image.pixels);
+    tile->pixels = std::move(maps.image(MapKind::normal).pixels);
     tile->coverage = std::move(coverage);
     return Status::ok();
   }
 
   timer.start("dilate");
-  DilateStats dilate_stats;
-  dilate(image, coverage, o.padding, dilate_stats);
-  r.dilate.filled_texels += dilate_stats.filled_texels;
-  r.dilate.fallback_texels += dilate_stats.fallback_texels;
+  maps.finish(coverage, o.padding, r.dilate);
   timer.stop();
 
   // Every output is written at once (each writer is single-threaded).
   timer.start("write");
   std::vector<Status> written(outputs.size());
-  tbb::parallel_for(std::size_t{0}, outputs.size(),
-                    [&](std::size_t i) { written[i] = write_image(image, outputs[i].path, outputs[i].format); });
+  std::vector<Image> scratch(outputs.size());
+  tbb::parallel_for(std::size_t{0}, outputs.size(), [&](std::size_t i) {
+    const MapOutput& out = outputs[i];
+    written[i] = write_image(maps.stored(out.map, out.format, scratch[i]), out.path, out.format);
+  });
   for (const Status& s : written) NMBAKE_TRY(s);
   timer.stop();
+  for (MapReport& m : maps.reports(udim_tile)) {
+    for (const MapOutput& out : outputs) {
+      if (out.map == m.map) m.outputs.push_back(out.path);
+    }
+    r.map_reports.push_back(std::move(m));
+  }
   return Status::ok();
 }
 
@@ -508,6 +588,27 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   timer.start("prepare");
   prepare_low_normals(low, r.low_mesh);
   if (smooth_high) prepare_high_normals(high, r.high_mesh);
+  // The map set's per-bake data, from the whole high mesh before groups
+  // reorder its triangles: its bounds (position) and vertex curvature.
+  const bool want_position = std::find(o.maps.begin(), o.maps.end(), MapKind::position) != o.maps.end();
+  const Bounds high_bounds = want_position ? compute_bounds(high) : Bounds{};
+  std::vector<float> vertex_curvature;
+  if (std::find(o.maps.begin(), o.maps.end(), MapKind::curvature) != o.maps.end()) {
+    CurvatureStats curvature_stats;
+    if (high.has_normals()) {
+      vertex_curvature = vertex_mean_curvature(high, high.normals, curvature_stats);
+    } else {
+      // --high-normals face: curvature still needs smooth (area-weighted) normals.
+      Mesh shape;
+      shape.positions = high.positions;
+      shape.indices = high.indices;
+      MeshStats shape_stats;
+      compute_vertex_normals(shape, shape_stats);
+      vertex_curvature = vertex_mean_curvature(shape, shape.normals, curvature_stats);
+    }
+    r.curvature_degenerate_triangles = curvature_stats.degenerate_triangles;
+    r.curvature_isolated_vertices = curvature_stats.isolated_vertices;
+  }
   SceneGroups scene_groups;
   if (groups.grouped()) {
     // Normals come from the whole high mesh first; then each group's
@@ -562,18 +663,32 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   }
   r.unused_high_parts = groups.unused_high_parts;
 
-  Prepared prepared{o, high, scene, rays, EncodeOptions{}};
-  prepared.encode.space = o.space;
-  prepared.encode.green = o.green;
-  prepared.encode.high_normals = o.high_normals;
-  prepared.encode.tangent_encode = o.tangent_encode;
+  Prepared prepared{o, high, scene, rays, MapSettings{}};
+  MapSettings& map_settings = prepared.maps;
+  map_settings.maps = o.maps;
+  map_settings.encode.space = o.space;
+  map_settings.encode.green = o.green;
+  map_settings.encode.high_normals = o.high_normals;
+  map_settings.encode.tangent_encode = o.tangent_encode;
+  map_settings.height_range = o.height_range;
+  map_settings.curvature_range = o.curvature_range;
+  const float auto_map_distance = kAutoMapDistancePercent * 0.01f * r.low_diagonal;
+  map_settings.occlusion.rays = o.ao_rays;
+  map_settings.occlusion.distance = resolve(o.ao_distance, r.low_diagonal, auto_map_distance);
+  map_settings.occlusion.bent = map_settings.has(MapKind::bent_normal);
+  map_settings.thickness.rays = o.thickness_rays;
+  map_settings.thickness.distance = resolve(o.thickness_distance, r.low_diagonal, auto_map_distance);
+  map_settings.position_bounds = high_bounds;
+  map_settings.vertex_curvature = vertex_curvature.empty() ? nullptr : &vertex_curvature;
+  r.maps = o.maps;
+  const std::vector<MapOutput> map_files = map_outputs(o);
   const std::vector<glm::vec2> file_uvs = udim ? surface.uv : std::vector<glm::vec2>{};
   r.outputs.clear();
   for (const int tile : tiles) {
     BakeReport::Tile done;
     done.tile = tile;
-    std::vector<OutputSpec> outputs = o.outputs;
-    for (OutputSpec& out : outputs) {
+    std::vector<MapOutput> outputs = map_files;
+    for (MapOutput& out : outputs) {
       out.path = udim_path(out.path, tile);
       done.outputs.push_back(out.path);
       r.outputs.push_back(out.path);
@@ -596,8 +711,9 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
       rows.count = o.tile_count;
       rows.padding = o.padding;
       rows.outputs = o.outputs;
+      for (OutputSpec& out : rows.outputs) out.path = map_path(out.path, MapKind::normal);  // tiles: the normal map alone
       NMBAKE_TRY(bake_tile(prepared, surface, outputs, debug_prefix, r, timer, progress, done.covered_texels,
-                           rows.row_begin, rows.row_end, &rows));
+                           rows.row_begin, rows.row_end, tile, &rows));
       timer.start("write");
       NMBAKE_TRY(write_tile(o.tile_path, rows));
       timer.stop();
@@ -610,7 +726,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
       done.outputs = {o.tile_path};
     } else {
       NMBAKE_TRY(bake_tile(prepared, surface, outputs, debug_prefix, r, timer, progress, done.covered_texels, 0,
-                           o.height, nullptr));
+                           o.height, tile, nullptr));
     }
     r.tiles.push_back(std::move(done));
   }

@@ -84,6 +84,32 @@ void scan_rows(const Grid& grid, int row_begin, int row_end, std::vector<std::ui
 }
 
 // The value of one frontier texel from its neighbours covered before this
+// pass, for DilateMode::mean and ::nearest. Never a fallback.
+bool fill_plain(const Image& image, const Grid& grid, std::uint32_t index, float* out, DilateMode mode) {
+  const int channels = image.channels;
+  const int x = static_cast<int>(index % static_cast<std::uint32_t>(grid.width));
+  const int y = static_cast<int>(index / static_cast<std::uint32_t>(grid.width));
+  for (int c = 0; c < channels; ++c) out[c] = 0.0f;
+  int used_count = 0;
+  for (int k = 0; k < neighbour_count; ++k) {
+    const int nx = x + neighbour_dx[k];
+    const int ny = y + neighbour_dy[k];
+    if (!grid.inside(nx, ny)) continue;
+    if (grid.state[static_cast<std::size_t>(ny) * grid.width + nx] != state_covered) continue;
+    const float* p = image.at(nx, ny);
+    if (mode == DilateMode::nearest) {
+      std::copy(p, p + channels, out);
+      return false;
+    }
+    for (int c = 0; c < channels; ++c) out[c] += p[c];
+    ++used_count;
+  }
+  NMBAKE_DCHECK(used_count > 0, "a frontier texel has no covered neighbour");
+  for (int c = 0; c < channels; ++c) out[c] /= static_cast<float>(used_count);
+  return false;
+}
+
+// The value of one frontier texel from its neighbours covered before this
 // pass. Returns whether the cancelled-vectors fallback was taken.
 bool fill_value(const Image& image, const Grid& grid, std::uint32_t index, float* out) {
   const int channels = image.channels;
@@ -119,10 +145,11 @@ bool fill_value(const Image& image, const Grid& grid, std::uint32_t index, float
 
 }  // namespace
 
-void dilate(Image& image, std::vector<std::uint8_t>& coverage, int padding, DilateStats& stats) {
+void dilate(Image& image, std::vector<std::uint8_t>& coverage, int padding, DilateStats& stats, DilateMode mode) {
   stats = DilateStats{};
   NMBAKE_CHECK(image.width >= 0 && image.height >= 0, "dilate: negative image size");
-  NMBAKE_CHECK(image.channels >= 3, "dilate: the image needs at least 3 channels (a vector per texel)");
+  NMBAKE_CHECK(image.channels >= (mode == DilateMode::unit_vector ? 3 : 1),
+               "dilate: a unit-vector image needs at least 3 channels (a vector per texel)");
   const std::size_t texel_count =
       static_cast<std::size_t>(image.width) * static_cast<std::size_t>(image.height);
   NMBAKE_CHECK(texel_count <= std::numeric_limits<std::uint32_t>::max(),
@@ -190,7 +217,10 @@ void dilate(Image& image, std::vector<std::uint8_t>& coverage, int padding, Dila
     for_each_chunk([&](std::size_t chunk, std::size_t begin, std::size_t end) {
       std::uint64_t fallback_count = 0;
       for (std::size_t j = begin; j < end; ++j) {
-        if (fill_value(image, grid, frontier[j], values.data() + j * channels)) ++fallback_count;
+        float* value = values.data() + j * channels;
+        const bool fallback = mode == DilateMode::unit_vector ? fill_value(image, grid, frontier[j], value)
+                                                              : fill_plain(image, grid, frontier[j], value, mode);
+        if (fallback) ++fallback_count;
       }
       chunk_fallback_counts[chunk] = fallback_count;
     });

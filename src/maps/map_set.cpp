@@ -1,0 +1,287 @@
+// The map set (maps.hpp): names, traits, the <MAP> token, and MapSet, which
+// runs every map's module band by band and hands the write stage its images.
+#include "nmbake/maps.hpp"
+
+#include <algorithm>
+#include <filesystem>
+
+#include <tbb/parallel_for.h>
+
+#include "huge_pages.hpp"
+#include "modules.hpp"
+
+namespace nmbake {
+
+namespace {
+
+struct MapName {
+  MapKind map;
+  const char* name;
+};
+constexpr MapName kMapNames[] = {
+    {MapKind::normal, "normal"},       {MapKind::height, "height"},
+    {MapKind::ao, "ao"},               {MapKind::bent_normal, "bent-normal"},
+    {MapKind::curvature, "curvature"}, {MapKind::thickness, "thickness"},
+    {MapKind::position, "position"},   {MapKind::object_normal, "object-normal"},
+    {MapKind::vertex_color, "vertex-color"}, {MapKind::id, "id"},
+    {MapKind::miss, "miss"},
+};
+
+}  // namespace
+
+const char* to_string(MapKind map) {
+  for (const MapName& n : kMapNames) {
+    if (n.map == map) return n.name;
+  }
+  return "?";
+}
+
+bool parse_map_kind(const std::string& text, MapKind& out) {
+  for (const MapName& n : kMapNames) {
+    if (text == n.name) {
+      out = n.map;
+      return true;
+    }
+  }
+  return false;
+}
+
+Status parse_map_list(const std::string& text, std::vector<MapKind>& out) {
+  std::size_t begin = 0;
+  bool any = false;
+  while (begin <= text.size()) {
+    std::size_t end = text.find(',', begin);
+    if (end == std::string::npos) end = text.size();
+    std::string word = text.substr(begin, end - begin);
+    word.erase(0, word.find_first_not_of(" \t"));
+    word.erase(word.find_last_not_of(" \t") + 1);
+    begin = end + 1;
+    if (word.empty()) continue;
+    MapKind map;
+    if (!parse_map_kind(word, map)) {
+      std::string known;
+      for (const MapName& n : kMapNames) {
+        if (!known.empty()) known += ", ";
+        known += n.name;
+      }
+      return Status::bad_input("unknown map '" + printable_text(word) + "' (maps: " + known + ")");
+    }
+    any = true;
+    if (std::find(out.begin(), out.end(), map) == out.end()) out.push_back(map);
+  }
+  if (!any) return Status::bad_input("no map named in '" + printable_text(text) + "'");
+  return Status::ok();
+}
+
+std::string map_list_text(const std::vector<MapKind>& maps) {
+  std::string text;
+  for (const MapKind m : maps) {
+    if (!text.empty()) text += ", ";
+    text += to_string(m);
+  }
+  return text;
+}
+
+MapTraits map_traits(MapKind map) {
+  MapTraits t;
+  switch (map) {
+    case MapKind::normal:
+    case MapKind::object_normal:
+      t.dilate = DilateMode::unit_vector;
+      break;
+    case MapKind::bent_normal:
+      t.dilate = DilateMode::unit_vector;
+      t.occlusion_rays = true;
+      break;
+    case MapKind::height:
+      t.channels = 1;
+      break;
+    case MapKind::ao:
+      t.channels = 1;
+      t.png_format = PixelFormat::png8;
+      t.occlusion_rays = true;
+      break;
+    case MapKind::curvature:
+      t.channels = 1;
+      t.png_format = PixelFormat::png8;
+      break;
+    case MapKind::thickness:
+      t.channels = 1;
+      t.png_format = PixelFormat::png8;
+      t.thickness_rays = true;
+      break;
+    case MapKind::position:
+      break;
+    case MapKind::miss:
+      t.channels = 1;
+      t.png_format = PixelFormat::png8;
+      t.dilate = DilateMode::nearest;
+      break;
+    case MapKind::vertex_color:
+      t.png_format = PixelFormat::png8;
+      t.implemented = false;
+      break;
+    case MapKind::id:
+      t.png_format = PixelFormat::png8;
+      t.dilate = DilateMode::nearest;
+      t.implemented = false;
+      break;
+  }
+  return t;
+}
+
+bool has_map_token(const std::string& path) { return path.find(kMapToken) != std::string::npos; }
+
+std::string map_path(const std::string& path, MapKind map) {
+  std::string out = path;
+  const std::string token = kMapToken;
+  for (std::size_t at = out.find(token); at != std::string::npos; at = out.find(token, at)) {
+    out.replace(at, token.size(), to_string(map));
+    at += std::string(to_string(map)).size();
+  }
+  return out;
+}
+
+PixelFormat map_format(MapKind map, PixelFormat format, bool format_given, const std::string& path) {
+  if (format_given || format != PixelFormat::png16) return format;
+  std::string extension = std::filesystem::path(path).extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return extension == ".png" ? map_traits(map).png_format : format;
+}
+
+bool MapSettings::has(MapKind map) const { return std::find(maps.begin(), maps.end(), map) != maps.end(); }
+
+double MapReport::figure(const std::string& name) const {
+  for (const auto& f : figures) {
+    if (f.first == name) return f.second;
+  }
+  return 0.0;
+}
+
+MapSet::MapSet(const MapSettings& settings, int width, int first_row, int last_row)
+    : settings_(settings), width_(width), first_row_(first_row), last_row_(last_row) {
+  settings_.encode.out_row_begin = first_row;
+  for (const MapKind map : settings_.maps) {
+    std::unique_ptr<Module> m = make_map_module(map, settings_);
+    const int channels = map_traits(map).channels;
+    m->image.width = width;
+    m->image.height = last_row - first_row;
+    m->image.channels = channels;
+    // Every texel is written by its module, band by band; huge pages make
+    // the first touch cheap (as the normal map's image before the map set).
+    detail::size_output(m->image.pixels, static_cast<std::size_t>(width) * (last_row - first_row) * channels);
+    modules_.push_back(std::move(m));
+  }
+}
+
+MapSet::~MapSet() = default;
+
+bool MapSet::needs_rays() const {
+  return std::any_of(settings_.maps.begin(), settings_.maps.end(), [](MapKind m) {
+    const MapTraits t = map_traits(m);
+    return t.occlusion_rays || t.thickness_rays;
+  });
+}
+
+void MapSet::trace_rays(const HighScene& scene, const Mesh& high, const LowSurface& surface,
+                        const TexelSamples& samples, const Hits& hits) {
+  const bool occlusion = settings_.has(MapKind::ao) || settings_.has(MapKind::bent_normal);
+  if (occlusion) {
+    OcclusionOptions options = settings_.occlusion;
+    options.bent = settings_.has(MapKind::bent_normal);
+    trace_occlusion(scene, high, surface, samples, hits, options, visibility_, bent_, occlusion_stats_);
+  }
+  if (settings_.has(MapKind::thickness)) {
+    trace_thickness(scene, high, surface, samples, hits, settings_.thickness, thickness_, thickness_stats_);
+  }
+}
+
+void MapSet::encode_band(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
+                         EncodeStats& normal_stats) {
+  NMBAKE_CHECK(samples.row_begin >= first_row_ && samples.row_begin + samples.height <= last_row_,
+               "the band lies in the map set's rows");
+  const BandInputs in{surface, samples, high, hits, &visibility_, &bent_, &thickness_,
+                      samples.row_begin - first_row_};
+  for (const auto& m : modules_) m->encode_band(in, settings_, normal_stats);
+}
+
+void MapSet::finish(const std::vector<std::uint8_t>& coverage, int padding, DilateStats& dilate_stats) {
+  for (const auto& m : modules_) m->finish(coverage);
+  // Each map dilated on its own copy of the coverage (dilate() extends it).
+  std::vector<std::uint8_t> grown;
+  for (const auto& m : modules_) {
+    grown = coverage;
+    DilateStats s;
+    dilate(m->image, grown, padding, s, map_traits(m->kind).dilate);
+    if (m->kind == settings_.maps.front()) {
+      dilate_stats.filled_texels += s.filled_texels;
+    }
+    dilate_stats.fallback_texels += s.fallback_texels;
+  }
+}
+
+Image& MapSet::image(MapKind map) {
+  for (const auto& m : modules_) {
+    if (m->kind == map) return m->image;
+  }
+  NMBAKE_CHECK(false, "the map is in the set");
+  return modules_.front()->image;
+}
+
+const Image& MapSet::stored(MapKind map, PixelFormat format, Image& scratch) const {
+  const Module* module = nullptr;
+  for (const auto& m : modules_) {
+    if (m->kind == map) module = m.get();
+  }
+  NMBAKE_CHECK(module != nullptr, "the map is in the set");
+  const bool integer = format == PixelFormat::png8 || format == PixelFormat::png16 || format == PixelFormat::tiff16;
+  float scale = 1.0f, offset = 0.0f;
+  module->integer_mapping(scale, offset);
+  if (!integer || (scale == 1.0f && offset == 0.0f)) return module->image;
+  scratch.width = module->image.width;
+  scratch.height = module->image.height;
+  scratch.channels = module->image.channels;
+  detail::size_output(scratch.pixels, module->image.pixels.size());
+  const std::size_t n = scratch.pixels.size();
+  tbb::parallel_for(std::size_t{0}, n, std::size_t{1} << 16, [&](std::size_t begin) {
+    const std::size_t end = std::min(n, begin + (std::size_t{1} << 16));
+    for (std::size_t i = begin; i < end; ++i) scratch.pixels[i] = module->image.pixels[i] * scale + offset;
+  });
+  return scratch;
+}
+
+std::vector<MapReport> MapSet::reports(int tile) const {
+  std::vector<MapReport> out;
+  for (const auto& m : modules_) {
+    MapReport r;
+    r.map = m->kind;
+    r.tile = tile;
+    r.figures = m->figures;
+    const auto put = [&](const char* name, double value) { r.figures.emplace_back(name, value); };
+    if (m->kind == MapKind::ao || m->kind == MapKind::bent_normal) {
+      put("rays_per_sample", settings_.occlusion.rays);
+      put("distance", settings_.occlusion.distance);
+      put("samples", static_cast<double>(occlusion_stats_.samples));
+      put("rays", static_cast<double>(occlusion_stats_.rays));
+      put("unoccluded_rays", static_cast<double>(occlusion_stats_.unoccluded));
+      put("mirrored_rays", static_cast<double>(occlusion_stats_.mirrored_rays));
+      put("normal_fallbacks", static_cast<double>(occlusion_stats_.normal_fallbacks));
+      put("untraced_rays", static_cast<double>(occlusion_stats_.untraced_rays));
+      if (m->kind == MapKind::bent_normal) put("all_occluded_samples", static_cast<double>(occlusion_stats_.all_occluded));
+    }
+    if (m->kind == MapKind::thickness) {
+      put("rays_per_sample", settings_.thickness.rays);
+      put("distance", settings_.thickness.distance);
+      put("samples", static_cast<double>(thickness_stats_.samples));
+      put("rays", static_cast<double>(thickness_stats_.rays));
+      put("exits", static_cast<double>(thickness_stats_.exits));
+      put("samples_without_exit", static_cast<double>(thickness_stats_.samples_no_exit));
+      put("normal_fallbacks", static_cast<double>(thickness_stats_.normal_fallbacks));
+      put("untraced_rays", static_cast<double>(thickness_stats_.untraced_rays));
+    }
+    out.push_back(std::move(r));
+  }
+  return out;
+}
+
+}  // namespace nmbake
