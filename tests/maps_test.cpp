@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 
@@ -261,6 +262,352 @@ TEST(Maps, ThicknessMatchesSlabAndSphere) {
     EXPECT_EQ(report.map_reports[0].figure("samples_without_exit"), 0.0);
     // Measured: slab exact to float rounding; sphere mean 0.001 (0.05%), max 0.004.
     EXPECT_LT(e.max, scene == "slab" ? 1e-5 : 0.01) << scene;
+  }
+}
+
+
+const std::vector<MapKind> kAllMaps = {MapKind::normal,    MapKind::height,   MapKind::ao,
+                                       MapKind::bent_normal, MapKind::curvature, MapKind::thickness,
+                                       MapKind::position,  MapKind::object_normal, MapKind::miss};
+
+std::size_t count_non_finite(const Image& image) {
+  return static_cast<std::size_t>(
+      std::count_if(image.pixels.begin(), image.pixels.end(), [](float v) { return !std::isfinite(v); }));
+}
+
+// No self-occlusion acne: on a convex high surface every AO ray escapes, so
+// every texel must be exactly 1 (one ray caught by its own surface shows).
+// The sphere at the origin and a kilometre from it (the ray offset scales
+// with the coordinates), and the rounded box of the hard-edged cube scene.
+TEST(Maps, NoSelfOcclusionOnConvexSurfaces) {
+  for (const std::string scene : {"sphere", "sphere-1km", "box"}) {
+    test::TempDir dir;
+    scenes::ScenePair pair;
+    if (scene == "box") {
+      scenes::BoxParams p;
+      p.high_cells = 96;
+      pair = scenes::make_box(p);
+    } else {
+      scenes::SphereParams p;
+      p.amplitude = 0.0f;
+      p.high_cells = 96;
+      pair = scenes::make_displaced_sphere(p);
+      if (scene == "sphere-1km") {
+        for (Mesh* m : {&pair.low, &pair.high})
+          for (glm::vec3& v : m->positions) v += glm::vec3(1000.0f, 1000.0f, 0.0f);
+      }
+    }
+    BakeOptions o = scene_bake(dir, pair, 64, 1);
+    o.ao_rays = 32;
+    const BakeReport report = bake_maps(dir, o, {MapKind::ao, MapKind::bent_normal});
+    const Image ao = read_map(dir, MapKind::ao);
+    std::size_t dark = 0;
+    for (const float v : ao.pixels) dark += v != 1.0f;
+    const MapReport& r = report.map_reports[0];
+    std::printf("%s: %.0f AO rays, %.0f unoccluded, %.0f mirrored; %zu texels below 1\n", scene.c_str(),
+                r.figure("rays"), r.figure("unoccluded_rays"), r.figure("mirrored_rays"), dark);
+    EXPECT_EQ(dark, 0u) << scene;
+    EXPECT_EQ(r.figure("rays"), r.figure("unoccluded_rays")) << scene;
+    EXPECT_EQ(count_non_finite(read_map(dir, MapKind::bent_normal)), 0u);
+  }
+}
+
+// Near hard edges (the cube over the rounded box) and in the concave slot
+// (long rays cross the groove): every map finite and in range, AO darker in
+// the slot's corners than on its floor's middle, and the same bytes for 1
+// and 2 threads and any band size.
+TEST(Maps, StableNearHardEdgesAndInTheSlotAndTheSameForAnyThreadCount) {
+  for (const std::string scene : {"box", "slot"}) {
+    test::TempDir dir;
+    scenes::ScenePair pair;
+    if (scene == "box") {
+      scenes::BoxParams p;
+      p.high_cells = 64;
+      pair = scenes::make_box(p);
+    } else {
+      scenes::SlotParams p;
+      p.high_cells = 64;
+      pair = scenes::make_slot(p);
+    }
+    BakeOptions o = scene_bake(dir, pair, 64);
+    const scenes::LabDistances d = scenes::lab_distances(scene);
+    o.front = {Distance::Kind::absolute, d.front};
+    o.back = {Distance::Kind::absolute, d.back};
+    o.hit = scene == "slot" ? HitRule::nearest : HitRule::first;
+    o.ao_rays = 16;
+    o.ao_distance = {Distance::Kind::absolute, 1.0f};
+    o.maps = kAllMaps;
+    o.outputs = {{dir.file("a_<MAP>.exr"), PixelFormat::exr_float}, {dir.file("a_<MAP>.png"), PixelFormat::png16}};
+    BakeReport one, two;
+    {
+      tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 1);
+      ASSERT_TRUE(bake(o, one).is_ok());
+    }
+    o.outputs = {{dir.file("b_<MAP>.exr"), PixelFormat::exr_float}, {dir.file("b_<MAP>.png"), PixelFormat::png16}};
+    o.band_samples = 64 * 4 * 32;  // bands of 32 rows
+    {
+      tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 2);
+      ASSERT_TRUE(bake(o, two).is_ok());
+    }
+    for (const MapKind map : kAllMaps) {
+      for (const char* ext : {".exr", ".png"}) {
+        const std::string a = read_bytes(dir.file(std::string("a_") + to_string(map) + ext));
+        const std::string b = read_bytes(dir.file(std::string("b_") + to_string(map) + ext));
+        EXPECT_FALSE(a.empty());
+        EXPECT_TRUE(a == b) << scene << " " << to_string(map) << ext << ": 1 and 2 threads differ";
+      }
+      Image image;
+      ASSERT_TRUE(read_image(dir.file(std::string("a_") + to_string(map) + ".exr"), image).is_ok());
+      EXPECT_EQ(count_non_finite(image), 0u) << scene << " " << to_string(map);
+      if (map == MapKind::ao || map == MapKind::miss || map == MapKind::position) {
+        for (const float v : image.pixels) ASSERT_TRUE(v >= 0.0f && v <= 1.0f) << to_string(map) << " " << v;
+      }
+    }
+    if (scene == "slot") {
+      // Across the floor's chart (the middle of three side by side, columns
+      // 24-39): its middle sees more sky than its texels at the concave
+      // edges (measured 0.53 against 0.42, AO distance 1).
+      Image ao;
+      ASSERT_TRUE(read_image(dir.file("a_ao.exr"), ao).is_ok());
+      double middle = 0.0, edges = 0.0;
+      int count = 0;
+      for (int y = 8; y < 56; ++y) {
+        middle += 0.5 * (ao.at(31, y)[0] + ao.at(32, y)[0]);
+        edges += 0.5 * (ao.at(24, y)[0] + ao.at(39, y)[0]);
+        ++count;
+      }
+      std::printf("slot AO: floor middle %.3f, at the concave edges %.3f\n", middle / count, edges / count);
+      EXPECT_GT(middle / count, edges / count + 0.05);
+    }
+  }
+}
+
+
+// The command line: <MAP> names each map's file, `.png` takes each map's own
+// depth and channels unless --format says otherwise; mistakes are exit 2
+// with nothing written.
+class MapsCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    scenes::HeightfieldParams params;
+    params.high_cells = 64;
+    const scenes::ScenePair scene = scenes::make_heightfield(params);
+    ASSERT_TRUE(save_mesh(dir.file("low.obj"), scene.low).is_ok());
+    ASSERT_TRUE(save_mesh(dir.file("high.obj"), scene.high).is_ok());
+  }
+  test::CommandResult bake(const std::string& args) {
+    return test::run_command(test::cli_path() + " bake --low " + dir.file("low.obj") + " --high " +
+                             dir.file("high.obj") + " --size 32 " + args);
+  }
+  ImageFileInfo info(const std::string& name) {
+    ImageFileInfo i;
+    EXPECT_TRUE(read_image_info(dir.file(name), i).is_ok()) << name;
+    return i;
+  }
+  test::TempDir dir;
+};
+
+TEST_F(MapsCli, TokenNamesEveryMapInItsOwnFormat) {
+  const auto r = bake("--map normal,height --map ao,curvature,miss -o '" + dir.file("t_<MAP>.png") + "' -o '" +
+                      dir.file("t_<MAP>.exr") + "' --ao-rays 8");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("maps normal, height, ao, curvature, miss"), std::string::npos) << r.output;
+  const struct {
+    const char* name;
+    int channels;
+    const char* type;
+  } want[] = {{"t_normal.png", 3, "uint16"},   {"t_height.png", 1, "uint16"}, {"t_ao.png", 1, "uint8"},
+              {"t_curvature.png", 1, "uint8"}, {"t_miss.png", 1, "uint8"},    {"t_normal.exr", 3, "float"},
+              {"t_height.exr", 1, "float"},    {"t_ao.exr", 1, "float"}};
+  for (const auto& w : want) {
+    const ImageFileInfo i = info(w.name);
+    EXPECT_EQ(i.channels, w.channels) << w.name;
+    EXPECT_EQ(i.data_type, w.type) << w.name;
+  }
+  // An explicit format is every map's.
+  const auto given = bake("--map ao,normal -o '" + dir.file("g_<MAP>.png") + "' --format png16 --ao-rays 8");
+  ASSERT_EQ(given.exit_code, 0) << given.output;
+  EXPECT_EQ(info("g_ao.png").data_type, "uint16");
+  // One map needs no token; the default is the normal map alone.
+  ASSERT_EQ(bake("--map height -o " + dir.file("h.png")).exit_code, 0);
+  EXPECT_EQ(info("h.png").channels, 1);
+}
+
+TEST_F(MapsCli, MistakesAreExit2AndWriteNothing) {
+  const struct {
+    std::string args;
+    const char* says;
+  } cases[] = {
+      {"--map normal,ao -o " + dir.file("x.png"), "needs the <MAP> token"},
+      {"--map normal,shiny -o '" + dir.file("x_<MAP>.png") + "'", "unknown map 'shiny'"},
+      {"--map vertex-color -o " + dir.file("x.png"), "not implemented yet"},
+      {"--map ao --ao-rays 0 -o " + dir.file("x.png"), "--ao-rays 0 is out of range"},
+      {"--map ao --ao-distance 0 -o " + dir.file("x.png"), "--ao-distance"},
+      {"--map height --height-range -1 -o " + dir.file("x.png"), "--height-range"},
+      {"--map normal,height -o '" + dir.file("x_<MAP>.png") + "' --tile 1/2", "cannot be baked in tiles"},
+  };
+  for (const auto& c : cases) {
+    const auto r = bake(c.args);
+    EXPECT_EQ(r.exit_code, 2) << c.args << "\n" << r.output;
+    EXPECT_NE(r.output.find(c.says), std::string::npos) << c.args << "\n" << r.output;
+  }
+  std::size_t files = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir.path())) files += entry.path().extension() != ".obj";
+  EXPECT_EQ(files, 0u);
+}
+
+// Integer files of signed maps: 0.5 + v / (2 R), R the reported range (the
+// largest |height| when auto); the EXR holds scene units.
+TEST_F(MapsCli, HeightPngIsTheExrThroughTheReportedRange) {
+  const auto r = bake("--map height -o '" + dir.file("h.png") + "' -o '" + dir.file("h.exr") + "' --report " +
+                      dir.file("r.json") + " --padding 0");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  Image png, exr;
+  ASSERT_TRUE(read_image(dir.file("h.png"), png).is_ok());
+  ASSERT_TRUE(read_image(dir.file("h.exr"), exr).is_ok());
+  const std::string json = read_bytes(dir.file("r.json"));
+  const std::size_t at = json.find("\"range\": ");
+  ASSERT_NE(at, std::string::npos) << json;
+  const double range = std::stod(json.substr(at + 9));
+  float largest = 0.0f;
+  for (const float h : exr.pixels) largest = std::max(largest, std::fabs(h));
+  EXPECT_FLOAT_EQ(static_cast<float>(range), largest);
+  for (std::size_t i = 0; i < exr.pixels.size(); ++i) {
+    ASSERT_NEAR(png.pixels[i], 0.5 + exr.pixels[i] / (2.0 * range), 0.51 / 65535.0);
+  }
+  // A given range clamps and counts what lies beyond it.
+  const auto given = bake("--map height -o '" + dir.file("g.png") + "' --height-range 0.001 --report " +
+                          dir.file("g.json"));
+  ASSERT_EQ(given.exit_code, 0) << given.output;
+  EXPECT_NE(read_bytes(dir.file("g.json")).find("\"range_given\": 1.0"), std::string::npos);
+}
+
+// <UDIM> and <MAP> together: one file per tile and map, each the map of the
+// same mesh with the tile moved into [0, 1]^2 by hand; and a cached bake
+// brings every map back.
+TEST_F(MapsCli, UdimTilesTimesMapsAndTheCache) {
+  Mesh low;
+  LoadStats ls;
+  ASSERT_TRUE(load_mesh(dir.file("low.obj"), LoadOptions{true, true}, low, ls).is_ok());
+  for (glm::vec2& uv : low.uvs) uv.x += 1.0f;  // tile 1002
+  ASSERT_TRUE(save_mesh(dir.file("low1002.obj"), low).is_ok());
+  const std::string maps = "--map normal,height,miss ";
+  ASSERT_EQ(bake(maps + "-o '" + dir.file("plain_<MAP>.png") + "'").exit_code, 0);
+  const auto udim = test::run_command(test::cli_path() + " bake --low " + dir.file("low1002.obj") + " --high " +
+                                      dir.file("high.obj") + " --size 32 " + maps + "-o '" +
+                                      dir.file("tiled.<UDIM>_<MAP>.png") + "'");
+  ASSERT_EQ(udim.exit_code, 0) << udim.output;
+  for (const char* map : {"normal", "height", "miss"}) {
+    const std::string a = read_bytes(dir.file(std::string("plain_") + map + ".png"));
+    EXPECT_FALSE(a.empty());
+    EXPECT_TRUE(a == read_bytes(dir.file(std::string("tiled.1002_") + map + ".png"))) << map;
+  }
+  const std::string cache = "--cache " + dir.file("cache") + " ";
+  const auto first = bake(cache + maps + "-o '" + dir.file("c_<MAP>.png") + "'");
+  ASSERT_EQ(first.exit_code, 0) << first.output;
+  for (const char* map : {"normal", "height", "miss"}) std::filesystem::remove(dir.file(std::string("c_") + map + ".png"));
+  const auto second = bake(cache + maps + "-o '" + dir.file("c_<MAP>.png") + "'");
+  ASSERT_EQ(second.exit_code, 0) << second.output;
+  EXPECT_NE(second.output.find("cached"), std::string::npos) << second.output;
+  for (const char* map : {"normal", "height", "miss"}) {
+    EXPECT_TRUE(read_bytes(dir.file(std::string("c_") + map + ".png")) ==
+                read_bytes(dir.file(std::string("plain_") + map + ".png")))
+        << map;
+  }
+}
+
+// Job files name maps as a list; the key holds the maps and the options of
+// the maps baked, and a normal bake's key text is what it was before maps.
+TEST(MapsJob, MapsInJobFilesAndTheKey) {
+  test::TempDir dir;
+  test::write_text(dir.file("job.toml"), "[defaults]\nao_rays = 32\nao_distance = \"5%\"\nheight_range = 0.5\n"
+                                         "[[bake]]\nlow = \"low.obj\"\nhigh = \"high.ply\"\nmaps = [\"normal\", \"ao\"]\n"
+                                         "outputs = [\"m_<MAP>.png\", { path = \"m_<MAP>.tif\", format = \"tiff16\" }]\n");
+  std::vector<BakeJob> jobs;
+  const Status s = load_job_file(dir.file("job.toml"), jobs);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  const BakeOptions& o = jobs[0].options;
+  ASSERT_EQ(o.maps.size(), 2u);
+  EXPECT_EQ(o.maps[1], MapKind::ao);
+  EXPECT_EQ(o.ao_rays, 32);
+  EXPECT_EQ(o.ao_distance.kind, Distance::Kind::percent);
+  EXPECT_FLOAT_EQ(o.height_range, 0.5f);
+  EXPECT_FALSE(o.outputs[0].format_given);
+  EXPECT_TRUE(o.outputs[1].format_given);
+  const std::vector<MapOutput> files = map_outputs(o);
+  ASSERT_EQ(files.size(), 4u);
+  EXPECT_EQ(files[1].path, dir.file("m_ao.png"));
+  EXPECT_EQ(files[1].format, PixelFormat::png8);
+  EXPECT_EQ(files[3].format, PixelFormat::tiff16);
+
+  const std::string text = bake_key_text(o);
+  EXPECT_NE(text.find("maps normal,ao\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("ao_rays 32\n"), std::string::npos) << text;
+  EXPECT_EQ(text.find("height_range"), std::string::npos) << "no height map, no height option in the key";
+  BakeOptions more_rays = o;
+  more_rays.ao_rays = 64;
+  EXPECT_NE(bake_key_text(more_rays), text);
+  BakeOptions normal_only = o;
+  normal_only.maps = {MapKind::normal};
+  const std::string plain = bake_key_text(normal_only);
+  EXPECT_EQ(plain.find("maps"), std::string::npos) << plain;
+  EXPECT_EQ(plain.find("ao_"), std::string::npos) << plain;
+
+  test::write_text(dir.file("bad.toml"), "[[bake]]\nlow = \"low.obj\"\nhigh = \"high.ply\"\nmaps = [\"normal\", 3]\n"
+                                         "outputs = [\"m.png\"]\n");
+  const Status bad = load_job_file(dir.file("bad.toml"), jobs);
+  EXPECT_EQ(bad.code(), StatusCode::bad_input);
+  EXPECT_NE(bad.message().find("bad.toml:4"), std::string::npos) << bad.message();
+}
+
+// Bake groups: a part's AO rays see only its group's high triangles, so a
+// wall of another part a hair away does not shadow it (Toolbag's "ignore
+// groups"); with matching off the wall darkens the floor's foot.
+TEST(Maps, OtherBakeGroupsDoNotShadow) {
+  test::TempDir dir;
+  scenes::ScenePair wall = scenes::make_wall_scene();
+  // The floor (low and its high) is part `floor`; the wall's high triangles
+  // (after the floor's) are part `wall`, whose low is a small quad far away.
+  Mesh low = wall.low, high = wall.high;
+  const std::uint32_t floor_high = 8 * 8 * 2;
+  high.parts = {{"floor_high", 0, floor_high},
+                {"wall_high", floor_high, static_cast<std::uint32_t>(high.triangle_count()) - floor_high}};
+  const std::uint32_t floor_low = static_cast<std::uint32_t>(low.triangle_count());
+  const std::uint32_t base = static_cast<std::uint32_t>(low.positions.size());
+  for (const glm::vec3 p : {glm::vec3(-5, 0, 0), glm::vec3(-4, 0, 0), glm::vec3(-4, 1, 0), glm::vec3(-5, 1, 0)}) {
+    low.positions.push_back(p);
+    low.normals.emplace_back(0, 0, 1);
+    low.uvs.emplace_back(0.99f + 0.005f * (p.x + 5.0f), 0.99f + 0.005f * p.y);
+  }
+  low.indices.insert(low.indices.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
+  low.parts = {{"floor_low", 0, floor_low}, {"wall_low", floor_low, 2}};
+  BakeOptions o = scene_bake(dir, scenes::ScenePair{low, high}, 64, 1);
+  o.front = o.back = {Distance::Kind::absolute, 0.05f};
+  o.ao_distance = {Distance::Kind::absolute, scenes::kWallDistance};
+  o.ao_rays = 64;
+  o.padding = 0;
+  // OBJ keeps the parts as `o` names.
+  ASSERT_TRUE(save_mesh(dir.file("low.obj"), low).is_ok());
+  ASSERT_TRUE(save_mesh(dir.file("high.obj"), high).is_ok());
+  o.high_path = dir.file("high.obj");
+  for (const MatchMode mode : {MatchMode::automatic, MatchMode::off}) {
+    o.match.mode = mode;
+    o.match.unmatched = Unmatched::all;
+    const BakeReport report = bake_maps(dir, o, {MapKind::ao});
+    const Image ao = read_map(dir, MapKind::ao);
+    double foot = 0.0;
+    int shadowed = 0;
+    for (int y = 4; y < 60; ++y) {  // the column at the wall's foot
+      foot += ao.at(0, y)[0] / 56.0;
+      shadowed += ao.at(0, y)[0] < 1.0f;
+    }
+    std::printf("match %s: %zu groups, AO at the wall's foot %.3f\n", to_string(mode), report.groups.size(), foot);
+    if (mode == MatchMode::automatic) {
+      EXPECT_EQ(report.groups.size(), 2u);
+      EXPECT_EQ(shadowed, 0);
+    } else {
+      EXPECT_NEAR(foot, scenes::wall_visibility(0.5 / 64, 1.0), 0.03);
+    }
   }
 }
 
