@@ -466,6 +466,9 @@ Status bake_tile(const Prepared& p, const LowSurface& surface, const std::vector
 
   // Every output is written at once (each writer is single-threaded).
   timer.start("write");
+  std::vector<std::pair<MapKind, PixelFormat>> files;
+  for (const MapOutput& out : outputs) files.emplace_back(out.map, out.format);
+  maps.prepare_files(files);
   std::vector<Status> written(outputs.size());
   std::vector<Image> scratch(outputs.size());
   tbb::parallel_for(std::size_t{0}, outputs.size(), [&](std::size_t i) {
@@ -595,6 +598,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   std::vector<float> vertex_curvature;
   if (std::find(o.maps.begin(), o.maps.end(), MapKind::curvature) != o.maps.end()) {
     CurvatureStats curvature_stats;
+    const auto t0 = std::chrono::steady_clock::now();
     if (high.has_normals()) {
       vertex_curvature = vertex_mean_curvature(high, high.normals, curvature_stats);
     } else {
@@ -606,6 +610,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
       compute_vertex_normals(shape, shape_stats);
       vertex_curvature = vertex_mean_curvature(shape, shape.normals, curvature_stats);
     }
+    if (std::getenv("NMBAKE_MAP_TIMES")) std::fprintf(stderr, "curvature %.4f\n", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     r.curvature_degenerate_triangles = curvature_stats.degenerate_triangles;
     r.curvature_isolated_vertices = curvature_stats.isolated_vertices;
   }

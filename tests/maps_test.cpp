@@ -516,6 +516,60 @@ TEST_F(MapsCli, UdimTilesTimesMapsAndTheCache) {
   }
 }
 
+// Dilation of a map set: the modes on an exact case, and several images in
+// one call get exactly what each would get alone.
+TEST(MapsDilate, ModesAndLayers) {
+  // 4 x 1: covered 0.2 | covered 0.6 | empty | empty.
+  Image grey{4, 1, 1, {0.2f, 0.6f, 0.0f, 0.0f}};
+  std::vector<std::uint8_t> coverage{1, 1, 0, 0};
+  DilateStats stats;
+  dilate(grey, coverage, 2, stats, DilateMode::mean);
+  EXPECT_FLOAT_EQ(grey.pixels[2], 0.6f);  // one covered neighbour
+  EXPECT_FLOAT_EQ(grey.pixels[3], 0.6f);
+  // 3 x 3, centre empty: mean of the eight, or the first (up-left) one.
+  std::vector<float> values{0.1f, 0.2f, 0.3f, 0.4f, 0.0f, 0.6f, 0.7f, 0.8f, 0.9f};
+  for (const DilateMode mode : {DilateMode::mean, DilateMode::nearest}) {
+    Image image{3, 3, 1, values};
+    std::vector<std::uint8_t> cov{1, 1, 1, 1, 0, 1, 1, 1, 1};
+    dilate(image, cov, 1, stats, mode);
+    EXPECT_FLOAT_EQ(image.pixels[4], mode == DilateMode::mean ? 4.0f / 8.0f : 0.1f);
+  }
+
+  // A chart-like coverage and three images of 3, 1 and 3 channels.
+  const int w = 37, h = 23;
+  std::vector<std::uint8_t> cov(static_cast<std::size_t>(w) * h, 0);
+  Image a{w, h, 3, {}}, b{w, h, 1, {}}, c{w, h, 3, {}};
+  for (Image* image : {&a, &b, &c}) image->pixels.resize(static_cast<std::size_t>(w) * h * image->channels);
+  std::uint32_t seed = 1;
+  const auto next = [&]() {
+    seed = seed * 1664525u + 1013904223u;
+    return static_cast<float>(seed >> 8) * 0x1p-24f;
+  };
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const std::size_t t = static_cast<std::size_t>(y) * w + x;
+      cov[t] = (x - 12) * (x - 12) + (y - 11) * (y - 11) < 60 || (x > 28 && y > 4 && y < 18);
+      for (Image* image : {&a, &b, &c}) {
+        for (int k = 0; k < image->channels; ++k) image->pixels[t * image->channels + k] = cov[t] ? next() : 0.0f;
+      }
+    }
+  }
+  const std::vector<DilateMode> modes{DilateMode::unit_vector, DilateMode::mean, DilateMode::nearest};
+  std::vector<Image> alone{a, b, c};
+  DilateStats alone_stats[3], together_stats;
+  for (int i = 0; i < 3; ++i) {
+    std::vector<std::uint8_t> copy = cov;
+    dilate(alone[i], copy, 6, alone_stats[i], modes[i]);
+  }
+  std::vector<std::uint8_t> copy = cov;
+  dilate({{&a, modes[0]}, {&b, modes[1]}, {&c, modes[2]}}, copy, 6, together_stats);
+  EXPECT_TRUE(a.pixels == alone[0].pixels);
+  EXPECT_TRUE(b.pixels == alone[1].pixels);
+  EXPECT_TRUE(c.pixels == alone[2].pixels);
+  EXPECT_EQ(together_stats.filled_texels, alone_stats[1].filled_texels);
+  EXPECT_GT(together_stats.filled_texels, 0u);
+}
+
 // Job files name maps as a list; the key holds the maps and the options of
 // the maps baked, and a normal bake's key text is what it was before maps.
 TEST(MapsJob, MapsInJobFilesAndTheKey) {

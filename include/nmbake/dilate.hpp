@@ -45,4 +45,14 @@ struct DilateStats {
 void dilate(Image& image, std::vector<std::uint8_t>& coverage, int padding, DilateStats& stats,
             DilateMode mode = DilateMode::unit_vector);
 
+// Several images of one size over one coverage (a map set), each with its
+// mode: the rings are found once, and each image gets exactly the values
+// dilate() would give it alone. fallback_texels counts every image's.
+struct DilateLayer {
+  Image* image = nullptr;
+  DilateMode mode = DilateMode::unit_vector;
+};
+void dilate(const std::vector<DilateLayer>& layers, std::vector<std::uint8_t>& coverage, int padding,
+            DilateStats& stats);
+
 }  // namespace nmbake

@@ -152,9 +152,13 @@ class MapSet {
   // encode counters go to `normal_stats`, as before the map set.
   void encode_band(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
                    EncodeStats& normal_stats);
-  // After the last band: ranges (auto height and curvature), then each map
-  // dilated by `padding` from `coverage` (not changed). Adds to `dilate`.
-  void finish(const std::vector<std::uint8_t>& coverage, int padding, DilateStats& dilate);
+  // After the last band: ranges (auto height and curvature) from the
+  // covered texels, then every map dilated by `padding` (`coverage` grows
+  // with it, as dilate() does). Adds to `dilate`.
+  void finish(std::vector<std::uint8_t>& coverage, int padding, DilateStats& dilate);
+  // The files about to be written (map, format): a map with a range whose
+  // files are all integer is mapped in place, so stored() needs no copy.
+  void prepare_files(const std::vector<std::pair<MapKind, PixelFormat>>& files);
   // The image a file of `format` stores for `map`: the map's own image, or,
   // for an integer format and a map with a range, `scratch` filled with the
   // mapped values.

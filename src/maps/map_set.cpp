@@ -202,22 +202,31 @@ void MapSet::encode_band(const LowSurface& surface, const TexelSamples& samples,
                "the band lies in the map set's rows");
   const BandInputs in{surface, samples, high, hits, &visibility_, &bent_, &thickness_,
                       samples.row_begin - first_row_};
-  for (const auto& m : modules_) m->encode_band(in, settings_, normal_stats);
+  HitValueImages values;
+  for (const auto& m : modules_) {
+    if (!m->from_hit_values()) {
+      m->encode_band(in, settings_, normal_stats);
+      continue;
+    }
+    switch (m->kind) {
+      case MapKind::height: values.height = &m->image; break;
+      case MapKind::position: values.position = &m->image; break;
+      case MapKind::curvature: values.curvature = &m->image; break;
+      default: values.miss = &m->image; break;
+    }
+  }
+  if (values.height || values.position || values.curvature || values.miss) encode_hit_values(in, settings_, values);
 }
 
-void MapSet::finish(const std::vector<std::uint8_t>& coverage, int padding, DilateStats& dilate_stats) {
+void MapSet::finish(std::vector<std::uint8_t>& coverage, int padding, DilateStats& dilate_stats) {
   for (const auto& m : modules_) m->finish(coverage);
-  // Each map dilated on its own copy of the coverage (dilate() extends it).
-  std::vector<std::uint8_t> grown;
-  for (const auto& m : modules_) {
-    grown = coverage;
-    DilateStats s;
-    dilate(m->image, grown, padding, s, map_traits(m->kind).dilate);
-    if (m->kind == settings_.maps.front()) {
-      dilate_stats.filled_texels += s.filled_texels;
-    }
-    dilate_stats.fallback_texels += s.fallback_texels;
-  }
+  // Every map in one dilation: the rings are found once.
+  std::vector<DilateLayer> layers;
+  for (const auto& m : modules_) layers.push_back({&m->image, map_traits(m->kind).dilate});
+  DilateStats s;
+  dilate(layers, coverage, padding, s);
+  dilate_stats.filled_texels += s.filled_texels;
+  dilate_stats.fallback_texels += s.fallback_texels;
 }
 
 Image& MapSet::image(MapKind map) {
@@ -228,25 +237,59 @@ Image& MapSet::image(MapKind map) {
   return modules_.front()->image;
 }
 
+namespace {
+
+bool integer_format(PixelFormat format) {
+  return format == PixelFormat::png8 || format == PixelFormat::png16 || format == PixelFormat::tiff16;
+}
+
+// out[i] = in[i] * scale + offset (in and out may be the same buffer).
+void map_values(const std::vector<float>& in, std::vector<float>& out, float scale, float offset) {
+  const std::size_t n = in.size();
+  constexpr std::size_t kChunk = std::size_t{1} << 16;
+  tbb::parallel_for(std::size_t{0}, n, kChunk, [&](std::size_t begin) {
+    const std::size_t end = std::min(n, begin + kChunk);
+    for (std::size_t i = begin; i < end; ++i) out[i] = in[i] * scale + offset;
+  });
+}
+
+}  // namespace
+
+void MapSet::prepare_files(const std::vector<std::pair<MapKind, PixelFormat>>& files) {
+  for (const auto& m : modules_) {
+    float scale = 1.0f, offset = 0.0f;
+    m->integer_mapping(scale, offset);
+    if (scale == 1.0f && offset == 0.0f) continue;
+    bool all_integer = true, any = false;
+    for (const auto& [map, format] : files) {
+      if (map != m->kind) continue;
+      any = true;
+      all_integer = all_integer && integer_format(format);
+    }
+    // Only integer files of this map: no copy, the image itself is mapped.
+    if (any && all_integer) {
+      map_values(m->image.pixels, m->image.pixels, scale, offset);
+      m->mapped = true;
+    }
+  }
+}
+
 const Image& MapSet::stored(MapKind map, PixelFormat format, Image& scratch) const {
   const Module* module = nullptr;
   for (const auto& m : modules_) {
     if (m->kind == map) module = m.get();
   }
   NMBAKE_CHECK(module != nullptr, "the map is in the set");
-  const bool integer = format == PixelFormat::png8 || format == PixelFormat::png16 || format == PixelFormat::tiff16;
+  const bool integer = integer_format(format);
+  NMBAKE_CHECK(!module->mapped || integer, "a mapped image is only for integer files");
   float scale = 1.0f, offset = 0.0f;
   module->integer_mapping(scale, offset);
-  if (!integer || (scale == 1.0f && offset == 0.0f)) return module->image;
+  if (!integer || module->mapped || (scale == 1.0f && offset == 0.0f)) return module->image;
   scratch.width = module->image.width;
   scratch.height = module->image.height;
   scratch.channels = module->image.channels;
   detail::size_output(scratch.pixels, module->image.pixels.size());
-  const std::size_t n = scratch.pixels.size();
-  tbb::parallel_for(std::size_t{0}, n, std::size_t{1} << 16, [&](std::size_t begin) {
-    const std::size_t end = std::min(n, begin + (std::size_t{1} << 16));
-    for (std::size_t i = begin; i < end; ++i) scratch.pixels[i] = module->image.pixels[i] * scale + offset;
-  });
+  map_values(module->image.pixels, scratch.pixels, scale, offset);
   return scratch;
 }
 

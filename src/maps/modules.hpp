@@ -29,11 +29,16 @@ struct BandInputs {
 struct MapSet::Module {
   MapKind kind;
   Image image;  // raw texels: the rows [first_row, last_row) of the map
+  bool mapped = false;  // prepare_files(): `image` holds what integer files store
   std::vector<std::pair<std::string, double>> figures;
 
   explicit Module(MapKind map) : kind(map) {}
   virtual ~Module() = default;
   virtual void encode_band(const BandInputs& in, const MapSettings& settings, EncodeStats& normal_stats) = 0;
+  // Read straight from the hits (height, position, curvature, miss): such
+  // maps are encoded together by encode_hit_values(), one pass over the
+  // band for all of them (their encode_band() does nothing).
+  virtual bool from_hit_values() const { return false; }
   // After the last band, before dilation: ranges from the covered texels.
   virtual void finish(const std::vector<std::uint8_t>& /*coverage*/) {}
   // Integer files store v * scale + offset (clamped to [0, 1] by the writer).
@@ -62,6 +67,18 @@ struct MapSet::Module {
 };
 
 std::unique_ptr<MapSet::Module> make_map_module(MapKind map, const MapSettings& settings);
+
+// The images of the hit-value maps of a set (null: not baked).
+struct HitValueImages {
+  Image* height = nullptr;
+  Image* position = nullptr;
+  Image* curvature = nullptr;
+  Image* miss = nullptr;
+};
+// One pass over the band's texels for every hit-value map: a sample's hit
+// triangle is read once for all of them. Each map's texel is the mean of its
+// samples' values, as texel_means() computes it.
+void encode_hit_values(const BandInputs& in, const MapSettings& settings, const HitValueImages& out);
 
 namespace maps_detail {
 

@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include <glm/geometric.hpp>
+#include <tbb/parallel_reduce.h>
 
 #include "modules.hpp"
 
@@ -16,24 +17,95 @@ namespace {
 using maps_detail::interpolate;
 using maps_detail::texel_means;
 
-// The largest |v| and the min and max over covered texels of a one-channel image.
+// The min, max and largest |v| over the covered texels of a one-channel
+// image, and how many there are (in parallel: min and max do not depend on
+// the order).
 struct Extent {
   float min = 0.0f, max = 0.0f, largest = 0.0f;
   std::uint64_t texels = 0;
 };
 Extent covered_extent(const Image& image, const std::vector<std::uint8_t>& coverage) {
+  struct Part {
+    float min = INFINITY, max = -INFINITY;
+    std::uint64_t texels = 0;
+  };
+  const Part all = tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, coverage.size(), 1 << 16), Part{},
+      [&](const tbb::blocked_range<std::size_t>& r, Part part) {
+        for (std::size_t t = r.begin(); t != r.end(); ++t) {
+          if (!coverage[t]) continue;
+          part.min = std::min(part.min, image.pixels[t]);
+          part.max = std::max(part.max, image.pixels[t]);
+          ++part.texels;
+        }
+        return part;
+      },
+      [](Part a, const Part& b) {
+        a.min = std::min(a.min, b.min);
+        a.max = std::max(a.max, b.max);
+        a.texels += b.texels;
+        return a;
+      });
   Extent e;
-  bool first = true;
-  for (std::size_t t = 0; t < coverage.size(); ++t) {
-    if (!coverage[t]) continue;
-    const float v = image.pixels[t];
-    e.min = first ? v : std::min(e.min, v);
-    e.max = first ? v : std::max(e.max, v);
-    first = false;
-    ++e.texels;
-  }
+  if (all.texels == 0) return e;
+  e.min = all.min;
+  e.max = all.max;
   e.largest = std::max(std::fabs(e.min), std::fabs(e.max));
+  e.texels = all.texels;
   return e;
+}
+
+// Covered texels with |v| > limit.
+std::uint64_t count_beyond(const Image& image, const std::vector<std::uint8_t>& coverage, float limit) {
+  return tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, coverage.size(), 1 << 16), std::uint64_t{0},
+      [&](const tbb::blocked_range<std::size_t>& r, std::uint64_t n) {
+        for (std::size_t t = r.begin(); t != r.end(); ++t) n += coverage[t] && std::fabs(image.pixels[t]) > limit;
+        return n;
+      },
+      [](std::uint64_t a, std::uint64_t b) { return a + b; });
+}
+
+// The value at rank floor(0.99 n) of the sorted |v| of the covered texels
+// (the 99th percentile), exactly, without sorting them all: a histogram of
+// 4096 bins over [0, largest] (integer counts per chunk, summed) finds the
+// bin, and only that bin's values are ordered.
+float covered_percentile_99(const Image& image, const std::vector<std::uint8_t>& coverage, const Extent& e) {
+  if (e.texels == 0 || !(e.largest > 0.0f)) return 0.0f;
+  constexpr int kBins = 4096;
+  const float scale = static_cast<float>(kBins) / e.largest;
+  const auto bin_of = [&](float v) { return std::min(kBins - 1, static_cast<int>(std::fabs(v) * scale)); };
+  constexpr std::size_t kChunk = std::size_t{1} << 18;
+  const std::size_t chunks = (coverage.size() + kChunk - 1) / kChunk;
+  std::vector<std::vector<std::uint32_t>> histograms(chunks, std::vector<std::uint32_t>(kBins, 0));
+  tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
+    const std::size_t end = std::min(coverage.size(), (c + 1) * kChunk);
+    for (std::size_t t = c * kChunk; t < end; ++t) {
+      if (coverage[t]) ++histograms[c][static_cast<std::size_t>(bin_of(image.pixels[t]))];
+    }
+  });
+  const std::uint64_t rank = std::min(e.texels - 1, e.texels * 99 / 100);
+  std::uint64_t below = 0;
+  int bin = 0;
+  for (; bin < kBins; ++bin) {
+    std::uint64_t count = 0;
+    for (const auto& h : histograms) count += h[static_cast<std::size_t>(bin)];
+    if (below + count > rank) break;
+    below += count;
+  }
+  // The bin's values, chunk by chunk in parallel, joined in chunk order.
+  std::vector<std::vector<float>> parts(chunks);
+  tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
+    const std::size_t end = std::min(coverage.size(), (c + 1) * kChunk);
+    for (std::size_t t = c * kChunk; t < end; ++t) {
+      if (coverage[t] && bin_of(image.pixels[t]) == bin) parts[c].push_back(std::fabs(image.pixels[t]));
+    }
+  });
+  std::vector<float> in_bin;
+  for (const auto& part : parts) in_bin.insert(in_bin.end(), part.begin(), part.end());
+  const auto at = in_bin.begin() + static_cast<std::ptrdiff_t>(rank - below);
+  std::nth_element(in_bin.begin(), at, in_bin.end());
+  return *at;
 }
 
 // A signed quantity stored as 0.5 + v / (2 R) in integer files: R given, or
@@ -48,11 +120,8 @@ struct SignedRange {
 
 struct HeightModule final : MapSet::Module, SignedRange {
   HeightModule() : Module(MapKind::height) {}
-  void encode_band(const BandInputs& in, const MapSettings&, EncodeStats&) override {
-    texel_means<1>(in, image, {0.0f}, [&](std::size_t s, std::array<float, 1>& v) {
-      v[0] = in.hits.triangle[s] >= 0 ? in.hits.distance[s] : 0.0f;
-    });
-  }
+  void encode_band(const BandInputs&, const MapSettings&, EncodeStats&) override {}
+  bool from_hit_values() const override { return true; }
   void finish(const std::vector<std::uint8_t>& coverage) override {
     const Extent e = covered_extent(image, coverage);
     range = given > 0.0f ? given : e.largest;
@@ -60,9 +129,7 @@ struct HeightModule final : MapSet::Module, SignedRange {
     set("max", e.max);
     set("range", range);
     set("range_given", given > 0.0f ? 1.0 : 0.0);
-    std::uint64_t clamped = 0;
-    for (std::size_t t = 0; t < coverage.size(); ++t) clamped += coverage[t] && std::fabs(image.pixels[t]) > range;
-    set("clamped_texels", static_cast<double>(clamped));
+    set("clamped_texels", static_cast<double>(given > 0.0f ? count_beyond(image, coverage, range) : 0));
     set("flat_range_fallback", range > 0.0f ? 0.0 : 1.0);
   }
   void integer_mapping(float& scale, float& offset) const override { SignedRange::integer_mapping(scale, offset); }
@@ -71,42 +138,18 @@ struct HeightModule final : MapSet::Module, SignedRange {
 
 struct CurvatureModule final : MapSet::Module, SignedRange {
   CurvatureModule() : Module(MapKind::curvature) {}
-  void encode_band(const BandInputs& in, const MapSettings& settings, EncodeStats&) override {
-    const std::vector<float>& k = *settings.vertex_curvature;
-    texel_means<1>(in, image, {0.0f}, [&](std::size_t s, std::array<float, 1>& v) {
-      const std::int32_t hit = in.hits.triangle[s];
-      if (hit < 0) {
-        v[0] = 0.0f;
-        return;
-      }
-      const std::uint32_t* t = &in.high.indices[3 * static_cast<std::size_t>(hit)];
-      const glm::vec2 b = in.hits.bary[s];
-      v[0] = k[t[0]] * (1.0f - b.x - b.y) + k[t[1]] * b.x + k[t[2]] * b.y;
-    });
-  }
+  void encode_band(const BandInputs&, const MapSettings&, EncodeStats&) override {}
+  bool from_hit_values() const override { return true; }
   void finish(const std::vector<std::uint8_t>& coverage) override {
     const Extent e = covered_extent(image, coverage);
     // Auto: the 99th percentile of |H|, so a few sharp creases do not flatten
     // the rest of the map to grey.
-    std::vector<float> magnitudes;
-    magnitudes.reserve(e.texels);
-    for (std::size_t t = 0; t < coverage.size(); ++t) {
-      if (coverage[t]) magnitudes.push_back(std::fabs(image.pixels[t]));
-    }
-    float p99 = 0.0f;
-    if (!magnitudes.empty()) {
-      const std::size_t at = std::min(magnitudes.size() - 1, magnitudes.size() * 99 / 100);
-      std::nth_element(magnitudes.begin(), magnitudes.begin() + static_cast<std::ptrdiff_t>(at), magnitudes.end());
-      p99 = magnitudes[at];
-    }
-    range = given > 0.0f ? given : p99;
+    range = given > 0.0f ? given : covered_percentile_99(image, coverage, e);
     set("min", e.min);
     set("max", e.max);
     set("range", range);
     set("range_given", given > 0.0f ? 1.0 : 0.0);
-    std::uint64_t clamped = 0;
-    for (std::size_t t = 0; t < coverage.size(); ++t) clamped += coverage[t] && std::fabs(image.pixels[t]) > range;
-    set("clamped_texels", static_cast<double>(clamped));
+    set("clamped_texels", static_cast<double>(count_beyond(image, coverage, range)));
     set("flat_range_fallback", range > 0.0f ? 0.0 : 1.0);
   }
   void integer_mapping(float& scale, float& offset) const override { SignedRange::integer_mapping(scale, offset); }
@@ -115,44 +158,89 @@ struct CurvatureModule final : MapSet::Module, SignedRange {
 
 struct PositionModule final : MapSet::Module {
   PositionModule() : Module(MapKind::position) {}
-  void encode_band(const BandInputs& in, const MapSettings& settings, EncodeStats&) override {
-    const Bounds& box = settings.position_bounds;
-    const glm::vec3 extent = box.max - box.min;
-    glm::vec3 inv(0.0f), flat(0.0f);
-    for (int a = 0; a < 3; ++a) {
-      // A flat box axis (a plane) stores 0.5 on it.
-      if (extent[a] > 0.0f) {
-        inv[a] = 1.0f / extent[a];
-      } else {
-        flat[a] = 0.5f;
-      }
-    }
-    texel_means<3>(in, image, {0.0f, 0.0f, 0.0f}, [&](std::size_t s, std::array<float, 3>& v) {
-      const std::int32_t hit = in.hits.triangle[s];
-      glm::vec3 p;
-      if (hit >= 0) {
-        const std::uint32_t* t = &in.high.indices[3 * static_cast<std::size_t>(hit)];
-        const glm::vec2 b = in.hits.bary[s];
-        p = in.high.positions[t[0]] * (1.0f - b.x - b.y) + in.high.positions[t[1]] * b.x +
-            in.high.positions[t[2]] * b.y;
-      } else {
-        // A miss: the low surface point.
-        p = interpolate(in.surface.position, 3 * static_cast<std::size_t>(in.samples.triangle[s]), in.samples.bary[s]);
-      }
-      for (int a = 0; a < 3; ++a) v[a] = std::clamp((p[a] - box.min[a]) * inv[a] + flat[a], 0.0f, 1.0f);
-    });
-  }
-  void finish(const std::vector<std::uint8_t>&) override {}
+  void encode_band(const BandInputs&, const MapSettings&, EncodeStats&) override {}
+  bool from_hit_values() const override { return true; }
 };
 
 struct MissModule final : MapSet::Module {
   MissModule() : Module(MapKind::miss) {}
-  void encode_band(const BandInputs& in, const MapSettings&, EncodeStats&) override {
-    texel_means<1>(in, image, {0.0f}, [&](std::size_t s, std::array<float, 1>& v) {
-      v[0] = in.hits.triangle[s] >= 0 ? 0.0f : 1.0f;
-    });
-  }
+  void encode_band(const BandInputs&, const MapSettings&, EncodeStats&) override {}
+  bool from_hit_values() const override { return true; }
 };
+
+// encode_hit_values() for the maps that need the hit triangle's corners
+// (position: their positions; curvature: their vertex curvature).
+template <bool kPosition, bool kCurvature>
+void hit_values(const BandInputs& in, const MapSettings& settings, const HitValueImages& out) {
+  const TexelSamples& samples = in.samples;
+  const int width = samples.width, spp = samples.samples;
+  const std::vector<float>* curvature = settings.vertex_curvature;
+  const Bounds& box = settings.position_bounds;
+  const glm::vec3 extent = box.max - box.min;
+  glm::vec3 inv_extent(0.0f), flat(0.0f);
+  for (int a = 0; a < 3; ++a) {
+    // A flat box axis (a plane) stores 0.5 on it.
+    if (extent[a] > 0.0f) {
+      inv_extent[a] = 1.0f / extent[a];
+    } else {
+      flat[a] = 0.5f;
+    }
+  }
+  const auto row_of = [&](Image* image, int y) {
+    return image ? image->pixels.data() + static_cast<std::size_t>(in.out_row + y) * width * image->channels : nullptr;
+  };
+  tbb::parallel_for(tbb::blocked_range<int>(0, samples.height), [&](const tbb::blocked_range<int>& rows) {
+    for (int y = rows.begin(); y != rows.end(); ++y) {
+      float* height = row_of(out.height, y);
+      float* position = row_of(out.position, y);
+      float* curv = row_of(out.curvature, y);
+      float* miss = row_of(out.miss, y);
+      for (int x = 0; x < width; ++x) {
+        const std::size_t texel = static_cast<std::size_t>(y) * width + x;
+        float h = 0.0f, m = 0.0f, k = 0.0f;
+        glm::vec3 p(0.0f);
+        int used = 0;
+        if (samples.coverage[texel]) {
+          for (int j = 0; j < spp; ++j) {
+            const std::size_t s = texel * spp + static_cast<std::size_t>(j);
+            const std::int32_t tri = samples.triangle[s];
+            if (tri < 0) continue;
+            ++used;
+            const std::int32_t hit = in.hits.triangle[s];
+            if (hit < 0) {
+              // A miss: height and curvature 0, the low surface point.
+              m += 1.0f;
+              if (kPosition) p += interpolate(in.surface.position, 3 * static_cast<std::size_t>(tri), samples.bary[s]);
+              continue;
+            }
+            h += in.hits.distance[s];
+            if (kPosition || kCurvature) {
+              const std::uint32_t* c = &in.high.indices[3 * static_cast<std::size_t>(hit)];
+              const glm::vec2 b = in.hits.bary[s];
+              const float w = 1.0f - b.x - b.y;
+              if (kPosition) {
+                p += in.high.positions[c[0]] * w + in.high.positions[c[1]] * b.x + in.high.positions[c[2]] * b.y;
+              }
+              if (kCurvature) k += (*curvature)[c[0]] * w + (*curvature)[c[1]] * b.x + (*curvature)[c[2]] * b.y;
+            }
+          }
+        }
+        // A covered texel has at least one sample in a chart (raster.hpp);
+        // uncovered texels hold 0 (position: the box's corner).
+        const float inv = used > 0 ? 1.0f / static_cast<float>(used) : 0.0f;
+        if (height) height[x] = h * inv;
+        if (miss) miss[x] = m * inv;
+        if (kCurvature) curv[x] = k * inv;
+        if (kPosition) {
+          for (int a = 0; a < 3; ++a) {
+            position[3 * x + a] =
+                used > 0 ? std::clamp((p[a] * inv - box.min[a]) * inv_extent[a] + flat[a], 0.0f, 1.0f) : 0.0f;
+          }
+        }
+      }
+    }
+  });
+}
 
 struct OcclusionModule final : MapSet::Module {
   OcclusionModule() : Module(MapKind::ao) {}
@@ -174,6 +262,13 @@ struct ThicknessModule final : MapSet::Module {
 };
 
 }  // namespace
+
+void encode_hit_values(const BandInputs& in, const MapSettings& settings, const HitValueImages& out) {
+  if (out.position && out.curvature) return hit_values<true, true>(in, settings, out);
+  if (out.position) return hit_values<true, false>(in, settings, out);
+  if (out.curvature) return hit_values<false, true>(in, settings, out);
+  hit_values<false, false>(in, settings, out);
+}
 
 std::unique_ptr<MapSet::Module> make_value_module(MapKind map, const MapSettings& settings) {
   switch (map) {
