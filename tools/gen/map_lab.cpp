@@ -211,6 +211,13 @@ double groove_visibility(double x) {
   return 0.5 * ((w - x) / std::sqrt((w - x) * (w - x) + h * h) + x / std::sqrt(x * x + h * h));
 }
 
+glm::dvec3 groove_bent_normal(double x) {
+  const double p1 = -std::atan(x), p2 = std::atan(1.0 - x);
+  const glm::dvec3 d(0.5 * (std::sin(p2) * std::sin(p2) - std::sin(p1) * std::sin(p1)), 0.0,
+                     0.5 * (p2 - p1) + 0.25 * (std::sin(2.0 * p2) - std::sin(2.0 * p1)));
+  return glm::normalize(d);
+}
+
 double sphere_thickness(double radius) {
   const double c = std::cos(static_cast<double>(kThicknessConeDegrees) * kPi / 180.0);
   return 2.0 * radius * (1.0 + c + c * c) / 3.0;
@@ -242,6 +249,25 @@ ExpectedMap expected_height(const std::string& scene, const Mesh& low, int width
     double t = 0.0;
     if (!true_hit(*truth, ray, hit, t)) return std::nan("");
     return static_cast<double>(ray.t_surface) - t;
+  });
+}
+
+ExpectedMap expected_at_true_hits(const std::string& scene, const Mesh& low, int width, int height, int samples,
+                                  const RayOptions& rays, const std::function<double(const glm::dvec3&)>& f) {
+  const TorusParams torus;
+  std::unique_ptr<TrueSurface> truth;
+  if (scene == "sphere-plain") {
+    truth = std::make_unique<PlainSphere>();
+  } else if (scene == "torus-plain") {
+    truth = std::make_unique<PlainTorus>(torus.major, torus.minor);
+  } else {
+    truth = make_true_surface(scene);
+  }
+  NMBAKE_CHECK(truth != nullptr, "a known scene");
+  return expected_per_sample(low, width, height, samples, rays, [&](const glm::dvec3&, const Ray& ray) {
+    glm::dvec3 hit;
+    double t = 0.0;
+    return true_hit(*truth, ray, hit, t) ? f(hit) : std::nan("");
   });
 }
 

@@ -58,6 +58,13 @@ ScenePair make_slab_scene();
 
 double wall_visibility(double x, double distance);  // x: distance from the wall
 double groove_visibility(double x);                 // x in [0, 1] across the floor
+// The groove's bent normal (the mean unoccluded direction, cosine-weighted)
+// at x: in the cross-section the visible directions are the angles from the
+// normal phi in [phi1, phi2] = [-atan(x), atan(1 - x)], every elevation
+// beta along the groove; with d = (cos b sin p, sin b, cos b cos p) and the
+// weight cos^2 b cos p db dp the mean is proportional to
+// ((sin^2 phi2 - sin^2 phi1) / 2, 0, (phi2 - phi1) / 2 + (sin 2 phi2 - sin 2 phi1) / 4).
+glm::dvec3 groove_bent_normal(double x);
 double sphere_thickness(double radius);             // the cone's mean projected depth
 double torus_mean_curvature(double major, double minor, const glm::dvec3& point);
 
@@ -79,6 +86,11 @@ ExpectedMap expected_from_low_points(const Mesh& low, int width, int height, int
 // unit sphere), averaged per texel.
 ExpectedMap expected_height(const std::string& scene, const Mesh& low, int width, int height, int samples,
                             const RayOptions& rays);
+
+// f(hit point) where the bake's ray meets the analytic surface ("heightfield",
+// "sphere" of eval.hpp; "sphere-plain", "torus-plain"), averaged per texel.
+ExpectedMap expected_at_true_hits(const std::string& scene, const Mesh& low, int width, int height, int samples,
+                                  const RayOptions& rays, const std::function<double(const glm::dvec3&)>& f);
 
 // The mean curvature where the bake's rays meet the plain "sphere" (1) or
 // "torus" (torus_mean_curvature), averaged per texel.
