@@ -80,10 +80,7 @@ Status check_distance(const char* name, const Distance& d, float diagonal) {
 Status validate_map_set(const BakeOptions& o) {
   if (o.maps.empty()) return Status::bad_input("no map to bake (--map)");
   for (const MapKind map : o.maps) {
-    if (!map_traits(map).implemented) {
-      return Status::bad_input(std::string("--map ") + to_string(map) +
-                               ": not implemented yet (it needs vertex colours and parts from the loaders)");
-    }
+    if (!map_traits(map).implemented) return Status::bad_input(std::string("--map ") + to_string(map) + ": not implemented yet");
   }
   if (o.maps.size() > 1) {
     for (const OutputSpec& out : o.outputs) {
@@ -525,7 +522,14 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   low_options.keep_tangents = o.tangent_basis == TangentBasis::file;
   NMBAKE_TRY(load_mesh(o.low_path, low_options, low, r.low_load));
   const bool smooth_high = o.high_normals == HighNormals::smooth;
-  NMBAKE_TRY(load_mesh(o.high_path, LoadOptions{false, smooth_high}, high, r.high_load));
+  const auto wants = [&](MapKind map) { return std::find(o.maps.begin(), o.maps.end(), map) != o.maps.end(); };
+  LoadOptions high_options{false, smooth_high};
+  high_options.keep_colors = wants(MapKind::vertex_color);
+  NMBAKE_TRY(load_mesh(o.high_path, high_options, high, r.high_load));
+  if (high_options.keep_colors && !high.has_colors()) {
+    return Status::bad_input(o.high_path + ": --map vertex-color, but the high mesh has no vertex colours (read from "
+                             "PLY red/green/blue properties; glTF COLOR_0 and other formats are not read yet)");
+  }
   const bool use_cage_mesh = !o.cage_path.empty();
   if (use_cage_mesh) {
     LoadStats cage_load;
@@ -614,6 +618,35 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
     r.curvature_degenerate_triangles = curvature_stats.degenerate_triangles;
     r.curvature_isolated_vertices = curvature_stats.isolated_vertices;
   }
+  // The id map: each high triangle's part, and each part's colour by name
+  // (one unnamed part when the file has none); grouped below with the
+  // triangles.
+  std::vector<std::uint32_t> triangle_part;
+  std::vector<glm::vec3> part_colors;
+  if (wants(MapKind::id)) {
+    std::vector<std::string> names;
+    triangle_part.assign(high.triangle_count(), 0);
+    for (const MeshPart& part : high.parts) {
+      const auto at = std::find(names.begin(), names.end(), part.name);
+      const auto index = static_cast<std::uint32_t>(at - names.begin());
+      if (at == names.end()) names.push_back(part.name);
+      std::fill_n(triangle_part.begin() + part.first_triangle, part.triangle_count, index);
+    }
+    if (names.empty()) names.emplace_back();
+    for (const std::string& name : names) {
+      part_colors.push_back(part_color(name));
+      r.id_parts.emplace_back(name, part_colors.back());
+    }
+    if (groups.grouped()) {
+      // The grouped index buffer holds each group's triangles in turn
+      // (group_high_indices).
+      std::vector<std::uint32_t> grouped;
+      for (const auto& triangles : groups.high_triangles) {
+        for (const std::uint32_t t : triangles) grouped.push_back(triangle_part[t]);
+      }
+      triangle_part = std::move(grouped);
+    }
+  }
   SceneGroups scene_groups;
   if (groups.grouped()) {
     // Normals come from the whole high mesh first; then each group's
@@ -685,6 +718,8 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   map_settings.thickness.distance = resolve(o.thickness_distance, r.low_diagonal, auto_map_distance);
   map_settings.position_bounds = high_bounds;
   map_settings.vertex_curvature = vertex_curvature.empty() ? nullptr : &vertex_curvature;
+  map_settings.triangle_part = part_colors.empty() ? nullptr : &triangle_part;
+  map_settings.part_colors = part_colors.empty() ? nullptr : &part_colors;
   r.maps = o.maps;
   const std::vector<MapOutput> map_files = map_outputs(o);
   const std::vector<glm::vec2> file_uvs = udim ? surface.uv : std::vector<glm::vec2>{};

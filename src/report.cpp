@@ -1,5 +1,6 @@
 // The bake report: every counter of every stage, as JSON and as one line.
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 #include <nlohmann/json.hpp>
@@ -105,6 +106,14 @@ std::string BakeReport::to_json() const {
     map_json.push_back(entry);
   }
   j["maps"] = map_json;
+  if (!id_parts.empty()) {
+    ordered_json parts = ordered_json::array();
+    for (const auto& [name, color] : id_parts) {
+      parts.push_back({{"part", name},
+                       {"rgb8", {std::lround(255.0f * color.r), std::lround(255.0f * color.g), std::lround(255.0f * color.b)}}});
+    }
+    j["id_colors"] = parts;
+  }
   if (curvature_degenerate_triangles + curvature_isolated_vertices > 0) {
     j["fallbacks"]["curvature_degenerate_triangles"] = curvature_degenerate_triangles;
     j["fallbacks"]["curvature_isolated_vertices"] = curvature_isolated_vertices;

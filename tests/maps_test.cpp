@@ -294,9 +294,11 @@ TEST(Maps, ThicknessMatchesSlabAndSphere) {
 }
 
 
-const std::vector<MapKind> kAllMaps = {MapKind::normal,    MapKind::height,   MapKind::ao,
-                                       MapKind::bent_normal, MapKind::curvature, MapKind::thickness,
-                                       MapKind::position,  MapKind::object_normal, MapKind::miss};
+// Every map but vertex-color (the lab scenes have no colours).
+const std::vector<MapKind> kAllMaps = {MapKind::normal,    MapKind::height,        MapKind::ao,
+                                       MapKind::bent_normal, MapKind::curvature,   MapKind::thickness,
+                                       MapKind::position,  MapKind::object_normal, MapKind::miss,
+                                       MapKind::id};
 
 std::size_t count_non_finite(const Image& image) {
   return static_cast<std::size_t>(
@@ -468,7 +470,7 @@ TEST_F(MapsCli, MistakesAreExit2AndWriteNothing) {
   } cases[] = {
       {"--map normal,ao -o " + dir.file("x.png"), "needs the <MAP> token"},
       {"--map normal,shiny -o '" + dir.file("x_<MAP>.png") + "'", "unknown map 'shiny'"},
-      {"--map vertex-color -o " + dir.file("x.png"), "not implemented yet"},
+      {"--map vertex-color -o " + dir.file("x.png"), "the high mesh has no vertex colours"},
       {"--map ao --ao-rays 0 -o " + dir.file("x.png"), "--ao-rays 0 is out of range"},
       {"--map ao --ao-distance 0 -o " + dir.file("x.png"), "--ao-distance"},
       {"--map height --height-range -1 -o " + dir.file("x.png"), "--height-range"},
@@ -596,6 +598,91 @@ TEST(MapsDilate, ModesAndLayers) {
   EXPECT_TRUE(c.pixels == alone[2].pixels);
   EXPECT_EQ(together_stats.filled_texels, alone_stats[1].filled_texels);
   EXPECT_GT(together_stats.filled_texels, 0u);
+}
+
+// Vertex colours: a high heightfield coloured by position (r = x, g = y,
+// linear on every triangle) under a flat low mesh gives, per texel, the mean
+// of its samples' (u, v): exact to float rounding. Read from PLY (red,
+// green, blue, alpha as floats: what save_mesh writes).
+TEST(Maps, VertexColorIsTheHighMeshsColourAtTheHit) {
+  test::TempDir dir;
+  scenes::HeightfieldParams params;
+  params.high_cells = 64;
+  scenes::ScenePair pair = scenes::make_heightfield(params);
+  for (const glm::vec3& p : pair.high.positions) pair.high.colors.emplace_back(p.x, p.y, 0.5f, 1.0f);
+  BakeOptions o = scene_bake(dir, pair, 32, 4);
+  o.padding = 0;
+  bake_maps(dir, o, {MapKind::vertex_color});
+  const Image map = read_map(dir, MapKind::vertex_color);
+  Mesh low;
+  LoadStats ls;
+  ASSERT_TRUE(load_mesh(o.low_path, LoadOptions{true, true}, low, ls).is_ok());
+  for (int c = 0; c < 3; ++c) {
+    const scenes::MapError e = scenes::score_map(
+        map, c, scenes::expected_from_low_points(low, 32, 32, 4, [c](const glm::dvec3& p) { return c == 0 ? p.x : c == 1 ? p.y : 0.5; }));
+    EXPECT_EQ(e.texels, 32u * 32u);
+    EXPECT_LT(e.max, 1e-5) << "channel " << c;
+  }
+}
+
+// The id map: each texel the colour of the part its samples hit, by name
+// (part_color), never a blend; with and without bake groups the same.
+TEST(Maps, IdColoursEachPartByName) {
+  test::TempDir dir;
+  scenes::ScenePair wall = scenes::make_wall_scene();
+  const std::uint32_t floor_high = 8 * 8 * 2;
+  wall.high.parts = {{"floor_high", 0, floor_high},
+                     {"wall_high", floor_high, static_cast<std::uint32_t>(wall.high.triangle_count()) - floor_high}};
+  wall.low.parts = {{"floor_low", 0, static_cast<std::uint32_t>(wall.low.triangle_count())}};
+  ASSERT_TRUE(save_mesh(dir.file("low.obj"), wall.low).is_ok());
+  ASSERT_TRUE(save_mesh(dir.file("high.obj"), wall.high).is_ok());
+  BakeOptions o;
+  o.low_path = dir.file("low.obj");
+  o.high_path = dir.file("high.obj");
+  o.width = o.height = 16;
+  o.front = o.back = {Distance::Kind::absolute, 0.05f};
+  o.match.unmatched = Unmatched::all;
+  const glm::vec3 floor = part_color("floor_high");
+  EXPECT_NE(floor, part_color("wall_high"));
+  for (const MatchMode mode : {MatchMode::automatic, MatchMode::off}) {
+    o.match.mode = mode;
+    const BakeReport report = bake_maps(dir, o, {MapKind::id});
+    const Image id = read_map(dir, MapKind::id);
+    std::size_t other = 0;
+    for (int y = 0; y < 16; ++y) {
+      for (int x = 0; x < 16; ++x) other += glm::vec3(id.at(x, y)[0], id.at(x, y)[1], id.at(x, y)[2]) != floor;
+    }
+    EXPECT_EQ(other, 0u) << to_string(mode);
+    ASSERT_EQ(report.id_parts.size(), 2u);
+    EXPECT_EQ(report.id_parts[0].first, "floor_high");
+  }
+}
+
+// PLY vertex colours: integer channels are fractions of their type's
+// largest value, alpha is optional (1), and nothing is read unless asked.
+TEST(MapsLoad, PlyVertexColours) {
+  test::TempDir dir;
+  test::write_text(dir.file("c.ply"),
+                   "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                   "property uchar red\nproperty uchar green\nproperty uchar blue\nelement face 1\n"
+                   "property list uchar int vertex_indices\nend_header\n"
+                   "0 0 0 255 0 51\n1 0 0 0 255 0\n0 1 0 0 0 255\n3 0 1 2\n");
+  Mesh mesh;
+  LoadStats stats;
+  LoadOptions options{false, false};
+  ASSERT_TRUE(load_mesh(dir.file("c.ply"), options, mesh, stats).is_ok());
+  EXPECT_FALSE(mesh.has_colors());
+  options.keep_colors = true;
+  ASSERT_TRUE(load_mesh(dir.file("c.ply"), options, mesh, stats).is_ok());
+  ASSERT_EQ(mesh.colors.size(), 3u);
+  EXPECT_EQ(mesh.colors[0], glm::vec4(1.0f, 0.0f, 0.2f, 1.0f));
+  EXPECT_EQ(mesh.colors[2], glm::vec4(0.0f, 0.0f, 1.0f, 1.0f));
+  // Binary, float, with alpha: what save_mesh writes, read back the same.
+  mesh.colors[1] = glm::vec4(0.25f, 0.5f, 0.75f, 0.5f);
+  ASSERT_TRUE(save_mesh(dir.file("b.ply"), mesh).is_ok());
+  Mesh again;
+  ASSERT_TRUE(load_mesh(dir.file("b.ply"), options, again, stats).is_ok());
+  EXPECT_TRUE(again.colors == mesh.colors);
 }
 
 // Job files name maps as a list; the key holds the maps and the options of

@@ -186,6 +186,7 @@ struct BakeReport {
   std::vector<MapReport> map_reports;
   std::uint64_t curvature_degenerate_triangles = 0;  // vertex_mean_curvature(): no weight
   std::uint64_t curvature_isolated_vertices = 0;     // no weighted triangle: H = 0
+  std::vector<std::pair<std::string, glm::vec3>> id_parts;  // the id map's parts and colours
   std::vector<StageTime> stages;
   double total_seconds = 0.0;
   std::uint64_t peak_rss_bytes = 0;

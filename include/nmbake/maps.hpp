@@ -21,10 +21,13 @@
 // | position       | (hit - min) / (max - min) per axis, the high mesh's bounding box | the same | low point |
 // | object-normal  | 0.5 n + 0.5, world space (the normal map's object space) | the same | low normal |
 // | miss           | share of the texel's samples whose ray missed | the same | 1 |
+// | vertex-color   | the high mesh's vertex colour (RGB) at the hit (PLY colours) | the same | black |
+// | id             | the colour of the hit's part (part_color): the part most of the texel's samples hit | the same | black |
 //
 // Single-channel maps (height, ao, curvature, thickness, miss) are written
 // as grey files. Default formats for `.png` outputs: 16-bit, except ao,
-// curvature, thickness and miss: 8-bit (an explicit format wins).
+// curvature, thickness, miss, vertex-color and id: 8-bit (an explicit format
+// wins).
 //
 // Curvature: mean curvature per high triangle from the derivative of its
 // interpolated vertex normals (the shape operator estimate of Rusinkiewicz,
@@ -108,6 +111,10 @@ struct MapSettings {
   Bounds position_bounds;       // the high mesh's
   // Per high vertex (curvature maps; empty otherwise): vertex_mean_curvature().
   const std::vector<float>* vertex_curvature = nullptr;
+  // The id map: per high triangle (in the scene's order) its part, and per
+  // part its colour (part_color()).
+  const std::vector<std::uint32_t>* triangle_part = nullptr;
+  const std::vector<glm::vec3>* part_colors = nullptr;
 
   bool has(MapKind map) const;
 };
@@ -121,6 +128,11 @@ struct MapReport {
   std::vector<std::pair<std::string, double>> figures;
   double figure(const std::string& name) const;  // 0 when absent
 };
+
+// The id map's colour of a part: a hue from the FNV-1a hash of its name
+// (the same name, the same colour, in any file and bake), saturation 0.6,
+// value 0.9.
+glm::vec3 part_color(const std::string& name);
 
 struct CurvatureStats {
   std::uint64_t degenerate_triangles = 0;  // zero area or singular edges: no weight

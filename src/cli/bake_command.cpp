@@ -454,7 +454,7 @@ Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--debug-dump", flags->debug_dump, "also write PREFIX_coverage.png, PREFIX_misses.png, PREFIX_distance.exr");
   cmd->add_option("--map", flags->maps,
                   "maps to bake, repeat or comma list: normal (default), height, ao, bent-normal, curvature, thickness, "
-                  "position, object-normal, miss; several need <MAP> in each output path")
+                  "position, object-normal, miss, vertex-color, id; several need <MAP> in each output path")
       ->allow_extra_args(false);
   cmd->add_option("--height-range", flags->height_range,
                   "height map in integer files: heights in [-R, R] scene units fill 0..1 (auto: the map's largest)")

@@ -119,12 +119,10 @@ MapTraits map_traits(MapKind map) {
       break;
     case MapKind::vertex_color:
       t.png_format = PixelFormat::png8;
-      t.implemented = false;
       break;
     case MapKind::id:
       t.png_format = PixelFormat::png8;
       t.dilate = DilateMode::nearest;
-      t.implemented = false;
       break;
   }
   return t;
@@ -147,6 +145,28 @@ PixelFormat map_format(MapKind map, PixelFormat format, bool format_given, const
   std::string extension = std::filesystem::path(path).extension().string();
   for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return extension == ".png" ? map_traits(map).png_format : format;
+}
+
+glm::vec3 part_color(const std::string& name) {
+  std::uint32_t h = 2166136261u;
+  for (const char c : name) {
+    h ^= static_cast<unsigned char>(c);
+    h *= 16777619u;
+  }
+  // A hue in [0, 6); HSV to RGB with s = 0.6, v = 0.9.
+  const float hue = static_cast<float>(h >> 8) * 0x1p-24f * 6.0f;
+  const float v = 0.9f, s = 0.6f;
+  const int sector = std::min(5, static_cast<int>(hue));
+  const float f = hue - static_cast<float>(sector);
+  const float p = v * (1.0f - s), q = v * (1.0f - s * f), t = v * (1.0f - s * (1.0f - f));
+  switch (sector) {
+    case 0: return {v, t, p};
+    case 1: return {q, v, p};
+    case 2: return {p, v, t};
+    case 3: return {p, q, v};
+    case 4: return {t, p, v};
+    default: return {v, p, q};
+  }
 }
 
 bool MapSettings::has(MapKind map) const { return std::find(maps.begin(), maps.end(), map) != maps.end(); }

@@ -261,6 +261,63 @@ struct ThicknessModule final : MapSet::Module {
   float distance_;
 };
 
+// The high mesh's vertex colours at the hit, RGB; a miss is black.
+struct VertexColorModule final : MapSet::Module {
+  VertexColorModule() : Module(MapKind::vertex_color) {}
+  void encode_band(const BandInputs& in, const MapSettings&, EncodeStats&) override {
+    texel_means<3>(in, image, {0.0f, 0.0f, 0.0f}, [&](std::size_t s, std::array<float, 3>& v) {
+      const std::int32_t hit = in.hits.triangle[s];
+      v = {0.0f, 0.0f, 0.0f};
+      if (hit < 0) return;
+      const std::uint32_t* c = &in.high.indices[3 * static_cast<std::size_t>(hit)];
+      const glm::vec2 b = in.hits.bary[s];
+      const glm::vec4 color =
+          in.high.colors[c[0]] * (1.0f - b.x - b.y) + in.high.colors[c[1]] * b.x + in.high.colors[c[2]] * b.y;
+      v = {color.r, color.g, color.b};
+    });
+  }
+};
+
+// The colour of the part most of a texel's samples hit (ties: the first in
+// the sample pattern's order); black where every sample missed. Never a
+// blend of two parts' colours, so the map is a mask.
+struct IdModule final : MapSet::Module {
+  IdModule() : Module(MapKind::id) {}
+  void encode_band(const BandInputs& in, const MapSettings& settings, EncodeStats&) override {
+    const TexelSamples& samples = in.samples;
+    const std::vector<std::uint32_t>& part = *settings.triangle_part;
+    const std::vector<glm::vec3>& colors = *settings.part_colors;
+    const int width = samples.width, spp = samples.samples;
+    tbb::parallel_for(tbb::blocked_range<int>(0, samples.height), [&](const tbb::blocked_range<int>& rows) {
+      std::vector<std::uint32_t> seen;
+      for (int y = rows.begin(); y != rows.end(); ++y) {
+        float* out = image.pixels.data() + static_cast<std::size_t>(in.out_row + y) * width * 3;
+        for (int x = 0; x < width; ++x) {
+          const std::size_t texel = static_cast<std::size_t>(y) * width + x;
+          seen.clear();
+          for (int k = 0; k < spp && samples.coverage[texel]; ++k) {
+            const std::size_t s = texel * spp + static_cast<std::size_t>(k);
+            if (samples.triangle[s] < 0 || in.hits.triangle[s] < 0) continue;
+            seen.push_back(part[static_cast<std::size_t>(in.hits.triangle[s])]);
+          }
+          glm::vec3 value(0.0f);
+          int best_count = 0;
+          for (std::size_t i = 0; i < seen.size(); ++i) {
+            const int count = static_cast<int>(std::count(seen.begin(), seen.end(), seen[i]));
+            if (count > best_count) {
+              best_count = count;
+              value = colors[seen[i]];
+            }
+          }
+          out[3 * x] = value.r;
+          out[3 * x + 1] = value.g;
+          out[3 * x + 2] = value.b;
+        }
+      }
+    });
+  }
+};
+
 }  // namespace
 
 void encode_hit_values(const BandInputs& in, const MapSettings& settings, const HitValueImages& out) {
@@ -287,6 +344,11 @@ std::unique_ptr<MapSet::Module> make_value_module(MapKind map, const MapSettings
     case MapKind::miss: return std::make_unique<MissModule>();
     case MapKind::ao: return std::make_unique<OcclusionModule>();
     case MapKind::thickness: return std::make_unique<ThicknessModule>(settings.thickness.distance);
+    case MapKind::vertex_color: return std::make_unique<VertexColorModule>();
+    case MapKind::id: {
+      NMBAKE_CHECK(settings.triangle_part != nullptr && settings.part_colors != nullptr, "parts for an id map");
+      return std::make_unique<IdModule>();
+    }
     default: return nullptr;
   }
 }
