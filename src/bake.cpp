@@ -595,58 +595,13 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   timer.start("prepare");
   prepare_low_normals(low, r.low_mesh);
   if (smooth_high) prepare_high_normals(high, r.high_mesh);
-  // The map set's per-bake data, from the whole high mesh before groups
-  // reorder its triangles: its bounds (position) and vertex curvature.
-  const bool want_position = std::find(o.maps.begin(), o.maps.end(), MapKind::position) != o.maps.end();
-  const Bounds high_bounds = want_position ? compute_bounds(high) : Bounds{};
-  std::vector<float> vertex_curvature;
-  if (std::find(o.maps.begin(), o.maps.end(), MapKind::curvature) != o.maps.end()) {
-    CurvatureStats curvature_stats;
-    const auto t0 = std::chrono::steady_clock::now();
-    if (high.has_normals()) {
-      vertex_curvature = vertex_mean_curvature(high, high.normals, curvature_stats);
-    } else {
-      // --high-normals face: curvature still needs smooth (area-weighted) normals.
-      Mesh shape;
-      shape.positions = high.positions;
-      shape.indices = high.indices;
-      MeshStats shape_stats;
-      compute_vertex_normals(shape, shape_stats);
-      vertex_curvature = vertex_mean_curvature(shape, shape.normals, curvature_stats);
-    }
-    if (std::getenv("NMBAKE_MAP_TIMES")) std::fprintf(stderr, "curvature %.4f\n", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-    r.curvature_degenerate_triangles = curvature_stats.degenerate_triangles;
-    r.curvature_isolated_vertices = curvature_stats.isolated_vertices;
-  }
-  // The id map: each high triangle's part, and each part's colour by name
-  // (one unnamed part when the file has none); grouped below with the
-  // triangles.
-  std::vector<std::uint32_t> triangle_part;
-  std::vector<glm::vec3> part_colors;
-  if (wants(MapKind::id)) {
-    std::vector<std::string> names;
-    triangle_part.assign(high.triangle_count(), 0);
-    for (const MeshPart& part : high.parts) {
-      const auto at = std::find(names.begin(), names.end(), part.name);
-      const auto index = static_cast<std::uint32_t>(at - names.begin());
-      if (at == names.end()) names.push_back(part.name);
-      std::fill_n(triangle_part.begin() + part.first_triangle, part.triangle_count, index);
-    }
-    if (names.empty()) names.emplace_back();
-    for (const std::string& name : names) {
-      part_colors.push_back(part_color(name));
-      r.id_parts.emplace_back(name, part_colors.back());
-    }
-    if (groups.grouped()) {
-      // The grouped index buffer holds each group's triangles in turn
-      // (group_high_indices).
-      std::vector<std::uint32_t> grouped;
-      for (const auto& triangles : groups.high_triangles) {
-        for (const std::uint32_t t : triangles) grouped.push_back(triangle_part[t]);
-      }
-      triangle_part = std::move(grouped);
-    }
-  }
+  // The map set's data from the whole high mesh (bounds, vertex curvature,
+  // parts), before groups reorder its triangles.
+  MapMeshData map_mesh;
+  prepare_map_mesh(high, o.maps, groups, map_mesh);
+  r.curvature_degenerate_triangles = map_mesh.curvature.degenerate_triangles;
+  r.curvature_isolated_vertices = map_mesh.curvature.isolated_vertices;
+  r.id_parts = map_mesh.parts;
   SceneGroups scene_groups;
   if (groups.grouped()) {
     // Normals come from the whole high mesh first; then each group's
@@ -716,10 +671,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   map_settings.occlusion.bent = map_settings.has(MapKind::bent_normal);
   map_settings.thickness.rays = o.thickness_rays;
   map_settings.thickness.distance = resolve(o.thickness_distance, r.low_diagonal, auto_map_distance);
-  map_settings.position_bounds = high_bounds;
-  map_settings.vertex_curvature = vertex_curvature.empty() ? nullptr : &vertex_curvature;
-  map_settings.triangle_part = part_colors.empty() ? nullptr : &triangle_part;
-  map_settings.part_colors = part_colors.empty() ? nullptr : &part_colors;
+  map_mesh.apply(map_settings);
   r.maps = o.maps;
   const std::vector<MapOutput> map_files = map_outputs(o);
   const std::vector<glm::vec2> file_uvs = udim ? surface.uv : std::vector<glm::vec2>{};

@@ -49,6 +49,7 @@
 #include "nmbake/image.hpp"
 #include "nmbake/mesh.hpp"
 #include "nmbake/occlusion.hpp"
+#include "nmbake/parts.hpp"
 #include "nmbake/raster.hpp"
 #include "nmbake/surface.hpp"
 #include "nmbake/trace.hpp"
@@ -143,6 +144,26 @@ struct CurvatureStats {
 // not depend on the thread count (per-vertex sums in triangle order).
 std::vector<float> vertex_mean_curvature(const Mesh& high, const std::vector<glm::vec3>& normals,
                                          CurvatureStats& stats);
+
+// What the map set reads from the whole high mesh, once per bake: its
+// bounds (position), vertex curvature (curvature), and each triangle's part
+// with the parts' names and colours (id), for the maps in `maps` only.
+struct MapMeshData {
+  Bounds position_bounds;
+  std::vector<float> vertex_curvature;
+  CurvatureStats curvature;
+  std::vector<std::uint32_t> triangle_part;  // in the scene's triangle order (after groups)
+  std::vector<glm::vec3> part_colors;
+  std::vector<std::pair<std::string, glm::vec3>> parts;  // name, colour
+  // Points `settings` at this data (which must outlive it).
+  void apply(MapSettings& settings) const;
+};
+// From `high` as loaded, normals prepared, before group_high_indices()
+// reorders its triangles; `groups` tells how they will be reordered. The
+// vertex curvature of a mesh without normals (--high-normals face) uses
+// area-weighted ones.
+void prepare_map_mesh(const Mesh& high, const std::vector<MapKind>& maps, const BakeGroups& groups,
+                      MapMeshData& out);
 
 // The maps of one map (a UDIM tile's, or a tile of rows), band by band:
 //   MapSet set(settings, ...); for each band: trace_rays(); encode_band();

@@ -169,6 +169,58 @@ glm::vec3 part_color(const std::string& name) {
   }
 }
 
+void MapMeshData::apply(MapSettings& settings) const {
+  settings.position_bounds = position_bounds;
+  settings.vertex_curvature = vertex_curvature.empty() ? nullptr : &vertex_curvature;
+  settings.triangle_part = part_colors.empty() ? nullptr : &triangle_part;
+  settings.part_colors = part_colors.empty() ? nullptr : &part_colors;
+}
+
+void prepare_map_mesh(const Mesh& high, const std::vector<MapKind>& maps, const BakeGroups& groups,
+                      MapMeshData& out) {
+  const auto wants = [&](MapKind map) { return std::find(maps.begin(), maps.end(), map) != maps.end(); };
+  out = MapMeshData{};
+  if (wants(MapKind::position)) out.position_bounds = compute_bounds(high);
+  if (wants(MapKind::curvature)) {
+    if (high.has_normals()) {
+      out.vertex_curvature = vertex_mean_curvature(high, high.normals, out.curvature);
+    } else {
+      Mesh shape;
+      shape.positions = high.positions;
+      shape.indices = high.indices;
+      MeshStats shape_stats;
+      compute_vertex_normals(shape, shape_stats);
+      out.vertex_curvature = vertex_mean_curvature(shape, shape.normals, out.curvature);
+    }
+  }
+  if (wants(MapKind::id)) {
+    // One unnamed part when the file has none; a name in several ranges is
+    // one part.
+    std::vector<std::string> names;
+    std::vector<std::uint32_t> part(high.triangle_count(), 0);
+    for (const MeshPart& range : high.parts) {
+      const auto at = std::find(names.begin(), names.end(), range.name);
+      const auto index = static_cast<std::uint32_t>(at - names.begin());
+      if (at == names.end()) names.push_back(range.name);
+      std::fill_n(part.begin() + range.first_triangle, range.triangle_count, index);
+    }
+    if (names.empty()) names.emplace_back();
+    for (const std::string& name : names) {
+      out.part_colors.push_back(part_color(name));
+      out.parts.emplace_back(name, out.part_colors.back());
+    }
+    if (groups.grouped()) {
+      // The grouped index buffer holds each group's triangles in turn
+      // (group_high_indices); a triangle in two groups is there twice.
+      for (const auto& triangles : groups.high_triangles) {
+        for (const std::uint32_t t : triangles) out.triangle_part.push_back(part[t]);
+      }
+    } else {
+      out.triangle_part = std::move(part);
+    }
+  }
+}
+
 bool MapSettings::has(MapKind map) const { return std::find(maps.begin(), maps.end(), map) != maps.end(); }
 
 double MapReport::figure(const std::string& name) const {
