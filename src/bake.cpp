@@ -576,7 +576,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
     if (!s) return Status::bad_input(o.low_path + ": the low mesh has no UVs; " + s.message());
     low = std::move(unwrapped);
     r.unwrapped = true;
-    const std::filesystem::path first(udim_path(o.outputs.front().path, 1001));
+    const std::filesystem::path first(udim_path(map_path(o.outputs.front().path, o.maps.front()), 1001));
     r.unwrapped_low_path = (first.parent_path() / (first.stem().string() + "_low_uv.obj")).string();
     timer.stop();
   }
