@@ -114,7 +114,7 @@ std::string BakeReport::to_json() const {
     }
     j["id_colors"] = parts;
   }
-  if (curvature_degenerate_triangles + curvature_isolated_vertices > 0) {
+  if (std::find(maps.begin(), maps.end(), MapKind::curvature) != maps.end()) {
     j["fallbacks"]["curvature_degenerate_triangles"] = curvature_degenerate_triangles;
     j["fallbacks"]["curvature_isolated_vertices"] = curvature_isolated_vertices;
   }

@@ -157,7 +157,19 @@ struct CurvatureModule final : MapSet::Module, SignedRange {
 };
 
 struct PositionModule final : MapSet::Module {
-  PositionModule() : Module(MapKind::position) {}
+  // The box, for whoever turns the map back into positions, and its flat
+  // axes (a plane: 0.5 stored on them), a counted fallback.
+  explicit PositionModule(const Bounds& box) : Module(MapKind::position) {
+    const char* names[2][3] = {{"box_min_x", "box_min_y", "box_min_z"},
+                               {"box_max_x", "box_max_y", "box_max_z"}};
+    int flat = 0;
+    for (int a = 0; a < 3; ++a) {
+      set(names[0][a], box.min[a]);
+      set(names[1][a], box.max[a]);
+      flat += !(box.max[a] > box.min[a]);
+    }
+    set("flat_axes", flat);
+  }
   void encode_band(const BandInputs&, const MapSettings&, EncodeStats&) override {}
   bool from_hit_values() const override { return true; }
 };
@@ -340,7 +352,7 @@ std::unique_ptr<MapSet::Module> make_value_module(MapKind map, const MapSettings
       m->given = settings.curvature_range;
       return m;
     }
-    case MapKind::position: return std::make_unique<PositionModule>();
+    case MapKind::position: return std::make_unique<PositionModule>(settings.position_bounds);
     case MapKind::miss: return std::make_unique<MissModule>();
     case MapKind::ao: return std::make_unique<OcclusionModule>();
     case MapKind::thickness: return std::make_unique<ThicknessModule>(settings.thickness.distance);
