@@ -92,6 +92,27 @@ TEST(Maps, DefaultNormalMapUnchanged) {
   o.outputs = {{dir.file("set_<MAP>.png"), PixelFormat::png16}};
   ASSERT_TRUE(bake(o, report).is_ok());
   EXPECT_TRUE(read_bytes(dir.file("set_normal.png")) == expected) << "the normal map of a map set differs";
+
+  // The report: the position map's box (the displaced sphere's, about
+  // [-1, 1] on each axis, none flat) and the curvature pass's fallbacks,
+  // zeros included; a normal bake's report has no curvature fallbacks.
+  bool position_reported = false;
+  for (const MapReport& m : report.map_reports) {
+    if (m.map != MapKind::position) continue;
+    position_reported = true;
+    for (const char* axis : {"x", "y", "z"}) {
+      EXPECT_NEAR(m.figure(std::string("box_min_") + axis), -1.0, 0.1) << axis;
+      EXPECT_NEAR(m.figure(std::string("box_max_") + axis), 1.0, 0.1) << axis;
+    }
+    EXPECT_EQ(m.figure("flat_axes"), 0.0);
+  }
+  EXPECT_TRUE(position_reported);
+  EXPECT_NE(report.to_json().find("curvature_isolated_vertices"), std::string::npos);
+  o.maps = {MapKind::normal};
+  o.outputs = {{dir.file("normal_again.png"), PixelFormat::png16}};
+  BakeReport normal_report;
+  ASSERT_TRUE(bake(o, normal_report).is_ok());
+  EXPECT_EQ(normal_report.to_json().find("curvature_isolated_vertices"), std::string::npos);
 }
 
 // Height: the signed distance along the bake's ray from the low surface to
