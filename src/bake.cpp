@@ -5,6 +5,7 @@
 
 #include "huge_pages.hpp"
 #include "nmbake/budget.hpp"
+#include "nmbake/maps.hpp"
 #include "nmbake/task.hpp"
 #include "nmbake/udim.hpp"
 
@@ -75,7 +76,79 @@ Status check_distance(const char* name, const Distance& d, float diagonal) {
                            number_text(diagonal) + " = " + number_text(limit) + " scene units");
 }
 
+// The map set's options (maps.hpp).
+Status validate_map_set(const BakeOptions& o) {
+  if (o.maps.empty()) return Status::bad_input("no map to bake (--map)");
+  for (const MapKind map : o.maps) {
+    if (!map_traits(map).implemented) return Status::bad_input(std::string("--map ") + to_string(map) + ": not implemented yet");
+  }
+  if (o.maps.size() > 1) {
+    for (const OutputSpec& out : o.outputs) {
+      if (!has_map_token(out.path)) {
+        return Status::bad_input(printable_text(out.path) + ": " + std::to_string(o.maps.size()) + " maps are baked (" +
+                                 map_list_text(o.maps) + "): the output path needs the " + kMapToken +
+                                 " token, e.g. asset_" + kMapToken + ".png");
+      }
+    }
+  }
+  for (const MapOutput& out : map_outputs(o)) {
+    if (const Status target = check_output_target(out.path); !target) return Status::bad_input(target.message());
+  }
+  const auto check_range = [](const char* name, float value) {
+    if (!(value >= 0.0f) || !std::isfinite(value)) {
+      return Status::bad_input(std::string(name) + " " + number_text(value) + " is out of range: a number > 0, or auto");
+    }
+    return Status::ok();
+  };
+  NMBAKE_TRY(check_range("--height-range", o.height_range));
+  NMBAKE_TRY(check_range("--curvature-range", o.curvature_range));
+  for (const auto& [name, rays] : {std::pair{"--ao-rays", o.ao_rays}, std::pair{"--thickness-rays", o.thickness_rays}}) {
+    if (rays < 1 || rays > kMaxOcclusionRays) {
+      return Status::bad_input(std::string(name) + " " + std::to_string(rays) + " is out of range (1 to " +
+                               std::to_string(kMaxOcclusionRays) + ")");
+    }
+  }
+  for (const auto& [name, d] :
+       {std::pair{"--ao-distance", o.ao_distance}, std::pair{"--thickness-distance", o.thickness_distance}}) {
+    if (d.kind != Distance::Kind::automatic && !(d.value > 0.0f)) {
+      return Status::bad_input(std::string(name) + " " + to_string(d) + " is out of range: a distance > 0, N% or auto");
+    }
+    if (d.kind == Distance::Kind::absolute && !(d.value <= kMaxDistance)) {
+      return Status::bad_input(std::string(name) + " " + number_text(d.value) + " is out of range: at most " +
+                               number_text(kMaxDistance) + " scene units");
+    }
+    if (d.kind == Distance::Kind::percent && !(d.value <= 100.0f * kMaxDistanceDiagonals)) {
+      return Status::bad_input(std::string(name) + " " + number_text(d.value) + "% is out of range: at most " +
+                               number_text(100.0f * kMaxDistanceDiagonals) + "% of the low mesh's diagonal");
+    }
+  }
+  if (o.adaptive && (o.maps.size() != 1 || o.maps.front() != MapKind::normal)) {
+    return Status::bad_input("--samples adaptive bakes the normal map alone; the map set (" + map_list_text(o.maps) +
+                             ") needs a fixed sample count (1, 4, 16 or 64)");
+  }
+  if (o.tile_count > 0 && (o.maps.size() != 1 || o.maps.front() != MapKind::normal)) {
+    return Status::bad_input("the map set (" + map_list_text(o.maps) +
+                             ") cannot be baked in tiles (--tile) yet: bake it whole, or tile a bake of the normal map "
+                             "alone");
+  }
+  return Status::ok();
+}
+
 }  // namespace
+
+std::vector<MapOutput> map_outputs(const BakeOptions& o) {
+  std::vector<MapOutput> out;
+  for (const OutputSpec& spec : o.outputs) {
+    for (const MapKind map : o.maps) {
+      MapOutput m;
+      m.path = map_path(spec.path, map);
+      m.format = map_format(map, spec.format, spec.format_given, spec.path);
+      m.map = map;
+      out.push_back(std::move(m));
+    }
+  }
+  return out;
+}
 
 Status validate_options(const BakeOptions& o) {
   if (o.low_path.empty()) return Status::bad_input("no low mesh given (--low)");
@@ -142,7 +215,7 @@ Status validate_options(const BakeOptions& o) {
       return Status::internal(out.path + ": " + writer.message());  // names the output once
     }
   }
-  return Status::ok();
+  return validate_map_set(o);
 }
 
 namespace {
@@ -341,7 +414,7 @@ struct Prepared {
   const Mesh& high;
   const HighScene& scene;
   const RayOptions& rays;
-  EncodeOptions encode;
+  MapSettings maps;  // the map set, with the normal map's encode options
 };
 
 // Adaptive sampling (adaptive.hpp), rows [first_row, last_row) of the map
@@ -539,35 +612,32 @@ class AdaptiveRows {
   std::vector<std::uint32_t> chosen_, slot_;
 };
 
-// raster -> trace -> encode, band of rows by band of rows, then dilate and
-// write, for one map (a UDIM tile: `surface` has the tile's UVs shifted
-// into [0, 1]^2). The per-sample arrays are reused and bounded, so a 16384^2
-// map bakes in the memory of a small one. Bands change nothing in the
-// result: raster tiles and ray packets both start on band rows.
+// raster -> trace -> [occlusion rays] -> encode (every map of the set),
+// band of rows by band of rows, then dilate and write, for one map (a UDIM
+// tile: `surface` has the tile's UVs shifted into [0, 1]^2). The per-sample
+// arrays are reused and bounded, so a 16384^2 map bakes in the memory of a
+// small one. Bands change nothing in the result: raster tiles and ray
+// packets both start on band rows.
 // Rows [first_row, last_row) of the map (all of it, or a tile's: then the
 // image and coverage hold only those rows, and nothing is dilated or
 // written: `tile` gets them).
-Status bake_tile(const Prepared& p, const LowSurface& surface, const std::vector<OutputSpec>& outputs,
+Status bake_tile(const Prepared& p, const LowSurface& surface, const std::vector<MapOutput>& outputs,
                  const std::string& debug_prefix, BakeReport& r, StageTimer& timer, const ProgressFn& progress,
-                 std::uint64_t& covered_texels, int first_row, int last_row, TileData* tile) {
+                 std::uint64_t& covered_texels, int first_row, int last_row, int udim_tile, TileData* tile) {
   const BakeOptions& o = p.options;
   const int rows = last_row - first_row;
-  Image image;
-  image.width = o.width;
-  image.height = rows;
-  image.channels = 3;
-  // Every texel is written by encode; huge pages make the first touch cheap.
-  detail::size_output(image.pixels, static_cast<std::size_t>(o.width) * rows * 3);
+  MapSet maps(p.maps, o.width, first_row, last_row);
   std::vector<std::uint8_t> coverage(static_cast<std::size_t>(o.width) * rows, 0);
   std::unique_ptr<DebugImages> debug;
   if (!debug_prefix.empty()) debug = std::make_unique<DebugImages>(o.width, o.height, o.adaptive);
-  EncodeOptions encode_options = p.encode;
-  encode_options.out_row_begin = first_row;
   TexelSamples samples;
   Hits hits;
   covered_texels = 0;
   if (o.adaptive) {
-    AdaptiveRows(p, surface, r, image, coverage, encode_options, debug.get())
+    // The normal map alone (validate_options); its image holds rows from first_row.
+    EncodeOptions encode_options = p.maps.encode;
+    encode_options.out_row_begin = first_row;
+    AdaptiveRows(p, surface, r, maps.image(MapKind::normal), coverage, encode_options, debug.get())
         .run(first_row, last_row, timer, progress, covered_texels);
   } else {
     const int rows_per_band = band_rows(o.width, o.height, o.samples, o.band_samples);
@@ -595,35 +665,50 @@ Status bake_tile(const Prepared& p, const LowSurface& surface, const std::vector
       trace(p.scene, surface, samples, p.rays, hits, r.trace, trace_progress);
       timer.stop(false);
 
+      if (maps.needs_rays()) {
+        // AO, bent normals, thickness: their own rays from this band's hits.
+        timer.start_quietly("occlusion");
+        maps.trace_rays(p.scene, p.high, surface, samples, hits);
+        timer.stop(false);
+        if (progress) progress("occlusion", static_cast<double>(row_end) / o.height);
+      }
+
       timer.start_quietly("encode");
-      encode(surface, samples, p.high, hits, encode_options, image, r.encode);
+      maps.encode_band(surface, samples, p.high, hits, r.encode);
       timer.stop(false);
       if (debug) debug->add_band(samples, hits);
     }
   }
   if (debug) NMBAKE_TRY(debug->write(debug_prefix));
   if (tile != nullptr) {
-    tile->pixels = std::move(image.pixels);
+    tile->pixels = std::move(maps.image(MapKind::normal).pixels);
     tile->coverage = std::move(coverage);
     return Status::ok();
   }
 
   timer.start("dilate");
-  DilateStats dilate_stats;
-  dilate(image, coverage, o.padding, dilate_stats);
-  r.dilate.filled_texels += dilate_stats.filled_texels;
-  r.dilate.fallback_texels += dilate_stats.fallback_texels;
+  maps.finish(coverage, o.padding, r.dilate);
   timer.stop();
 
   // Every output is written at once (each writer is single-threaded).
   timer.start("write");
+  std::vector<std::pair<MapKind, PixelFormat>> files;
+  for (const MapOutput& out : outputs) files.emplace_back(out.map, out.format);
+  maps.prepare_files(files);
   std::vector<Status> written(outputs.size());
-  tbb::parallel_for(std::size_t{0}, outputs.size(),
-                    [&](std::size_t i) {
-                      written[i] = write_image(image, outputs[i].path, outputs[i].format, WriteOptions{o.dither});
-                    });
+  std::vector<Image> scratch(outputs.size());
+  tbb::parallel_for(std::size_t{0}, outputs.size(), [&](std::size_t i) {
+    const MapOutput& out = outputs[i];
+    written[i] = write_image(maps.stored(out.map, out.format, scratch[i]), out.path, out.format, WriteOptions{o.dither});
+  });
   for (const Status& s : written) NMBAKE_TRY(s);
   timer.stop();
+  for (MapReport& m : maps.reports(udim_tile)) {
+    for (const MapOutput& out : outputs) {
+      if (out.map == m.map) m.outputs.push_back(out.path);
+    }
+    r.map_reports.push_back(std::move(m));
+  }
   return Status::ok();
 }
 
@@ -670,7 +755,14 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   low_options.keep_tangents = o.tangent_basis == TangentBasis::file;
   NMBAKE_TRY(load_mesh(o.low_path, low_options, low, r.low_load));
   const bool smooth_high = o.high_normals == HighNormals::smooth;
-  NMBAKE_TRY(load_mesh(o.high_path, LoadOptions{false, smooth_high}, high, r.high_load));
+  const auto wants = [&](MapKind map) { return std::find(o.maps.begin(), o.maps.end(), map) != o.maps.end(); };
+  LoadOptions high_options{false, smooth_high};
+  high_options.keep_colors = wants(MapKind::vertex_color);
+  NMBAKE_TRY(load_mesh(o.high_path, high_options, high, r.high_load));
+  if (high_options.keep_colors && !high.has_colors()) {
+    return Status::bad_input(o.high_path + ": --map vertex-color, but the high mesh has no vertex colours (read from "
+                             "PLY red/green/blue properties; glTF COLOR_0 and other formats are not read yet)");
+  }
   const bool use_cage_mesh = !o.cage_path.empty();
   if (use_cage_mesh) {
     LoadStats cage_load;
@@ -717,7 +809,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
     if (!s) return Status::bad_input(o.low_path + ": the low mesh has no UVs; " + s.message());
     low = std::move(unwrapped);
     r.unwrapped = true;
-    const std::filesystem::path first(udim_path(o.outputs.front().path, 1001));
+    const std::filesystem::path first(udim_path(map_path(o.outputs.front().path, o.maps.front()), 1001));
     r.unwrapped_low_path = (first.parent_path() / (first.stem().string() + "_low_uv.obj")).string();
     timer.stop();
   }
@@ -736,6 +828,13 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   timer.start("prepare");
   prepare_low_normals(low, r.low_mesh);
   if (smooth_high) prepare_high_normals(high, r.high_mesh);
+  // The map set's data from the whole high mesh (bounds, vertex curvature,
+  // parts), before groups reorder its triangles.
+  MapMeshData map_mesh;
+  prepare_map_mesh(high, o.maps, groups, map_mesh);
+  r.curvature_degenerate_triangles = map_mesh.curvature.degenerate_triangles;
+  r.curvature_isolated_vertices = map_mesh.curvature.isolated_vertices;
+  r.id_parts = map_mesh.parts;
   SceneGroups scene_groups;
   if (groups.grouped()) {
     // Normals come from the whole high mesh first; then each group's
@@ -790,19 +889,32 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   }
   r.unused_high_parts = groups.unused_high_parts;
 
-  Prepared prepared{o, high, scene, rays, EncodeOptions{}};
-  prepared.encode.space = o.space;
-  prepared.encode.green = o.green;
-  prepared.encode.high_normals = o.high_normals;
-  prepared.encode.tangent_encode = o.tangent_encode;
-  prepared.encode.decode = o.decode;
+  Prepared prepared{o, high, scene, rays, MapSettings{}};
+  MapSettings& map_settings = prepared.maps;
+  map_settings.maps = o.maps;
+  map_settings.encode.space = o.space;
+  map_settings.encode.green = o.green;
+  map_settings.encode.high_normals = o.high_normals;
+  map_settings.encode.tangent_encode = o.tangent_encode;
+  map_settings.encode.decode = o.decode;
+  map_settings.height_range = o.height_range;
+  map_settings.curvature_range = o.curvature_range;
+  const float auto_map_distance = kAutoMapDistancePercent * 0.01f * r.low_diagonal;
+  map_settings.occlusion.rays = o.ao_rays;
+  map_settings.occlusion.distance = resolve(o.ao_distance, r.low_diagonal, auto_map_distance);
+  map_settings.occlusion.bent = map_settings.has(MapKind::bent_normal);
+  map_settings.thickness.rays = o.thickness_rays;
+  map_settings.thickness.distance = resolve(o.thickness_distance, r.low_diagonal, auto_map_distance);
+  map_mesh.apply(map_settings);
+  r.maps = o.maps;
+  const std::vector<MapOutput> map_files = map_outputs(o);
   const std::vector<glm::vec2> file_uvs = udim ? surface.uv : std::vector<glm::vec2>{};
   r.outputs.clear();
   for (const int tile : tiles) {
     BakeReport::Tile done;
     done.tile = tile;
-    std::vector<OutputSpec> outputs = o.outputs;
-    for (OutputSpec& out : outputs) {
+    std::vector<MapOutput> outputs = map_files;
+    for (MapOutput& out : outputs) {
       out.path = udim_path(out.path, tile);
       done.outputs.push_back(out.path);
       r.outputs.push_back(out.path);
@@ -826,8 +938,9 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
       rows.padding = o.padding;
       rows.dither = o.dither;
       rows.outputs = o.outputs;
+      for (OutputSpec& out : rows.outputs) out.path = map_path(out.path, MapKind::normal);  // tiles: the normal map alone
       NMBAKE_TRY(bake_tile(prepared, surface, outputs, debug_prefix, r, timer, progress, done.covered_texels,
-                           rows.row_begin, rows.row_end, &rows));
+                           rows.row_begin, rows.row_end, tile, &rows));
       timer.start("write");
       NMBAKE_TRY(write_tile(o.tile_path, rows));
       timer.stop();
@@ -840,7 +953,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
       done.outputs = {o.tile_path};
     } else {
       NMBAKE_TRY(bake_tile(prepared, surface, outputs, debug_prefix, r, timer, progress, done.covered_texels, 0,
-                           o.height, nullptr));
+                           o.height, tile, nullptr));
     }
     r.tiles.push_back(std::move(done));
   }

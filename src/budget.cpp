@@ -205,6 +205,18 @@ BakeMemory estimate_bake_memory(const BakeOptions& o, const MeshSize& low, const
   // High: positions and normals (24 a vertex, padded), indices (12) and the
   // BVH with its build (DESIGN.md's budget: 100 a triangle all told).
   m.high = high.vertices * 24 + high.triangles * 112;
+  // The map set beyond the normal map: each map's float image (4 bytes a
+  // channel), its coverage copy for dilation (1) and an integer file's
+  // mapped copy (4 a channel); per band sample, AO visibility and the bent
+  // direction (16) or thickness (4); the curvature per high vertex (4).
+  for (const MapKind map : o.maps) {
+    if (map == MapKind::normal) continue;
+    const MapTraits t = map_traits(map);
+    m.map += texels * (8 * static_cast<std::uint64_t>(t.channels) + 1);
+    if (t.occlusion_rays) m.bands += band_texels * static_cast<std::uint64_t>(o.samples) * 16;
+    if (t.thickness_rays) m.bands += band_texels * static_cast<std::uint64_t>(o.samples) * 4;
+    if (map == MapKind::curvature) m.high += high.vertices * 4;
+  }
   // Libraries, TBB and Embree threads, the writers' pieces in flight.
   m.fixed = std::uint64_t{96} << 20;
   return m;

@@ -75,8 +75,10 @@ Status cache_fetch(const std::string& dir, const BakeKey& key, const BakeOptions
   for (const auto& file : manifest["files"]) {
     const std::size_t output = file.value("output", std::size_t{0});
     const int tile = file.value("tile", 1001);
-    if (output >= options.outputs.size()) return Status::ok();  // another layout: bake again
-    const std::string to = udim_path(options.outputs[output].path, tile);
+    // `output` counts the files of a UDIM tile: each output once per map.
+    const std::vector<MapOutput> files = map_outputs(options);
+    if (output >= files.size()) return Status::ok();  // another layout: bake again
+    const std::string to = udim_path(files[output].path, tile);
     NMBAKE_TRY(copy_atomically((entry / file.value("file", "")).string(), to));
     written.push_back(to);
   }
@@ -112,7 +114,7 @@ Status cache_store(const std::string& dir, const BakeKey& key, const BakeOptions
     return Status::io(dir + ": cannot store the bake in the cache: " + why);
   };
   for (const BakeReport::Tile& tile : report.tiles) {
-    if (tile.outputs.size() != options.outputs.size()) return fail("outputs and tiles do not agree");
+    if (tile.outputs.size() != map_outputs(options).size()) return fail("outputs and tiles do not agree");
     for (std::size_t i = 0; i < tile.outputs.size(); ++i) {
       const std::string name =
           concat("o", std::to_string(i), "_", std::to_string(tile.tile), fs::path(tile.outputs[i]).extension().string());

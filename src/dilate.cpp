@@ -84,6 +84,32 @@ void scan_rows(const Grid& grid, int row_begin, int row_end, std::vector<std::ui
 }
 
 // The value of one frontier texel from its neighbours covered before this
+// pass, for DilateMode::mean and ::nearest. Never a fallback.
+bool fill_plain(const Image& image, const Grid& grid, std::uint32_t index, float* out, DilateMode mode) {
+  const int channels = image.channels;
+  const int x = static_cast<int>(index % static_cast<std::uint32_t>(grid.width));
+  const int y = static_cast<int>(index / static_cast<std::uint32_t>(grid.width));
+  for (int c = 0; c < channels; ++c) out[c] = 0.0f;
+  int used_count = 0;
+  for (int k = 0; k < neighbour_count; ++k) {
+    const int nx = x + neighbour_dx[k];
+    const int ny = y + neighbour_dy[k];
+    if (!grid.inside(nx, ny)) continue;
+    if (grid.state[static_cast<std::size_t>(ny) * grid.width + nx] != state_covered) continue;
+    const float* p = image.at(nx, ny);
+    if (mode == DilateMode::nearest) {
+      std::copy(p, p + channels, out);
+      return false;
+    }
+    for (int c = 0; c < channels; ++c) out[c] += p[c];
+    ++used_count;
+  }
+  NMBAKE_DCHECK(used_count > 0, "a frontier texel has no covered neighbour");
+  for (int c = 0; c < channels; ++c) out[c] /= static_cast<float>(used_count);
+  return false;
+}
+
+// The value of one frontier texel from its neighbours covered before this
 // pass. Returns whether the cancelled-vectors fallback was taken.
 bool fill_value(const Image& image, const Grid& grid, std::uint32_t index, float* out) {
   const int channels = image.channels;
@@ -119,16 +145,29 @@ bool fill_value(const Image& image, const Grid& grid, std::uint32_t index, float
 
 }  // namespace
 
-void dilate(Image& image, std::vector<std::uint8_t>& coverage, int padding, DilateStats& stats) {
+void dilate(Image& image, std::vector<std::uint8_t>& coverage, int padding, DilateStats& stats, DilateMode mode) {
+  dilate(std::vector<DilateLayer>{{&image, mode}}, coverage, padding, stats);
+}
+
+void dilate(const std::vector<DilateLayer>& layers, std::vector<std::uint8_t>& coverage, int padding,
+            DilateStats& stats) {
   stats = DilateStats{};
+  NMBAKE_CHECK(!layers.empty(), "dilate: at least one image");
+  const Image& image = *layers.front().image;
+  for (const DilateLayer& layer : layers) {
+    NMBAKE_CHECK(layer.image->width == image.width && layer.image->height == image.height,
+                 "dilate: the images have one size");
+    NMBAKE_CHECK(layer.image->pixels.size() ==
+                     static_cast<std::size_t>(image.width) * image.height * layer.image->channels,
+                 "dilate: pixel buffer does not match the size");
+    NMBAKE_CHECK(layer.image->channels >= (layer.mode == DilateMode::unit_vector ? 3 : 1),
+                 "dilate: a unit-vector image needs at least 3 channels (a vector per texel)");
+  }
   NMBAKE_CHECK(image.width >= 0 && image.height >= 0, "dilate: negative image size");
-  NMBAKE_CHECK(image.channels >= 3, "dilate: the image needs at least 3 channels (a vector per texel)");
   const std::size_t texel_count =
       static_cast<std::size_t>(image.width) * static_cast<std::size_t>(image.height);
   NMBAKE_CHECK(texel_count <= std::numeric_limits<std::uint32_t>::max(),
                "dilate: image too large for 32-bit indices");
-  NMBAKE_CHECK(image.pixels.size() == texel_count * image.channels,
-               "dilate: pixel buffer does not match the size");
   NMBAKE_CHECK(coverage.size() == texel_count, "dilate: coverage does not have one entry per texel");
   NMBAKE_CHECK(
       std::none_of(coverage.begin(), coverage.end(), [](std::uint8_t c) { return c > state_covered; }),
@@ -136,13 +175,12 @@ void dilate(Image& image, std::vector<std::uint8_t>& coverage, int padding, Dila
   if (padding <= 0 || texel_count == 0) return;
 
   const Grid grid{image.width, image.height, coverage.data()};
-  const int channels = image.channels;
 
   // Reused for every pass: the ring being filled, the next ring, the ring's
   // new values, and per-chunk outputs (their capacity is kept).
   std::vector<std::uint32_t> frontier;
   std::vector<std::uint32_t> next_frontier;
-  std::vector<float> values;
+  std::vector<std::vector<float>> values(layers.size());
   std::vector<std::vector<std::uint32_t>> chunk_lists;
   std::vector<std::uint64_t> chunk_fallback_counts;
 
@@ -175,7 +213,7 @@ void dilate(Image& image, std::vector<std::uint8_t>& coverage, int padding, Dila
     const std::size_t chunk_count = (ring_count + frontier_chunk_size - 1) / frontier_chunk_size;
     if (chunk_lists.size() < chunk_count) chunk_lists.resize(chunk_count);
     chunk_fallback_counts.assign(chunk_count, 0);
-    values.resize(ring_count * channels);
+    for (std::size_t l = 0; l < layers.size(); ++l) values[l].resize(ring_count * layers[l].image->channels);
 
     auto for_each_chunk = [&](auto&& body) {
       tbb::parallel_for(
@@ -186,11 +224,18 @@ void dilate(Image& image, std::vector<std::uint8_t>& coverage, int padding, Dila
           });
     };
 
-    // 1. Values from texels covered before the pass; the image is not written.
+    // 1. Values from texels covered before the pass; the images are not written.
     for_each_chunk([&](std::size_t chunk, std::size_t begin, std::size_t end) {
       std::uint64_t fallback_count = 0;
-      for (std::size_t j = begin; j < end; ++j) {
-        if (fill_value(image, grid, frontier[j], values.data() + j * channels)) ++fallback_count;
+      for (std::size_t l = 0; l < layers.size(); ++l) {
+        const Image& layer = *layers[l].image;
+        const DilateMode mode = layers[l].mode;
+        for (std::size_t j = begin; j < end; ++j) {
+          float* value = values[l].data() + j * layer.channels;
+          const bool fallback = mode == DilateMode::unit_vector ? fill_value(layer, grid, frontier[j], value)
+                                                                : fill_plain(layer, grid, frontier[j], value, mode);
+          if (fallback) ++fallback_count;
+        }
       }
       chunk_fallback_counts[chunk] = fallback_count;
     });
@@ -199,8 +244,11 @@ void dilate(Image& image, std::vector<std::uint8_t>& coverage, int padding, Dila
     for_each_chunk([&](std::size_t, std::size_t begin, std::size_t end) {
       for (std::size_t j = begin; j < end; ++j) {
         const std::uint32_t index = frontier[j];
-        std::copy_n(values.data() + j * channels, channels,
-                    image.pixels.data() + std::size_t{index} * channels);
+        for (std::size_t l = 0; l < layers.size(); ++l) {
+          const int channels = layers[l].image->channels;
+          std::copy_n(values[l].data() + j * channels, channels,
+                      layers[l].image->pixels.data() + std::size_t{index} * channels);
+        }
         coverage[index] = state_filled_this_pass;
       }
     });

@@ -3,6 +3,7 @@
 #include "nmbake/budget.hpp"
 #include "nmbake/preset.hpp"
 
+#include <cmath>
 #include <filesystem>
 #include <set>
 #include <sstream>
@@ -173,6 +174,43 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
     if (auto b = value.value<bool>(); b && value.is_boolean()) o.dither = *b;
     else if (get_string(text) && (text == "on" || text == "off")) o.dither = text == "on";
     else return bad("expected \"on\", \"off\", true or false");
+  } else if (key == "maps") {
+    // maps = ["normal", "ao"] or "normal,ao"
+    o.maps.clear();
+    if (const toml::array* list = value.as_array()) {
+      for (const toml::node& item : *list) {
+        const auto name = item.value<std::string>();
+        if (!name) return Status::bad_input(where(file, item) + ": maps: expected map names (strings)");
+        if (const Status s = parse_map_list(*name, o.maps); !s) return Status::bad_input(where(file, item) + ": maps: " + s.message());
+      }
+      if (o.maps.empty()) return bad("expected at least one map");
+    } else if (get_string(text)) {
+      if (const Status s = parse_map_list(text, o.maps); !s) return bad(s.message());
+    } else {
+      return bad("expected a list of map names, e.g. [\"normal\", \"ao\"]");
+    }
+  } else if (key == "height_range" || key == "curvature_range") {
+    float& range = key == "height_range" ? o.height_range : o.curvature_range;
+    if (value.is_number() && *value.value<double>() > 0.0 && std::isfinite(*value.value<double>())) {
+      range = static_cast<float>(*value.value<double>());
+    } else if (get_string(text) && text == "auto") {
+      range = 0.0f;
+    } else {
+      return bad("expected a number > 0 or \"auto\"");
+    }
+  } else if (key == "ao_rays" || key == "thickness_rays") {
+    if (!get_int(key == "ao_rays" ? o.ao_rays : o.thickness_rays)) return bad("expected an integer");
+  } else if (key == "ao_distance" || key == "thickness_distance") {
+    Distance d;
+    if (value.is_number()) {
+      const double v = *value.value<double>();
+      if (!(v > 0.0)) return bad("expected a distance > 0");
+      d.kind = Distance::Kind::absolute;
+      d.value = static_cast<float>(v);
+    } else if (!get_string(text) || !parse_distance(text, d)) {
+      return bad("expected a number, \"N%\" or \"auto\"");
+    }
+    (key == "ao_distance" ? o.ao_distance : o.thickness_distance) = d;
   } else if (key == "cage") {
     if (!get_string(text) || text.empty()) return bad("expected a path");
     o.cage_path = resolve_path(folder, text);
@@ -244,6 +282,7 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
       if (path.empty()) return Status::bad_input(where(file, item) + ": outputs: each output needs a path");
       out.path = resolve_path(folder, path);
       const bool ok = format.empty() ? pixel_format_from_path(out.path, out.format) : parse_pixel_format(format, out.format);
+      out.format_given = !format.empty();
       if (!ok) {
         return Status::bad_input(where(file, item) + ": outputs: " +
                                  (format.empty() ? "unknown image extension of " + path + " (use .png, .tif, .tiff, .exr, .tga)"

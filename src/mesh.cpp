@@ -196,6 +196,19 @@ Status validate_mesh(const Mesh& mesh, const std::string& name) {
     return Status::bad_input(name + ": triangle " + std::to_string(i / 3) + " refers to vertex " +
                              std::to_string(mesh.indices[i]) + " of " + std::to_string(vertex_count));
   }
+  if (!mesh.colors.empty() && mesh.colors.size() != vertex_count) {
+    return Status::bad_input(name + ": " + std::to_string(mesh.colors.size()) + " colours for " +
+                             std::to_string(vertex_count) + " vertices");
+  }
+  if (const std::size_t i = first_failing(mesh.colors.size(),
+                                          [&](std::size_t k) {
+                                            const glm::vec4& c = mesh.colors[k];
+                                            return !(std::isfinite(c.x) && std::isfinite(c.y) &&
+                                                     std::isfinite(c.z) && std::isfinite(c.w));
+                                          });
+      i < mesh.colors.size()) {
+    return Status::bad_input(name + ": vertex " + std::to_string(i) + " has a non-finite colour");
+  }
   if (!mesh.tangents.empty() && mesh.tangents.size() != vertex_count) {
     return Status::bad_input(name + ": " + std::to_string(mesh.tangents.size()) + " tangents for " +
                              std::to_string(vertex_count) + " vertices");

@@ -63,7 +63,7 @@ Status bake_outputs(const BakeJob& job, std::vector<std::string>& outputs) {
     if (low.has_uvs()) NMBAKE_TRY(find_udim_tiles(low, job.options.low_path, true, tiles));
   }
   for (const int tile : tiles) {
-    for (const OutputSpec& out : job.options.outputs) outputs.push_back(absolute(udim_path(out.path, tile)));
+    for (const MapOutput& out : map_outputs(job.options)) outputs.push_back(absolute(udim_path(out.path, tile)));
   }
   return Status::ok();
 }
@@ -90,10 +90,12 @@ Status plan_jobs(const std::vector<BakeJob>& jobs, const PlanOptions& options, s
     std::vector<std::string> maps;
     NMBAKE_TRY(bake_outputs(job, maps));
     std::vector<std::string> base{options.nmbake, "bake", options.job_file, "--only", job.name, "-q"};
-    const bool udim = maps.size() != job.options.outputs.size() ||
+    const bool udim = maps.size() != map_outputs(job.options).size() ||
                       std::any_of(job.options.outputs.begin(), job.options.outputs.end(),
                                   [](const OutputSpec& o) { return has_udim_token(o.path); });
-    const bool tiled = options.tiles > 1 && !udim &&
+    // Tiles bake the normal map alone (a map set is refused in tiles).
+    const bool map_set = job.options.maps.size() != 1 || job.options.maps.front() != MapKind::normal;
+    const bool tiled = options.tiles > 1 && !udim && !map_set &&
                        std::max(job.options.width, job.options.height) >= options.tiles_min_size;
     if (!tiled) {
       PlanTask t;
@@ -119,7 +121,7 @@ Status plan_jobs(const std::vector<BakeJob>& jobs, const PlanOptions& options, s
     merge.command = {options.nmbake, "merge", "-q"};
     for (int i = 0; i < options.tiles; ++i) {
       const std::string spec = std::to_string(i + 1) + "/" + std::to_string(options.tiles);
-      const std::string tile_file = concat(absolute(job.options.outputs.front().path), ".tile-", std::to_string(i + 1),
+      const std::string tile_file = concat(absolute(map_path(job.options.outputs.front().path, MapKind::normal)), ".tile-", std::to_string(i + 1),
                                            "-of-", std::to_string(options.tiles));
       PlanTask t;
       t.id = concat("tile:", job.name, ":", std::to_string(i + 1));

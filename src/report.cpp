@@ -1,4 +1,6 @@
 // The bake report: every counter of every stage, as JSON and as one line.
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 #include <nlohmann/json.hpp>
@@ -133,6 +135,27 @@ std::string BakeReport::to_json() const {
     j["unwrap"] = ordered_json::parse(unwrap.to_json());
     j["unwrap"]["mesh"] = unwrapped_low_path;
   }
+  // The map set: each map of each UDIM tile, with the ranges it used and
+  // its counters (maps.hpp).
+  ordered_json map_json = ordered_json::array();
+  for (const MapReport& m : map_reports) {
+    ordered_json entry = {{"map", to_string(m.map)}, {"tile", m.tile}, {"outputs", m.outputs}};
+    for (const auto& [name, value] : m.figures) entry[name] = value;
+    map_json.push_back(entry);
+  }
+  j["maps"] = map_json;
+  if (!id_parts.empty()) {
+    ordered_json parts = ordered_json::array();
+    for (const auto& [name, color] : id_parts) {
+      parts.push_back({{"part", name},
+                       {"rgb8", {std::lround(255.0f * color.r), std::lround(255.0f * color.g), std::lround(255.0f * color.b)}}});
+    }
+    j["id_colors"] = parts;
+  }
+  if (std::find(maps.begin(), maps.end(), MapKind::curvature) != maps.end()) {
+    j["fallbacks"]["curvature_degenerate_triangles"] = curvature_degenerate_triangles;
+    j["fallbacks"]["curvature_isolated_vertices"] = curvature_isolated_vertices;
+  }
   ordered_json stage_json = ordered_json::object();
   for (const StageTime& s : stages) stage_json[s.name] = s.seconds;
   j["seconds"] = stage_json;
@@ -179,6 +202,26 @@ std::string BakeReport::summary_line() const {
     text += line;
     if (!unused_high_parts.empty()) {
       std::snprintf(line, sizeof line, " (%zu high parts in none, ignored)", unused_high_parts.size());
+      text += line;
+    }
+  }
+  if (maps.size() > 1 || (!maps.empty() && maps.front() != MapKind::normal)) {
+    text += "; maps " + map_list_text(maps);
+    std::uint64_t extra_rays = 0;
+    double extra_seconds = 0.0;
+    for (const MapReport& m : map_reports) {
+      if (m.map == MapKind::ao || m.map == MapKind::thickness ||
+          (m.map == MapKind::bent_normal &&
+           std::find(maps.begin(), maps.end(), MapKind::ao) == maps.end())) {
+        extra_rays += static_cast<std::uint64_t>(m.figure("rays"));
+      }
+    }
+    for (const StageTime& s : stages)
+      if (s.name == "occlusion") extra_seconds = s.seconds;
+    if (extra_rays > 0) {
+      std::snprintf(line, sizeof line, " (+%llu rays from the hits, %.1f Mrays/s)",
+                    static_cast<unsigned long long>(extra_rays),
+                    extra_seconds > 0.0 ? 1e-6 * static_cast<double>(extra_rays) / extra_seconds : 0.0);
       text += line;
     }
   }

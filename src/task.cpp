@@ -105,8 +105,38 @@ std::string bake_key_text(const BakeOptions& o) {
     for (const std::string& n : g.high) text += " " + n;
     line("group", text);
   }
+  // The map set, only when it is more than the normal map (the key of a
+  // normal bake is the key it had before maps existed): the maps in order,
+  // the options of those baked, and whether an output's format was given
+  // (a map's own depth for `.png` otherwise).
+  const bool map_set = o.maps.size() != 1 || o.maps.front() != MapKind::normal;
   for (const OutputSpec& out : o.outputs) {
-    line("output", std::string(to_string(out.format)) + (has_udim_token(out.path) ? " udim" : ""));
+    line("output", std::string(to_string(out.format)) + (has_udim_token(out.path) ? " udim" : "") +
+                       (map_set && out.format_given ? " given" : ""));
+  }
+  if (map_set) {
+    std::string names;
+    for (const MapKind m : o.maps) {
+      if (!names.empty()) names += ',';
+      names += to_string(m);
+    }
+    line("maps", names);
+    const auto has = [&](MapKind m) { return std::find(o.maps.begin(), o.maps.end(), m) != o.maps.end(); };
+    const auto distance = [&](const Distance& d) {
+      return d.kind == Distance::Kind::automatic ? std::string("auto")
+             : d.kind == Distance::Kind::percent ? number(d.value) + "%"
+                                                  : number(d.value);
+    };
+    if (has(MapKind::height)) line("height_range", o.height_range > 0.0f ? number(o.height_range) : "auto");
+    if (has(MapKind::curvature)) line("curvature_range", o.curvature_range > 0.0f ? number(o.curvature_range) : "auto");
+    if (has(MapKind::ao) || has(MapKind::bent_normal)) {
+      line("ao_rays", std::to_string(o.ao_rays));
+      line("ao_distance", distance(o.ao_distance));
+    }
+    if (has(MapKind::thickness)) {
+      line("thickness_rays", std::to_string(o.thickness_rays));
+      line("thickness_distance", distance(o.thickness_distance));
+    }
   }
   return t;
 }

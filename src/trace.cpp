@@ -24,8 +24,12 @@
 
 #include "huge_pages.hpp"
 #include "simd4.hpp"
+#include "trace_scene.hpp"
 
 namespace nmbake {
+
+using detail::embree_accepts;
+using detail::GeometryRef;
 
 namespace {
 
@@ -52,13 +56,6 @@ glm::vec3 face_normal(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c
   return glm::cross(b - a, c - a);
 }
 
-// What a geometry's filter needs: the mesh and the first triangle of the
-// geometry's index range (a bake group's).
-struct GeometryRef {
-  const Mesh* mesh = nullptr;
-  std::uint32_t first_triangle = 0;
-};
-
 // Ignores hits on triangles whose front (counter-clockwise) side faces away
 // from the ray: dot(face normal, direction) > 0.
 void backface_filter(const RTCFilterFunctionNArguments* args) {
@@ -66,6 +63,8 @@ void backface_filter(const RTCFilterFunctionNArguments* args) {
   const Mesh* mesh = ref->mesh;
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] != -1) continue;
+    // Thickness rays run from inside the mesh to its back faces (trace_occlusion.cpp).
+    if ((RTCRayN_id(args->ray, args->N, i) & detail::kKeepBackfacesRayId) != 0) continue;
     const unsigned prim = RTCHitN_primID(args->hit, args->N, i) + ref->first_triangle;
     const glm::vec3 dir(RTCRayN_dir_x(args->ray, args->N, i), RTCRayN_dir_y(args->ray, args->N, i),
                         RTCRayN_dir_z(args->ray, args->N, i));
@@ -75,40 +74,12 @@ void backface_filter(const RTCFilterFunctionNArguments* args) {
   }
 }
 
-// Embree 3 asserts (Debian keeps its assertions on: an abort) that a ray's
-// origin and direction components are within FLT_LARGE (1.844e18) and its
-// range finite. The bake's limits (kMaxCoordinate, kMaxDistance) keep every
-// ray well inside; this is the last guard: a ray outside is not traced.
-bool embree_accepts(const glm::vec3& origin, const glm::vec3& direction, float tfar) {
-  constexpr float kLargest = 1.8e18f;
-  const auto within = [](const glm::vec3& v) {
-    return std::fabs(v.x) <= kLargest && std::fabs(v.y) <= kLargest && std::fabs(v.z) <= kLargest;
-  };
-  return within(origin) && within(direction) && tfar >= 0.0f && tfar <= kLargest;
-}
-
 [[gnu::always_inline]] inline glm::vec3 interpolate(const std::vector<glm::vec3>& corner, std::size_t base,
                                                     glm::vec2 b) {
   return corner[base] * (1.0f - b.x - b.y) + corner[base + 1] * b.x + corner[base + 2] * b.y;
 }
 
 }  // namespace
-
-struct HighScene::Impl {
-  RTCDevice device = nullptr;
-  RTCScene scene = nullptr;  // scenes[0]
-  std::vector<RTCScene> scenes;
-  std::vector<std::uint32_t> first_triangle{0};  // per group, + the end
-  std::vector<GeometryRef> refs;                 // per group; addresses handed to Embree
-  int groups_per_scene = 1;
-  const Mesh* mesh = nullptr;
-  bool compact = false;
-  int group_count() const { return static_cast<int>(first_triangle.size()) - 1; }
-  ~Impl() {
-    for (RTCScene s : scenes) rtcReleaseScene(s);
-    if (device) rtcReleaseDevice(device);
-  }
-};
 
 HighScene::HighScene() = default;
 HighScene::~HighScene() = default;

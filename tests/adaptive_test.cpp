@@ -4,6 +4,8 @@
 #include "nmbake/adaptive.hpp"
 
 #include <gtest/gtest.h>
+
+#include <filesystem>
 #include <tbb/global_control.h>
 
 #include <algorithm>
@@ -224,6 +226,14 @@ TEST(AdaptiveCli, FlagsJobFilesAndBadValues) {
   r = test::run_command(base + " --samples adaptive --adaptive-max 8");
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("--adaptive-max 8 is not supported"), std::string::npos) << r.output;
+  // A map set needs a fixed count; nothing is written.
+  const std::string set_base = test::cli_path() + " bake --low " + dir.file("low.obj") + " --high " +
+                               dir.file("high.ply") + " --size 64 -o '" + dir.file("set_<MAP>.png") + "'";
+  r = test::run_command(set_base + " --samples adaptive --map normal,height");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--samples adaptive bakes the normal map alone"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir.file("set_normal.png")));
+  EXPECT_FALSE(std::filesystem::exists(dir.file("set_height.png")));
   r = test::run_command(base + " --samples lots");
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("expected 1, 4, 16, 64 or adaptive"), std::string::npos) << r.output;

@@ -17,6 +17,7 @@
 #include "nmbake/encode.hpp"
 #include "nmbake/image.hpp"
 #include "nmbake/load.hpp"
+#include "nmbake/maps.hpp"
 #include "nmbake/parts.hpp"
 #include "nmbake/raster.hpp"
 #include "nmbake/surface.hpp"
@@ -45,9 +46,16 @@ bool parse_distance(const std::string& text, Distance& out);
 std::string to_string(const Distance& distance);
 
 struct OutputSpec {
-  std::string path;  // may hold <UDIM> (udim.hpp): one map per UV tile
+  std::string path;  // may hold <UDIM> (udim.hpp): one map per UV tile; <MAP> (maps.hpp): one per map
   PixelFormat format = PixelFormat::png16;
+  // Given explicitly (--format, a job file's `format`): every map is written
+  // in it. Otherwise `.png` takes each map's own depth (maps.hpp).
+  bool format_given = false;
 };
+
+// The map set's auto AO and thickness distance: this share of the low mesh's
+// bounding-box diagonal.
+constexpr float kAutoMapDistancePercent = 10.0f;
 
 struct BakeOptions {
   std::string low_path;
@@ -104,7 +112,26 @@ struct BakeOptions {
   std::string preset;
   NormalDecode decode;
   bool dither = true;
+  // The map set (maps.hpp): the maps baked from the same rays, each output
+  // written once per map (with several maps every output path holds <MAP>),
+  // and their options. The default, `normal` alone, is the bake as before.
+  std::vector<MapKind> maps{MapKind::normal};
+  float height_range = 0.0f;     // scene units: heights in [-R, R] fill an integer file; 0: auto
+  float curvature_range = 0.0f;  // 1/scene units, the same for mean curvature; 0: auto
+  int ao_rays = 64;              // per sample
+  Distance ao_distance;          // auto: kAutoMapDistancePercent of the low diagonal
+  int thickness_rays = 16;
+  Distance thickness_distance;   // auto: as ao_distance
 };
+
+// One file a bake writes per UV tile: an output for one map.
+struct MapOutput {
+  std::string path;  // <MAP> replaced; may still hold <UDIM>
+  PixelFormat format = PixelFormat::png16;  // resolved for the map (map_format)
+  MapKind map = MapKind::normal;
+};
+// Every output once per map, in output order, the maps in the set's order.
+std::vector<MapOutput> map_outputs(const BakeOptions& options);
 
 // Checks options that need no file: sizes, sample count, outputs and formats,
 // distances against kMaxDistance (and percentages against
@@ -183,6 +210,12 @@ struct BakeReport {
   std::string tile_path;
   std::string key;  // the bake key (task.hpp) when it was computed: tiles, caching
   bool cached = false;
+  // The map set: what each map of each UDIM tile used and counted (maps.hpp).
+  std::vector<MapKind> maps;
+  std::vector<MapReport> map_reports;
+  std::uint64_t curvature_degenerate_triangles = 0;  // vertex_mean_curvature(): no weight
+  std::uint64_t curvature_isolated_vertices = 0;     // no weighted triangle: H = 0
+  std::vector<std::pair<std::string, glm::vec3>> id_parts;  // the id map's parts and colours
   std::vector<StageTime> stages;
   double total_seconds = 0.0;
   std::uint64_t peak_rss_bytes = 0;

@@ -23,6 +23,16 @@
 
 namespace nmbake {
 
+// How a filled texel is computed from its covered neighbours (before this
+// pass):
+//   * unit_vector (normal maps): the normalised mean of the decoded vectors of
+//     the first three channels, as above; the image needs 3 or more channels;
+//   * mean (scalar and colour maps: height, AO, position...): the plain mean
+//     of every channel, in the fixed neighbour order;
+//   * nearest (labels: the miss mask, ids): a copy of the first covered
+//     neighbour in the fixed order (never a blend of two labels).
+enum class DilateMode : std::uint8_t { unit_vector, mean, nearest };
+
 struct DilateStats {
   std::uint64_t filled_texels = 0;
   // Texels whose neighbours' vectors cancelled (see above). Added to the
@@ -32,6 +42,17 @@ struct DilateStats {
 
 // `coverage` has one entry per texel (1 = covered) and is updated.
 // Every entry must be 0 or 1. `stats` is overwritten with this call's counts.
-void dilate(Image& image, std::vector<std::uint8_t>& coverage, int padding, DilateStats& stats);
+void dilate(Image& image, std::vector<std::uint8_t>& coverage, int padding, DilateStats& stats,
+            DilateMode mode = DilateMode::unit_vector);
+
+// Several images of one size over one coverage (a map set), each with its
+// mode: the rings are found once, and each image gets exactly the values
+// dilate() would give it alone. fallback_texels counts every image's.
+struct DilateLayer {
+  Image* image = nullptr;
+  DilateMode mode = DilateMode::unit_vector;
+};
+void dilate(const std::vector<DilateLayer>& layers, std::vector<std::uint8_t>& coverage, int padding,
+            DilateStats& stats);
 
 }  // namespace nmbake

@@ -14,7 +14,10 @@
 // Keys of [defaults] and [[bake]]: size, width, height, samples, space,
 // green, front, back, hit, cage_mode, ignore_backfaces, high_normals, padding,
 // build_quality, bvh, cage, max_memory (bytes or "8G"), match, unmatched,
-// low_suffix, high_suffix, cage_suffix, cache; [[bake]] alone: name, low,
+// low_suffix, high_suffix, cage_suffix, cache, and the map set's maps
+// (["normal", "ao"] or "normal,ao"), height_range, curvature_range ("auto" or
+// a number), ao_rays, ao_distance, thickness_rays, thickness_distance
+// (a number, "N%" or "auto"); [[bake]] alone: name, low,
 // high, outputs, report, debug_dump, and [[bake.group]] tables (name, low =
 // [part names], high = [part names]: explicit bake groups, parts.hpp).
 // Unknown keys are errors (a typo must not silently bake with a default).

@@ -38,6 +38,9 @@ struct Mesh {
   // Empty, or one per vertex as the file stored them (glTF TANGENT, FBX
   // tangents): xyz and the bitangent sign in w. Only for --tangents file.
   std::vector<glm::vec4> tangents;
+  // Empty, or one RGBA colour per vertex in [0, 1] (PLY red/green/blue/alpha,
+  // read when LoadOptions::keep_colors): the vertex-color map (maps.hpp).
+  std::vector<glm::vec4> colors;
   std::vector<std::uint32_t> indices;  // three per triangle, counter-clockwise = front
   // Empty (one unnamed part: the whole mesh), or ranges in triangle order
   // that cover every triangle exactly once, without empty parts. A name may
@@ -49,6 +52,7 @@ struct Mesh {
   bool has_normals() const { return !normals.empty(); }
   bool has_uvs() const { return !uvs.empty(); }
   bool has_tangents() const { return !tangents.empty(); }
+  bool has_colors() const { return !colors.empty(); }
 };
 
 // Counts of the numerical fallbacks taken while preparing a mesh.

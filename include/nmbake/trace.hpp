@@ -20,7 +20,9 @@
 // Embree ray-mask bit, and further groups get further scenes (a packet never
 // mixes scenes). Each group has its own ray distances (RayOptions::groups).
 //
-// Embree's types stay in trace.cpp; HighScene is a move-only handle.
+// Embree's types stay in trace.cpp (and trace_occlusion.cpp, which casts the
+// map set's rays from the hits: occlusion.hpp); HighScene is a move-only
+// handle.
 #pragma once
 
 #include <cstdint>

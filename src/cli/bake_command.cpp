@@ -52,7 +52,22 @@ struct BakeFlags {
   // ("" = not given), which override it whatever their order.
   std::string preset, green, bitangent, tbn, blue;
   std::string dither = "on";
+  // The map set (maps.hpp).
+  std::vector<std::string> maps;
+  std::string height_range = "auto", curvature_range = "auto", ao_distance = "auto", thickness_distance = "auto";
+  int ao_rays = 64, thickness_rays = 16;
 };
+
+// "auto" (0) or a number > 0.
+bool parse_range(const std::string& text, float& out) {
+  if (text == "auto") {
+    out = 0.0f;
+    return true;
+  }
+  const char* end = text.data() + text.size();
+  const auto r = std::from_chars(text.data(), end, out);
+  return r.ec == std::errc() && r.ptr == end && std::isfinite(out) && out > 0.0f;
+}
 
 int fail(const Status& status) {
   print_error(status.message());
@@ -146,6 +161,18 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
   if (!f.max_memory.empty() && !parse_memory_size(f.max_memory, o.max_memory_bytes)) {
     return Status::bad_input("--max-memory " + f.max_memory + ": expected bytes, or a number with K, M, G or T");
   }
+  if (!f.maps.empty()) {
+    o.maps.clear();
+    for (const std::string& list : f.maps) {
+      if (const Status s = parse_map_list(list, o.maps); !s) return Status::bad_input("--map " + list + ": " + s.message());
+    }
+  }
+  if (!parse_range(f.height_range, o.height_range)) return Status::bad_input("--height-range " + f.height_range + ": expected a distance > 0 or auto");
+  if (!parse_range(f.curvature_range, o.curvature_range)) return Status::bad_input("--curvature-range " + f.curvature_range + ": expected a curvature > 0 (1/scene units) or auto");
+  if (!parse_distance(f.ao_distance, o.ao_distance)) return Status::bad_input("--ao-distance " + f.ao_distance + ": expected a distance, N% or auto");
+  if (!parse_distance(f.thickness_distance, o.thickness_distance)) return Status::bad_input("--thickness-distance " + f.thickness_distance + ": expected a distance, N% or auto");
+  o.ao_rays = f.ao_rays;
+  o.thickness_rays = f.thickness_rays;
   for (const std::string& path : f.outputs) {
     OutputSpec out;
     out.path = path;
@@ -153,6 +180,7 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
       if (!parse_pixel_format(f.format, out.format)) {
         return Status::bad_input("--format " + f.format + ": expected png8, png16, tiff16, exr-half, exr-float, exr-float-piz or tga");
       }
+      out.format_given = true;
     } else if (!pixel_format_from_path(path, out.format)) {
       return Status::bad_input(path + ": unknown image extension (use .png, .tif, .tiff, .exr or .tga)");
     }
@@ -297,8 +325,8 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
     o.tile_index = index;
     o.tile_count = count;
     o.tile_path = !flags.tile_file.empty() ? flags.tile_file
-                                           : o.outputs.front().path + ".tile-" + std::to_string(index + 1) + "-of-" +
-                                                 std::to_string(count);
+                                           : map_path(o.outputs.front().path, MapKind::normal) + ".tile-" +
+                                                 std::to_string(index + 1) + "-of-" + std::to_string(count);
   } else if (!flags.tile_file.empty()) {
     return usage_error("--tile-file needs --tile I/N");
   }
@@ -497,6 +525,25 @@ Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--dither", flags->dither, "8-bit outputs (png8, tga): on (ordered dither) | off (rounded)")
       ->default_val("on");
   cmd->add_option("--debug-dump", flags->debug_dump, "also write PREFIX_coverage.png, PREFIX_misses.png, PREFIX_distance.exr");
+  cmd->add_option("--map", flags->maps,
+                  "maps to bake, repeat or comma list: normal (default), height, ao, bent-normal, curvature, thickness, "
+                  "position, object-normal, miss, vertex-color, id; several need <MAP> in each output path")
+      ->allow_extra_args(false);
+  cmd->add_option("--height-range", flags->height_range,
+                  "height map in integer files: heights in [-R, R] scene units fill 0..1 (auto: the map's largest)")
+      ->default_val("auto");
+  cmd->add_option("--curvature-range", flags->curvature_range,
+                  "curvature map in integer files: mean curvature in [-R, R] (1/scene units) fills 0..1 (auto: 99th "
+                  "percentile)")
+      ->default_val("auto");
+  cmd->add_option("--ao-rays", flags->ao_rays, "AO (and bent normal) rays per sample, 1-4096")->default_val(64);
+  cmd->add_option("--ao-distance", flags->ao_distance,
+                  "AO: occluders further than this do not count: units, N% of the bbox diagonal, auto (10%)")
+      ->default_val("auto");
+  cmd->add_option("--thickness-rays", flags->thickness_rays, "thickness rays per sample, 1-4096")->default_val(16);
+  cmd->add_option("--thickness-distance", flags->thickness_distance,
+                  "thickness: search distance, also white in integer files: units, N%, auto (10%)")
+      ->default_val("auto");
   return [flags, &global, cmd]() { return run_bake(*flags, global, *cmd); };
 }
 

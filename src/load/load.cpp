@@ -267,11 +267,13 @@ void drop_unreferenced_vertices(Mesh& mesh) {
     if (mesh.has_normals()) mesh.normals[new_index] = mesh.normals[old_index];
     if (mesh.has_uvs()) mesh.uvs[new_index] = mesh.uvs[old_index];
     if (mesh.has_tangents()) mesh.tangents[new_index] = mesh.tangents[old_index];
+    if (mesh.has_colors()) mesh.colors[new_index] = mesh.colors[old_index];
   }
   mesh.positions.resize(kept_count);
   if (mesh.has_normals()) mesh.normals.resize(kept_count);
   if (mesh.has_uvs()) mesh.uvs.resize(kept_count);
   if (mesh.has_tangents()) mesh.tangents.resize(kept_count);
+  if (mesh.has_colors()) mesh.colors.resize(kept_count);
   for (std::uint32_t& index : mesh.indices) index = remap[index];
 }
 

@@ -40,6 +40,19 @@ std::uint32_t byteswap32(std::uint32_t value) {
 
 enum class PlyType : std::uint8_t { int8, uint8, int16, uint16, int32, uint32, float32, float64 };
 
+// The largest value of an integer type (colour channels are fractions of it).
+double type_max(PlyType type) {
+  switch (type) {
+    case PlyType::int8: return 127.0;
+    case PlyType::uint8: return 255.0;
+    case PlyType::int16: return 32767.0;
+    case PlyType::uint16: return 65535.0;
+    case PlyType::int32: return 2147483647.0;
+    case PlyType::uint32: return 4294967295.0;
+    default: return 1.0;
+  }
+}
+
 bool parse_type(std::string_view name, PlyType& type) {
   struct Entry {
     std::string_view name;
@@ -162,7 +175,7 @@ struct PlyElement {
 enum class PlyFormat : std::uint8_t { ascii, binary_little_endian, binary_big_endian };
 
 // Vertex attributes gathered into these slots, in this order.
-enum Slot : int { kX, kY, kZ, kNx, kNy, kNz, kU, kV, kSlotCount };
+enum Slot : int { kX, kY, kZ, kNx, kNy, kNz, kU, kV, kR, kG, kB, kA, kSlotCount };
 
 class PlyParser {
  public:
@@ -357,6 +370,26 @@ class PlyParser {
         }
       }
     }
+    if (options_.keep_colors) {
+      // red/green/blue (MeshLab, Blender, ZBrush) or r/g/b; alpha optional.
+      static constexpr std::string_view kColorNames[][4] = {{"red", "green", "blue", "alpha"},
+                                                           {"r", "g", "b", "a"},
+                                                           {"diffuse_red", "diffuse_green", "diffuse_blue", "diffuse_alpha"}};
+      for (const auto& names : kColorNames) {
+        if (has_colors_ || vertex.find(names[0]) < 0 || vertex.find(names[1]) < 0 || vertex.find(names[2]) < 0) continue;
+        for (int c = 0; c < 4; ++c) {
+          const int property = vertex.find(names[c]);
+          if (property < 0) continue;  // no alpha: 1
+          assign(names[c], kR + c);
+          // Integer channels are fractions of their type's largest value.
+          const PlyType type = vertex.properties[static_cast<std::size_t>(property)].type;
+          color_divisor_[c] = type == PlyType::float32 || type == PlyType::float64 ? 1.0f
+                                                                                   : static_cast<float>(type_max(type));
+          has_alpha_ = has_alpha_ || c == 3;
+        }
+        has_colors_ = true;
+      }
+    }
     for (std::size_t i = 0; i < vertex.properties.size(); ++i) {
       if (slot_of_property_[i] >= 0 && vertex.properties[i].is_list) {
         return text_error(path_, vertex.line, "vertex property '" + token_text(vertex.properties[i].name) + "' is a list");
@@ -390,12 +423,17 @@ class PlyParser {
     out_.positions.resize(count);
     if (has_normals_) out_.normals.resize(count);
     if (has_uvs_) out_.uvs.resize(count);
+    if (has_colors_) out_.colors.resize(count);
   }
 
   void store_vertex(std::size_t index, const float* values) {
     out_.positions[index] = glm::vec3(values[kX], values[kY], values[kZ]);
     if (has_normals_) out_.normals[index] = glm::vec3(values[kNx], values[kNy], values[kNz]);
     if (has_uvs_) out_.uvs[index] = glm::vec2(values[kU], values[kV]);
+    if (has_colors_) {
+      out_.colors[index] = glm::vec4(values[kR] / color_divisor_[0], values[kG] / color_divisor_[1],
+                                     values[kB] / color_divisor_[2], has_alpha_ ? values[kA] / color_divisor_[3] : 1.0f);
+    }
   }
 
   // Fan-triangulates corners_ (already range-checked).
@@ -833,6 +871,8 @@ class PlyParser {
   std::vector<int> slot_of_property_;  // per vertex property: Slot or -1
   bool has_normals_ = false;
   bool has_uvs_ = false;
+  bool has_colors_ = false, has_alpha_ = false;
+  float color_divisor_[4] = {1.0f, 1.0f, 1.0f, 1.0f};
 
   std::vector<std::uint32_t> corners_;  // scratch of the current face
   const char* cursor_ = nullptr;        // ascii body: rest of the current line

@@ -139,6 +139,7 @@ void write_ply(Writer& out, const Mesh& mesh) {
   out.text("\nproperty float x\nproperty float y\nproperty float z\n");
   if (mesh.has_normals()) out.text("property float nx\nproperty float ny\nproperty float nz\n");
   if (mesh.has_uvs()) out.text("property float u\nproperty float v\n");
+  if (mesh.has_colors()) out.text("property float red\nproperty float green\nproperty float blue\nproperty float alpha\n");
   out.text("element face ");
   out.integer(mesh.triangle_count());
   out.text("\nproperty list uchar uint vertex_indices\nend_header\n");
@@ -154,6 +155,9 @@ void write_ply(Writer& out, const Mesh& mesh) {
     if (mesh.has_uvs()) {
       out.little_endian(mesh.uvs[v].x);
       out.little_endian(mesh.uvs[v].y);
+    }
+    if (mesh.has_colors()) {
+      for (int c = 0; c < 4; ++c) out.little_endian(mesh.colors[v][c]);
     }
     out.maybe_flush();
   }

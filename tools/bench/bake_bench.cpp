@@ -9,6 +9,18 @@
 // averaged cage) writing a 16-bit PNG to a temp folder; "raw" is trace_raw():
 // the bake's first-hit rays, prebuilt, fired as the same packets with only
 // rtcIntersect16 timed.
+//
+// The map set (maps.hpp):
+//   --map LIST             bake these maps (PNG, each map's default depth);
+//   --versus LIST          also bake this map set, alternating with the
+//                          first, and print the median ratio of the pairs'
+//                          whole-bake times (e.g. --map normal,height,position,
+//                          curvature --versus normal);
+//   --ao-rays N            AO rays per sample; with ao in --map, the raw side
+//                          also fires the bake's AO rays as the same packets
+//                          (trace_occlusion_raw: only rtcOccluded16 timed) and
+//                          the line gives AO rays/s of the bake's occlusion
+//                          stage against it.
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -23,6 +35,7 @@
 
 #include "nmbake/bake.hpp"
 #include "nmbake/job.hpp"
+#include "nmbake/occlusion.hpp"
 
 namespace {
 
@@ -43,7 +56,12 @@ int main(int argc, char** argv) {
   std::string low, high, label, bvh = "auto", quality = "low";
   int size = 2048, samples = 4, threads = 0, repeat = 3;
   std::size_t band_samples = 0;
+  std::string maps_text = "normal", versus_text;
+  int ao_rays = 64;
   CLI::App app{"nmbake-bench: a whole bake beside raw Embree on the same rays"};
+  app.add_option("--map", maps_text, "maps to bake (comma list)")->capture_default_str();
+  app.add_option("--versus", versus_text, "a second map set baked alternately: the ratio of whole-bake times");
+  app.add_option("--ao-rays", ao_rays, "AO rays per sample")->capture_default_str();
   app.add_option("--low", low)->required();
   app.add_option("--high", high)->required();
   app.add_option("--label", label, "scene name printed in the line");
@@ -72,7 +90,22 @@ int main(int argc, char** argv) {
   o.width = o.height = size;
   o.samples = samples;
   o.band_samples = band_samples;
-  o.outputs = {{(dir / "map.png").string(), nmbake::PixelFormat::png16}};
+  o.outputs = {{(dir / "map_<MAP>.png").string(), nmbake::PixelFormat::png16}};
+  o.maps.clear();
+  if (const nmbake::Status s = nmbake::parse_map_list(maps_text, o.maps); !s) {
+    std::fprintf(stderr, "nmbake-bench: --map: %s\n", s.message().c_str());
+    return 2;
+  }
+  o.ao_rays = ao_rays;
+  nmbake::BakeOptions versus = o;
+  if (!versus_text.empty()) {
+    versus.maps.clear();
+    if (const nmbake::Status s = nmbake::parse_map_list(versus_text, versus.maps); !s) {
+      std::fprintf(stderr, "nmbake-bench: --versus: %s\n", s.message().c_str());
+      return 2;
+    }
+  }
+  const bool with_ao = std::find(o.maps.begin(), o.maps.end(), nmbake::MapKind::ao) != o.maps.end();
   if (!nmbake::parse_build_quality(quality, o.build_quality)) {
     std::fprintf(stderr, "nmbake-bench: --build-quality %s: expected low, medium or high\n", quality.c_str());
     return 2;
@@ -84,6 +117,8 @@ int main(int argc, char** argv) {
 
   // rest: prepare (normals, tangents) + distances (auto estimate) + dilate.
   std::vector<double> load, build, raster, trace, encode, write, rest, total, raw, ratio;
+  std::vector<double> occlusion, raw_occlusion, occlusion_ratio, versus_total, versus_ratio;
+  std::uint64_t occlusion_rays = 0, raw_occlusion_rays = 0;
   nmbake::BakeReport report;
   std::uint64_t raw_rays = 0, bake_peak = 0;
   const auto run_bake = [&]() {
@@ -100,6 +135,28 @@ int main(int argc, char** argv) {
     write.push_back(stage(report, "write"));
     rest.push_back(stage(report, "prepare") + stage(report, "distances") + stage(report, "dilate"));
     total.push_back(report.total_seconds);
+    occlusion.push_back(stage(report, "occlusion"));
+    occlusion_rays = 0;
+    for (const nmbake::MapReport& m : report.map_reports) {
+      if (m.map == nmbake::MapKind::ao) occlusion_rays += static_cast<std::uint64_t>(m.figure("rays"));
+    }
+    return true;
+  };
+  // The other map set, right after: its time against this bake's.
+  const auto run_versus = [&]() {
+    if (versus_text.empty()) return true;
+    nmbake::BakeReport other;
+    const nmbake::Status s = nmbake::bake(versus, other);
+    if (!s) {
+      std::fprintf(stderr, "nmbake-bench: %s\n", s.message().c_str());
+      return false;
+    }
+    versus_total.push_back(other.total_seconds);
+    versus_ratio.push_back(total.back() / other.total_seconds);
+    if (std::getenv("NMBAKE_BENCH_PAIRS")) {
+      std::fprintf(stderr, "pair %zu: maps %.3f s versus %.3f s\n", versus_total.size(), total.back(),
+                   other.total_seconds);
+    }
     return true;
   };
   // The first bake runs alone, so its peak RSS is the bake's own.
@@ -119,6 +176,7 @@ int main(int argc, char** argv) {
       return false;
     }
     nmbake::prepare_low_normals(low_mesh, ms);
+    nmbake::normalize_normals(high_mesh, ms);  // as the bake prepares them: the AO frames are the same
     nmbake::pad_for_embree(high_mesh);
     nmbake::SurfaceStats ss;
     const nmbake::LowSurface surface = nmbake::build_low_surface(low_mesh, nullptr, ss);
@@ -131,14 +189,38 @@ int main(int argc, char** argv) {
     // map would not fit in memory. Only the Embree calls are timed.
     const int rows = nmbake::band_rows(size, size, samples, band_samples);
     nmbake::TexelSamples ts;
-    double seconds = 0.0;
+    double seconds = 0.0, occlusion_seconds = 0.0;
     raw_rays = 0;
+    raw_occlusion_rays = 0;
+    nmbake::OcclusionOptions ao;
+    ao.rays = ao_rays;
+    ao.distance = nmbake::kAutoMapDistancePercent * 0.01f * report.low_diagonal;
     for (int row = 0; row < size; row += rows) {
       nmbake::RasterStats rs;
       nmbake::rasterize(surface, size, size, samples, ts, rs, row, std::min(row + rows, size));
       const nmbake::RawTraceResult r = nmbake::trace_raw(scene, surface, ts, rays);
       seconds += r.seconds;
       raw_rays += r.rays;
+      if (with_ao) {
+        // The AO rays start at the bake's hits: trace them (not timed), then
+        // fire the AO packets with only rtcOccluded16 timed.
+        nmbake::Hits hits;
+        nmbake::TraceStats trace_stats;
+        nmbake::trace(scene, surface, ts, rays, hits, trace_stats);
+        const nmbake::RawTraceResult a = nmbake::trace_occlusion_raw(scene, high_mesh, surface, ts, hits, ao);
+        occlusion_seconds += a.seconds;
+        raw_occlusion_rays += a.rays;
+      }
+    }
+    if (with_ao) {
+      raw_occlusion.push_back(occlusion_seconds);
+      occlusion_ratio.push_back((static_cast<double>(occlusion_rays) / occlusion.back()) /
+                                (static_cast<double>(raw_occlusion_rays) / occlusion_seconds));
+      if (std::getenv("NMBAKE_BENCH_PAIRS")) {
+        std::fprintf(stderr, "pair %zu: occlusion %.3f s raw %.3f s (%llu / %llu rays)\n", raw_occlusion.size(),
+                     occlusion.back(), occlusion_seconds, static_cast<unsigned long long>(occlusion_rays),
+                     static_cast<unsigned long long>(raw_occlusion_rays));
+      }
     }
     raw.push_back(seconds);
     // bake rays/s over raw rays/s, for this pair
@@ -151,6 +233,7 @@ int main(int argc, char** argv) {
   };
   for (int i = 0; i < repeat; ++i) {
     if (i > 0 && !run_bake()) return 2;
+    if (!run_versus()) return 2;
     if (!run_raw()) {
       std::fprintf(stderr, "nmbake-bench: the raw baseline could not load or build the scene\n");
       return 2;
@@ -170,5 +253,19 @@ int main(int argc, char** argv) {
       1e-6 * bake_rays_per_s, 1e-6 * raw_rays_per_s, median(ratio),
       static_cast<double>(bake_peak) / (1024.0 * 1024.0),
       static_cast<double>(bake_peak) / static_cast<double>(std::max<std::uint64_t>(1, report.high_triangles)));
+  if (!versus_text.empty()) {
+    std::printf("bench %-12s maps %s: total %.3f s; versus %s: total %.3f s; ratio %.3f (median of %zu pairs)\n",
+                label.c_str(), maps_text.c_str(), median(total), versus_text.c_str(), median(versus_total),
+                median(versus_ratio), versus_ratio.size());
+  }
+  if (with_ao) {
+    std::printf(
+        "bench %-12s ao %d rays/sample: occlusion %.3f s, %.2f Mrays/s; raw rtcOccluded16 %.3f s, %.2f Mrays/s; "
+        "ratio %.2f (median of %zu pairs); %llu AO rays; whole bake %.3f s\n",
+        label.c_str(), ao_rays, median(occlusion), 1e-6 * static_cast<double>(occlusion_rays) / median(occlusion),
+        median(raw_occlusion), 1e-6 * static_cast<double>(raw_occlusion_rays) / median(raw_occlusion),
+        median(occlusion_ratio), occlusion_ratio.size(), static_cast<unsigned long long>(occlusion_rays),
+        median(total));
+  }
   return 0;
 }

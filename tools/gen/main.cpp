@@ -11,6 +11,7 @@
 //              [--json out.json] [--floors]
 //   nmbake-gen convert IN OUT     (mesh formats, for the loading benchmarks)
 //   nmbake-gen load FILE [--low]  (load only, for /usr/bin/time)
+//   nmbake-gen maplab [--out DIR] [--size N]   (the map set against its closed forms: map_lab.hpp)
 // Every scene but the moon also gets <scene>_cage.obj: the low mesh pushed
 // out along averaged normals by the lab's front distance (lab_scenes.hpp).
 //
@@ -32,6 +33,7 @@
 #include "convert.hpp"
 #include "eval.hpp"
 #include "lab_scenes.hpp"
+#include "map_lab_run.hpp"
 #include "nmbake/image.hpp"
 #include "nmbake/load.hpp"
 #include "scenes.hpp"
@@ -325,6 +327,11 @@ int main(int argc, char** argv) {
   CLI::App* convert_cmd = app.add_subcommand("convert", "Convert a mesh: .obj .ply .glb .gltf(+.bin) .fbx (Assimp)");
   convert_cmd->add_option("in", convert_in, "input mesh")->required();
   convert_cmd->add_option("out", convert_out, "output mesh, format by extension")->required();
+  CLI::App* maplab = app.add_subcommand("maplab", "Bake every map of the map set on its analytic scenes, score it");
+  std::string maplab_out = "out/lab";
+  int maplab_size = 128;
+  maplab->add_option("--out", maplab_out, "folder for maps_lab.csv, maps_lab.md and the bakes")->capture_default_str();
+  maplab->add_option("--size", maplab_size, "map size")->capture_default_str()->check(CLI::Range(16, 4096));
   CLI::App* load_cmd = app.add_subcommand("load", "Load a mesh and print its counts and load time");
   load_cmd->add_option("file", load_file, "mesh file")->required();
   load_cmd->add_flag("--low", load_low, "load as a low mesh (with UVs)");
@@ -375,6 +382,7 @@ int main(int argc, char** argv) {
       std::printf("%s %s: %s\n", score.scene.c_str(), score.map.c_str(), e.to_text().c_str());
       return 0;
     }
+    if (maplab->parsed()) return scenes::run_map_lab(maplab_out, maplab_size);
     if (eval_cmd->parsed())
       return run_eval(ev.scene, ev.map, ev.low, ev.cage, ev.report, ev.json, ev.space, ev.green, ev.cage_mode,
                       ev.samples, ev.size, ev.front, ev.back, ev.floors, ev.cache, ev.truth_map);

@@ -1,0 +1,217 @@
+// The map set (DESIGN.md, "A map set, one set of rays"): the maps an artist
+// bakes beside the normal map, from the same raster, rays and hits.
+//
+//   raster -> trace -> [occlusion rays] -> maps (encode) -> dilate -> write
+//
+// A map is a small module (src/maps/): what it reads from a band's samples
+// and hits, how it turns them into texels, how it is dilated, and what an
+// integer file stores. Every map's texel is the mean over the texel's samples
+// (a sample whose ray missed takes the map's miss value), so all maps share
+// the normal map's anti-aliasing. The write stage does not know which map it
+// writes: it gets a float image and, for integer formats, the map's range.
+//
+// | map            | texel (float, EXR)                          | integer files (PNG, TIFF)             | miss value |
+// |----------------|---------------------------------------------|---------------------------------------|------------|
+// | normal         | 0.5 n + 0.5 (encode.hpp)                     | the same                              | low normal |
+// | height         | signed distance from the low surface to the hit along the ray, scene units (> 0 outside) | 0.5 + h / (2 R): R = --height-range, or the largest |h| of the map (auto) | 0 |
+// | ao             | share of cosine-weighted rays unoccluded within --ao-distance (occlusion.hpp) | the same | 1 |
+// | bent-normal    | mean unoccluded AO direction, encoded as the normal map (space, green) | the same | low normal |
+// | curvature      | mean curvature H of the high surface at the hit, 1/scene units (> 0 convex) | 0.5 + H / (2 R): R = --curvature-range, or the 99th percentile of |H| (auto) | 0 |
+// | thickness      | distance through the high mesh (occlusion.hpp), scene units | d / D, D = --thickness-distance (black thin, white thick, as Substance) | 0 |
+// | position       | (hit - min) / (max - min) per axis, the high mesh's bounding box | the same | low point |
+// | object-normal  | 0.5 n + 0.5, world space (the normal map's object space) | the same | low normal |
+// | miss           | share of the texel's samples whose ray missed | the same | 1 |
+// | vertex-color   | the high mesh's vertex colour (RGB) at the hit (PLY colours) | the same | black |
+// | id             | the colour of the hit's part (part_color): the part most of the texel's samples hit | the same | black |
+//
+// Single-channel maps (height, ao, curvature, thickness, miss) are written
+// as grey files. Default formats for `.png` outputs: 16-bit, except ao,
+// curvature, thickness, miss, vertex-color and id: 8-bit (an explicit format
+// wins).
+//
+// Curvature: mean curvature per high triangle from the derivative of its
+// interpolated vertex normals (the shape operator estimate of Rusinkiewicz,
+// "Estimating Curvatures and Their Derivatives on Triangle Meshes", 3DPVT
+// 2004, per face: H = tr(G^-1 M) / 2, G the Gram matrix of two edges, M their
+// dot products with the normal differences), averaged per vertex weighted by
+// area (one pass over the high mesh), interpolated at the hit.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "nmbake/common.hpp"
+#include "nmbake/dilate.hpp"
+#include "nmbake/encode.hpp"
+#include "nmbake/image.hpp"
+#include "nmbake/mesh.hpp"
+#include "nmbake/occlusion.hpp"
+#include "nmbake/parts.hpp"
+#include "nmbake/raster.hpp"
+#include "nmbake/surface.hpp"
+#include "nmbake/trace.hpp"
+
+namespace nmbake {
+
+enum class MapKind : std::uint8_t {
+  normal,
+  height,
+  ao,
+  bent_normal,
+  curvature,
+  thickness,
+  position,
+  object_normal,
+  vertex_color,
+  id,
+  miss
+};
+
+// "normal", "height", "ao", "bent-normal", "curvature", "thickness",
+// "position", "object-normal", "vertex-color", "id", "miss".
+const char* to_string(MapKind map);
+bool parse_map_kind(const std::string& text, MapKind& out);
+// Appends the maps of "normal,height" (any number of names, commas, spaces)
+// to `out`, skipping names already there (the order of first mention is
+// kept). bad_input naming the unknown word and the known ones.
+Status parse_map_list(const std::string& text, std::vector<MapKind>& out);
+// "normal, height, ao"
+std::string map_list_text(const std::vector<MapKind>& maps);
+
+// What a map is, whatever the bake.
+struct MapTraits {
+  int channels = 3;
+  DilateMode dilate = DilateMode::mean;
+  PixelFormat png_format = PixelFormat::png16;  // for a .png output without an explicit format
+  bool occlusion_rays = false;  // needs trace_occlusion()
+  bool thickness_rays = false;  // needs trace_thickness()
+  bool implemented = true;      // vertex-color and id: not yet
+};
+MapTraits map_traits(MapKind map);
+
+// Output paths name maps with a token: `-o asset_<MAP>.png`.
+inline constexpr const char* kMapToken = "<MAP>";
+bool has_map_token(const std::string& path);
+std::string map_path(const std::string& path, MapKind map);  // every <MAP> replaced by the map's name
+
+// The map's format for an output: an explicit format as given; else from the
+// extension, `.png` taking the map's own depth.
+PixelFormat map_format(MapKind map, PixelFormat format, bool format_given, const std::string& path);
+
+// Resolved settings of the map set (scene units).
+struct MapSettings {
+  std::vector<MapKind> maps{MapKind::normal};
+  EncodeOptions encode;         // the normal map's (space, green, encode); bent-normal uses space and green
+  float height_range = 0.0f;    // > 0: given; 0: auto
+  float curvature_range = 0.0f; // > 0: given; 0: auto
+  OcclusionOptions occlusion;   // rays, distance (bent: set when bent-normal is baked)
+  ThicknessOptions thickness;
+  Bounds position_bounds;       // the high mesh's
+  // Per high vertex (curvature maps; empty otherwise): vertex_mean_curvature().
+  const std::vector<float>* vertex_curvature = nullptr;
+  // The id map: per high triangle (in the scene's order) its part, and per
+  // part its colour (part_color()).
+  const std::vector<std::uint32_t>* triangle_part = nullptr;
+  const std::vector<glm::vec3>* part_colors = nullptr;
+
+  bool has(MapKind map) const;
+};
+
+// One map's figures for the report, in order: ranges used, counters of
+// fallbacks, rays. `tile` is the UDIM tile.
+struct MapReport {
+  MapKind map = MapKind::normal;
+  int tile = 1001;
+  std::vector<std::string> outputs;
+  std::vector<std::pair<std::string, double>> figures;
+  double figure(const std::string& name) const;  // 0 when absent
+};
+
+// The id map's colour of a part: a hue from the FNV-1a hash of its name
+// (the same name, the same colour, in any file and bake), saturation 0.6,
+// value 0.9.
+glm::vec3 part_color(const std::string& name);
+
+struct CurvatureStats {
+  std::uint64_t degenerate_triangles = 0;  // zero area or singular edges: no weight
+  std::uint64_t isolated_vertices = 0;     // no triangle with weight: H = 0
+};
+// Mean curvature per vertex of `high` (see above) from `normals` (one unit
+// normal per vertex: the mesh's smooth normals). Parallel; the result does
+// not depend on the thread count (per-vertex sums in triangle order).
+std::vector<float> vertex_mean_curvature(const Mesh& high, const std::vector<glm::vec3>& normals,
+                                         CurvatureStats& stats);
+
+// What the map set reads from the whole high mesh, once per bake: its
+// bounds (position), vertex curvature (curvature), and each triangle's part
+// with the parts' names and colours (id), for the maps in `maps` only.
+struct MapMeshData {
+  Bounds position_bounds;
+  std::vector<float> vertex_curvature;
+  CurvatureStats curvature;
+  std::vector<std::uint32_t> triangle_part;  // in the scene's triangle order (after groups)
+  std::vector<glm::vec3> part_colors;
+  std::vector<std::pair<std::string, glm::vec3>> parts;  // name, colour
+  // Points `settings` at this data (which must outlive it).
+  void apply(MapSettings& settings) const;
+};
+// From `high` as loaded, normals prepared, before group_high_indices()
+// reorders its triangles; `groups` tells how they will be reordered. The
+// vertex curvature of a mesh without normals (--high-normals face) uses
+// area-weighted ones.
+void prepare_map_mesh(const Mesh& high, const std::vector<MapKind>& maps, const BakeGroups& groups,
+                      MapMeshData& out);
+
+// The maps of one map (a UDIM tile's, or a tile of rows), band by band:
+//   MapSet set(settings, ...); for each band: trace_rays(); encode_band();
+//   finish(coverage, padding); stored(map, format) for each output.
+class MapSet {
+ public:
+  // Rows [first_row, last_row) of a width-wide map.
+  MapSet(const MapSettings& settings, int width, int first_row, int last_row);
+  ~MapSet();
+  MapSet(const MapSet&) = delete;
+  MapSet& operator=(const MapSet&) = delete;
+
+  // The extra rays a band's maps need (AO and bent normals, thickness),
+  // from the band's hits: nothing when no map needs them.
+  void trace_rays(const HighScene& scene, const Mesh& high, const LowSurface& surface, const TexelSamples& samples,
+                  const Hits& hits);
+  bool needs_rays() const;
+  // Every map's texels of the band (after trace_rays()). The normal map's
+  // encode counters go to `normal_stats`, as before the map set.
+  void encode_band(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
+                   EncodeStats& normal_stats);
+  // After the last band: ranges (auto height and curvature) from the
+  // covered texels, then every map dilated by `padding` (`coverage` grows
+  // with it, as dilate() does). Adds to `dilate`.
+  void finish(std::vector<std::uint8_t>& coverage, int padding, DilateStats& dilate);
+  // The files about to be written (map, format): a map with a range whose
+  // files are all integer is mapped in place, so stored() needs no copy.
+  void prepare_files(const std::vector<std::pair<MapKind, PixelFormat>>& files);
+  // The image a file of `format` stores for `map`: the map's own image, or,
+  // for an integer format and a map with a range, `scratch` filled with the
+  // mapped values.
+  const Image& stored(MapKind map, PixelFormat format, Image& scratch) const;
+  // The map's image (its raw texels; dilated after finish()).
+  Image& image(MapKind map);
+  // Figures of every map, in the set's order.
+  std::vector<MapReport> reports(int tile) const;
+
+  struct Module;  // src/maps/modules.hpp
+
+ private:
+  std::vector<std::unique_ptr<Module>> modules_;
+  MapSettings settings_;
+  int width_, first_row_, last_row_;
+  // Per sample of the current band, from trace_rays().
+  std::vector<float> visibility_, thickness_;
+  std::vector<glm::vec3> bent_;
+  OcclusionStats occlusion_stats_;
+  ThicknessStats thickness_stats_;
+};
+
+}  // namespace nmbake

@@ -1,0 +1,402 @@
+// The map set (maps.hpp): names, traits, the <MAP> token, and MapSet, which
+// runs every map's module band by band and hands the write stage its images.
+#include "nmbake/maps.hpp"
+
+#include <algorithm>
+#include <filesystem>
+
+#include <tbb/parallel_for.h>
+
+#include "huge_pages.hpp"
+#include "modules.hpp"
+
+namespace nmbake {
+
+namespace {
+
+struct MapName {
+  MapKind map;
+  const char* name;
+};
+constexpr MapName kMapNames[] = {
+    {MapKind::normal, "normal"},       {MapKind::height, "height"},
+    {MapKind::ao, "ao"},               {MapKind::bent_normal, "bent-normal"},
+    {MapKind::curvature, "curvature"}, {MapKind::thickness, "thickness"},
+    {MapKind::position, "position"},   {MapKind::object_normal, "object-normal"},
+    {MapKind::vertex_color, "vertex-color"}, {MapKind::id, "id"},
+    {MapKind::miss, "miss"},
+};
+
+}  // namespace
+
+const char* to_string(MapKind map) {
+  for (const MapName& n : kMapNames) {
+    if (n.map == map) return n.name;
+  }
+  return "?";
+}
+
+bool parse_map_kind(const std::string& text, MapKind& out) {
+  for (const MapName& n : kMapNames) {
+    if (text == n.name) {
+      out = n.map;
+      return true;
+    }
+  }
+  return false;
+}
+
+Status parse_map_list(const std::string& text, std::vector<MapKind>& out) {
+  std::size_t begin = 0;
+  bool any = false;
+  while (begin <= text.size()) {
+    std::size_t end = text.find(',', begin);
+    if (end == std::string::npos) end = text.size();
+    std::string word = text.substr(begin, end - begin);
+    word.erase(0, word.find_first_not_of(" \t"));
+    word.erase(word.find_last_not_of(" \t") + 1);
+    begin = end + 1;
+    if (word.empty()) continue;
+    MapKind map;
+    if (!parse_map_kind(word, map)) {
+      std::string known;
+      for (const MapName& n : kMapNames) {
+        if (!known.empty()) known += ", ";
+        known += n.name;
+      }
+      return Status::bad_input("unknown map '" + printable_text(word) + "' (maps: " + known + ")");
+    }
+    any = true;
+    if (std::find(out.begin(), out.end(), map) == out.end()) out.push_back(map);
+  }
+  if (!any) return Status::bad_input("no map named in '" + printable_text(text) + "'");
+  return Status::ok();
+}
+
+std::string map_list_text(const std::vector<MapKind>& maps) {
+  std::string text;
+  for (const MapKind m : maps) {
+    if (!text.empty()) text += ", ";
+    text += to_string(m);
+  }
+  return text;
+}
+
+MapTraits map_traits(MapKind map) {
+  MapTraits t;
+  switch (map) {
+    case MapKind::normal:
+    case MapKind::object_normal:
+      t.dilate = DilateMode::unit_vector;
+      break;
+    case MapKind::bent_normal:
+      t.dilate = DilateMode::unit_vector;
+      t.occlusion_rays = true;
+      break;
+    case MapKind::height:
+      t.channels = 1;
+      break;
+    case MapKind::ao:
+      t.channels = 1;
+      t.png_format = PixelFormat::png8;
+      t.occlusion_rays = true;
+      break;
+    case MapKind::curvature:
+      t.channels = 1;
+      t.png_format = PixelFormat::png8;
+      break;
+    case MapKind::thickness:
+      t.channels = 1;
+      t.png_format = PixelFormat::png8;
+      t.thickness_rays = true;
+      break;
+    case MapKind::position:
+      break;
+    case MapKind::miss:
+      t.channels = 1;
+      t.png_format = PixelFormat::png8;
+      t.dilate = DilateMode::nearest;
+      break;
+    case MapKind::vertex_color:
+      t.png_format = PixelFormat::png8;
+      break;
+    case MapKind::id:
+      t.png_format = PixelFormat::png8;
+      t.dilate = DilateMode::nearest;
+      break;
+  }
+  return t;
+}
+
+bool has_map_token(const std::string& path) { return path.find(kMapToken) != std::string::npos; }
+
+std::string map_path(const std::string& path, MapKind map) {
+  std::string out = path;
+  const std::string token = kMapToken;
+  for (std::size_t at = out.find(token); at != std::string::npos; at = out.find(token, at)) {
+    out.replace(at, token.size(), to_string(map));
+    at += std::string(to_string(map)).size();
+  }
+  return out;
+}
+
+PixelFormat map_format(MapKind map, PixelFormat format, bool format_given, const std::string& path) {
+  if (format_given || format != PixelFormat::png16) return format;
+  std::string extension = std::filesystem::path(path).extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return extension == ".png" ? map_traits(map).png_format : format;
+}
+
+glm::vec3 part_color(const std::string& name) {
+  std::uint32_t h = 2166136261u;
+  for (const char c : name) {
+    h ^= static_cast<unsigned char>(c);
+    h *= 16777619u;
+  }
+  // A hue in [0, 6); HSV to RGB with s = 0.6, v = 0.9.
+  const float hue = static_cast<float>(h >> 8) * 0x1p-24f * 6.0f;
+  const float v = 0.9f, s = 0.6f;
+  const int sector = std::min(5, static_cast<int>(hue));
+  const float f = hue - static_cast<float>(sector);
+  const float p = v * (1.0f - s), q = v * (1.0f - s * f), t = v * (1.0f - s * (1.0f - f));
+  switch (sector) {
+    case 0: return {v, t, p};
+    case 1: return {q, v, p};
+    case 2: return {p, v, t};
+    case 3: return {p, q, v};
+    case 4: return {t, p, v};
+    default: return {v, p, q};
+  }
+}
+
+void MapMeshData::apply(MapSettings& settings) const {
+  settings.position_bounds = position_bounds;
+  settings.vertex_curvature = vertex_curvature.empty() ? nullptr : &vertex_curvature;
+  settings.triangle_part = part_colors.empty() ? nullptr : &triangle_part;
+  settings.part_colors = part_colors.empty() ? nullptr : &part_colors;
+}
+
+void prepare_map_mesh(const Mesh& high, const std::vector<MapKind>& maps, const BakeGroups& groups,
+                      MapMeshData& out) {
+  const auto wants = [&](MapKind map) { return std::find(maps.begin(), maps.end(), map) != maps.end(); };
+  out = MapMeshData{};
+  if (wants(MapKind::position)) out.position_bounds = compute_bounds(high);
+  if (wants(MapKind::curvature)) {
+    if (high.has_normals()) {
+      out.vertex_curvature = vertex_mean_curvature(high, high.normals, out.curvature);
+    } else {
+      Mesh shape;
+      shape.positions = high.positions;
+      shape.indices = high.indices;
+      MeshStats shape_stats;
+      compute_vertex_normals(shape, shape_stats);
+      out.vertex_curvature = vertex_mean_curvature(shape, shape.normals, out.curvature);
+    }
+  }
+  if (wants(MapKind::id)) {
+    // One unnamed part when the file has none; a name in several ranges is
+    // one part.
+    std::vector<std::string> names;
+    std::vector<std::uint32_t> part(high.triangle_count(), 0);
+    for (const MeshPart& range : high.parts) {
+      const auto at = std::find(names.begin(), names.end(), range.name);
+      const auto index = static_cast<std::uint32_t>(at - names.begin());
+      if (at == names.end()) names.push_back(range.name);
+      std::fill_n(part.begin() + range.first_triangle, range.triangle_count, index);
+    }
+    if (names.empty()) names.emplace_back();
+    for (const std::string& name : names) {
+      out.part_colors.push_back(part_color(name));
+      out.parts.emplace_back(name, out.part_colors.back());
+    }
+    if (groups.grouped()) {
+      // The grouped index buffer holds each group's triangles in turn
+      // (group_high_indices); a triangle in two groups is there twice.
+      for (const auto& triangles : groups.high_triangles) {
+        for (const std::uint32_t t : triangles) out.triangle_part.push_back(part[t]);
+      }
+    } else {
+      out.triangle_part = std::move(part);
+    }
+  }
+}
+
+bool MapSettings::has(MapKind map) const { return std::find(maps.begin(), maps.end(), map) != maps.end(); }
+
+double MapReport::figure(const std::string& name) const {
+  for (const auto& f : figures) {
+    if (f.first == name) return f.second;
+  }
+  return 0.0;
+}
+
+MapSet::MapSet(const MapSettings& settings, int width, int first_row, int last_row)
+    : settings_(settings), width_(width), first_row_(first_row), last_row_(last_row) {
+  settings_.encode.out_row_begin = first_row;
+  for (const MapKind map : settings_.maps) {
+    std::unique_ptr<Module> m = make_map_module(map, settings_);
+    const int channels = map_traits(map).channels;
+    m->image.width = width;
+    m->image.height = last_row - first_row;
+    m->image.channels = channels;
+    // Every texel is written by its module, band by band; huge pages make
+    // the first touch cheap (as the normal map's image before the map set).
+    detail::size_output(m->image.pixels, static_cast<std::size_t>(width) * (last_row - first_row) * channels);
+    modules_.push_back(std::move(m));
+  }
+}
+
+MapSet::~MapSet() = default;
+
+bool MapSet::needs_rays() const {
+  return std::any_of(settings_.maps.begin(), settings_.maps.end(), [](MapKind m) {
+    const MapTraits t = map_traits(m);
+    return t.occlusion_rays || t.thickness_rays;
+  });
+}
+
+void MapSet::trace_rays(const HighScene& scene, const Mesh& high, const LowSurface& surface,
+                        const TexelSamples& samples, const Hits& hits) {
+  const bool occlusion = settings_.has(MapKind::ao) || settings_.has(MapKind::bent_normal);
+  if (occlusion) {
+    OcclusionOptions options = settings_.occlusion;
+    options.bent = settings_.has(MapKind::bent_normal);
+    trace_occlusion(scene, high, surface, samples, hits, options, visibility_, bent_, occlusion_stats_);
+  }
+  if (settings_.has(MapKind::thickness)) {
+    trace_thickness(scene, high, surface, samples, hits, settings_.thickness, thickness_, thickness_stats_);
+  }
+}
+
+void MapSet::encode_band(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
+                         EncodeStats& normal_stats) {
+  NMBAKE_CHECK(samples.row_begin >= first_row_ && samples.row_begin + samples.height <= last_row_,
+               "the band lies in the map set's rows");
+  const BandInputs in{surface, samples, high, hits, &visibility_, &bent_, &thickness_,
+                      samples.row_begin - first_row_};
+  HitValueImages values;
+  for (const auto& m : modules_) {
+    if (!m->from_hit_values()) {
+      m->encode_band(in, settings_, normal_stats);
+      continue;
+    }
+    switch (m->kind) {
+      case MapKind::height: values.height = &m->image; break;
+      case MapKind::position: values.position = &m->image; break;
+      case MapKind::curvature: values.curvature = &m->image; break;
+      default: values.miss = &m->image; break;
+    }
+  }
+  if (values.height || values.position || values.curvature || values.miss) encode_hit_values(in, settings_, values);
+}
+
+void MapSet::finish(std::vector<std::uint8_t>& coverage, int padding, DilateStats& dilate_stats) {
+  for (const auto& m : modules_) m->finish(coverage);
+  // Every map in one dilation: the rings are found once.
+  std::vector<DilateLayer> layers;
+  for (const auto& m : modules_) layers.push_back({&m->image, map_traits(m->kind).dilate});
+  DilateStats s;
+  dilate(layers, coverage, padding, s);
+  dilate_stats.filled_texels += s.filled_texels;
+  dilate_stats.fallback_texels += s.fallback_texels;
+}
+
+Image& MapSet::image(MapKind map) {
+  for (const auto& m : modules_) {
+    if (m->kind == map) return m->image;
+  }
+  NMBAKE_CHECK(false, "the map is in the set");
+  return modules_.front()->image;
+}
+
+namespace {
+
+bool integer_format(PixelFormat format) {
+  return format == PixelFormat::png8 || format == PixelFormat::png16 || format == PixelFormat::tiff16;
+}
+
+// out[i] = in[i] * scale + offset (in and out may be the same buffer).
+void map_values(const std::vector<float>& in, std::vector<float>& out, float scale, float offset) {
+  const std::size_t n = in.size();
+  constexpr std::size_t kChunk = std::size_t{1} << 16;
+  tbb::parallel_for(std::size_t{0}, n, kChunk, [&](std::size_t begin) {
+    const std::size_t end = std::min(n, begin + kChunk);
+    for (std::size_t i = begin; i < end; ++i) out[i] = in[i] * scale + offset;
+  });
+}
+
+}  // namespace
+
+void MapSet::prepare_files(const std::vector<std::pair<MapKind, PixelFormat>>& files) {
+  for (const auto& m : modules_) {
+    float scale = 1.0f, offset = 0.0f;
+    m->integer_mapping(scale, offset);
+    if (scale == 1.0f && offset == 0.0f) continue;
+    bool all_integer = true, any = false;
+    for (const auto& [map, format] : files) {
+      if (map != m->kind) continue;
+      any = true;
+      all_integer = all_integer && integer_format(format);
+    }
+    // Only integer files of this map: no copy, the image itself is mapped.
+    if (any && all_integer) {
+      map_values(m->image.pixels, m->image.pixels, scale, offset);
+      m->mapped = true;
+    }
+  }
+}
+
+const Image& MapSet::stored(MapKind map, PixelFormat format, Image& scratch) const {
+  const Module* module = nullptr;
+  for (const auto& m : modules_) {
+    if (m->kind == map) module = m.get();
+  }
+  NMBAKE_CHECK(module != nullptr, "the map is in the set");
+  const bool integer = integer_format(format);
+  NMBAKE_CHECK(!module->mapped || integer, "a mapped image is only for integer files");
+  float scale = 1.0f, offset = 0.0f;
+  module->integer_mapping(scale, offset);
+  if (!integer || module->mapped || (scale == 1.0f && offset == 0.0f)) return module->image;
+  scratch.width = module->image.width;
+  scratch.height = module->image.height;
+  scratch.channels = module->image.channels;
+  detail::size_output(scratch.pixels, module->image.pixels.size());
+  map_values(module->image.pixels, scratch.pixels, scale, offset);
+  return scratch;
+}
+
+std::vector<MapReport> MapSet::reports(int tile) const {
+  std::vector<MapReport> out;
+  for (const auto& m : modules_) {
+    MapReport r;
+    r.map = m->kind;
+    r.tile = tile;
+    r.figures = m->figures;
+    const auto put = [&](const char* name, double value) { r.figures.emplace_back(name, value); };
+    if (m->kind == MapKind::ao || m->kind == MapKind::bent_normal) {
+      put("rays_per_sample", settings_.occlusion.rays);
+      put("distance", settings_.occlusion.distance);
+      put("samples", static_cast<double>(occlusion_stats_.samples));
+      put("rays", static_cast<double>(occlusion_stats_.rays));
+      put("unoccluded_rays", static_cast<double>(occlusion_stats_.unoccluded));
+      put("mirrored_rays", static_cast<double>(occlusion_stats_.mirrored_rays));
+      put("normal_fallbacks", static_cast<double>(occlusion_stats_.normal_fallbacks));
+      put("untraced_rays", static_cast<double>(occlusion_stats_.untraced_rays));
+      if (m->kind == MapKind::bent_normal) put("all_occluded_samples", static_cast<double>(occlusion_stats_.all_occluded));
+    }
+    if (m->kind == MapKind::thickness) {
+      put("rays_per_sample", settings_.thickness.rays);
+      put("distance", settings_.thickness.distance);
+      put("samples", static_cast<double>(thickness_stats_.samples));
+      put("rays", static_cast<double>(thickness_stats_.rays));
+      put("exits", static_cast<double>(thickness_stats_.exits));
+      put("samples_without_exit", static_cast<double>(thickness_stats_.samples_no_exit));
+      put("normal_fallbacks", static_cast<double>(thickness_stats_.normal_fallbacks));
+      put("untraced_rays", static_cast<double>(thickness_stats_.untraced_rays));
+    }
+    out.push_back(std::move(r));
+  }
+  return out;
+}
+
+}  // namespace nmbake

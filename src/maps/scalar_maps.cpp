@@ -1,0 +1,377 @@
+// Maps of values read from the hits (height, position, curvature, miss) and
+// from the rays cast from them (ao, thickness). Each texel is the mean of its
+// samples' values (maps_detail::texel_means); a sample whose ray missed takes
+// the map's miss value (maps.hpp's table).
+#include <algorithm>
+#include <cmath>
+
+#include <glm/geometric.hpp>
+#include <tbb/parallel_reduce.h>
+
+#include "modules.hpp"
+
+namespace nmbake {
+
+namespace {
+
+using maps_detail::interpolate;
+using maps_detail::texel_means;
+
+// The min, max and largest |v| over the covered texels of a one-channel
+// image, and how many there are (in parallel: min and max do not depend on
+// the order).
+struct Extent {
+  float min = 0.0f, max = 0.0f, largest = 0.0f;
+  std::uint64_t texels = 0;
+};
+Extent covered_extent(const Image& image, const std::vector<std::uint8_t>& coverage) {
+  struct Part {
+    float min = INFINITY, max = -INFINITY;
+    std::uint64_t texels = 0;
+  };
+  const Part all = tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, coverage.size(), 1 << 16), Part{},
+      [&](const tbb::blocked_range<std::size_t>& r, Part part) {
+        for (std::size_t t = r.begin(); t != r.end(); ++t) {
+          if (!coverage[t]) continue;
+          part.min = std::min(part.min, image.pixels[t]);
+          part.max = std::max(part.max, image.pixels[t]);
+          ++part.texels;
+        }
+        return part;
+      },
+      [](Part a, const Part& b) {
+        a.min = std::min(a.min, b.min);
+        a.max = std::max(a.max, b.max);
+        a.texels += b.texels;
+        return a;
+      });
+  Extent e;
+  if (all.texels == 0) return e;
+  e.min = all.min;
+  e.max = all.max;
+  e.largest = std::max(std::fabs(e.min), std::fabs(e.max));
+  e.texels = all.texels;
+  return e;
+}
+
+// Covered texels with |v| > limit.
+std::uint64_t count_beyond(const Image& image, const std::vector<std::uint8_t>& coverage, float limit) {
+  return tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, coverage.size(), 1 << 16), std::uint64_t{0},
+      [&](const tbb::blocked_range<std::size_t>& r, std::uint64_t n) {
+        for (std::size_t t = r.begin(); t != r.end(); ++t) n += coverage[t] && std::fabs(image.pixels[t]) > limit;
+        return n;
+      },
+      [](std::uint64_t a, std::uint64_t b) { return a + b; });
+}
+
+// The value at rank floor(0.99 n) of the sorted |v| of the covered texels
+// (the 99th percentile), exactly, without sorting them all: a histogram of
+// 4096 bins over [0, largest] (integer counts per chunk, summed) finds the
+// bin, and only that bin's values are ordered.
+float covered_percentile_99(const Image& image, const std::vector<std::uint8_t>& coverage, const Extent& e) {
+  if (e.texels == 0 || !(e.largest > 0.0f)) return 0.0f;
+  constexpr int kBins = 4096;
+  const float scale = static_cast<float>(kBins) / e.largest;
+  const auto bin_of = [&](float v) { return std::min(kBins - 1, static_cast<int>(std::fabs(v) * scale)); };
+  constexpr std::size_t kChunk = std::size_t{1} << 18;
+  const std::size_t chunks = (coverage.size() + kChunk - 1) / kChunk;
+  std::vector<std::vector<std::uint32_t>> histograms(chunks, std::vector<std::uint32_t>(kBins, 0));
+  tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
+    const std::size_t end = std::min(coverage.size(), (c + 1) * kChunk);
+    for (std::size_t t = c * kChunk; t < end; ++t) {
+      if (coverage[t]) ++histograms[c][static_cast<std::size_t>(bin_of(image.pixels[t]))];
+    }
+  });
+  const std::uint64_t rank = std::min(e.texels - 1, e.texels * 99 / 100);
+  std::uint64_t below = 0;
+  int bin = 0;
+  for (; bin < kBins; ++bin) {
+    std::uint64_t count = 0;
+    for (const auto& h : histograms) count += h[static_cast<std::size_t>(bin)];
+    if (below + count > rank) break;
+    below += count;
+  }
+  // The bin's values, chunk by chunk in parallel, joined in chunk order.
+  std::vector<std::vector<float>> parts(chunks);
+  tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
+    const std::size_t end = std::min(coverage.size(), (c + 1) * kChunk);
+    for (std::size_t t = c * kChunk; t < end; ++t) {
+      if (coverage[t] && bin_of(image.pixels[t]) == bin) parts[c].push_back(std::fabs(image.pixels[t]));
+    }
+  });
+  std::vector<float> in_bin;
+  for (const auto& part : parts) in_bin.insert(in_bin.end(), part.begin(), part.end());
+  const auto at = in_bin.begin() + static_cast<std::ptrdiff_t>(rank - below);
+  std::nth_element(in_bin.begin(), at, in_bin.end());
+  return *at;
+}
+
+// A signed quantity stored as 0.5 + v / (2 R) in integer files: R given, or
+// from the map (auto). R = 0 (a flat map) stores 0.5 everywhere, counted.
+struct SignedRange {
+  float range = 0.0f;
+  void integer_mapping(float& scale, float& offset) const {
+    scale = range > 0.0f ? 0.5f / range : 0.0f;
+    offset = 0.5f;
+  }
+};
+
+struct HeightModule final : MapSet::Module, SignedRange {
+  HeightModule() : Module(MapKind::height) {}
+  void encode_band(const BandInputs&, const MapSettings&, EncodeStats&) override {}
+  bool from_hit_values() const override { return true; }
+  void finish(const std::vector<std::uint8_t>& coverage) override {
+    const Extent e = covered_extent(image, coverage);
+    range = given > 0.0f ? given : e.largest;
+    set("min", e.min);
+    set("max", e.max);
+    set("range", range);
+    set("range_given", given > 0.0f ? 1.0 : 0.0);
+    set("clamped_texels", static_cast<double>(given > 0.0f ? count_beyond(image, coverage, range) : 0));
+    set("flat_range_fallback", range > 0.0f ? 0.0 : 1.0);
+  }
+  void integer_mapping(float& scale, float& offset) const override { SignedRange::integer_mapping(scale, offset); }
+  float given = 0.0f;
+};
+
+struct CurvatureModule final : MapSet::Module, SignedRange {
+  CurvatureModule() : Module(MapKind::curvature) {}
+  void encode_band(const BandInputs&, const MapSettings&, EncodeStats&) override {}
+  bool from_hit_values() const override { return true; }
+  void finish(const std::vector<std::uint8_t>& coverage) override {
+    const Extent e = covered_extent(image, coverage);
+    // Auto: the 99th percentile of |H|, so a few sharp creases do not flatten
+    // the rest of the map to grey.
+    range = given > 0.0f ? given : covered_percentile_99(image, coverage, e);
+    set("min", e.min);
+    set("max", e.max);
+    set("range", range);
+    set("range_given", given > 0.0f ? 1.0 : 0.0);
+    set("clamped_texels", static_cast<double>(count_beyond(image, coverage, range)));
+    set("flat_range_fallback", range > 0.0f ? 0.0 : 1.0);
+  }
+  void integer_mapping(float& scale, float& offset) const override { SignedRange::integer_mapping(scale, offset); }
+  float given = 0.0f;
+};
+
+struct PositionModule final : MapSet::Module {
+  // The box, for whoever turns the map back into positions, and its flat
+  // axes (a plane: 0.5 stored on them), a counted fallback.
+  explicit PositionModule(const Bounds& box) : Module(MapKind::position) {
+    const char* names[2][3] = {{"box_min_x", "box_min_y", "box_min_z"},
+                               {"box_max_x", "box_max_y", "box_max_z"}};
+    int flat = 0;
+    for (int a = 0; a < 3; ++a) {
+      set(names[0][a], box.min[a]);
+      set(names[1][a], box.max[a]);
+      flat += !(box.max[a] > box.min[a]);
+    }
+    set("flat_axes", flat);
+  }
+  void encode_band(const BandInputs&, const MapSettings&, EncodeStats&) override {}
+  bool from_hit_values() const override { return true; }
+};
+
+struct MissModule final : MapSet::Module {
+  MissModule() : Module(MapKind::miss) {}
+  void encode_band(const BandInputs&, const MapSettings&, EncodeStats&) override {}
+  bool from_hit_values() const override { return true; }
+};
+
+// encode_hit_values() for the maps that need the hit triangle's corners
+// (position: their positions; curvature: their vertex curvature).
+template <bool kPosition, bool kCurvature>
+void hit_values(const BandInputs& in, const MapSettings& settings, const HitValueImages& out) {
+  const TexelSamples& samples = in.samples;
+  const int width = samples.width, spp = samples.samples;
+  const std::vector<float>* curvature = settings.vertex_curvature;
+  const Bounds& box = settings.position_bounds;
+  const glm::vec3 extent = box.max - box.min;
+  glm::vec3 inv_extent(0.0f), flat(0.0f);
+  for (int a = 0; a < 3; ++a) {
+    // A flat box axis (a plane) stores 0.5 on it.
+    if (extent[a] > 0.0f) {
+      inv_extent[a] = 1.0f / extent[a];
+    } else {
+      flat[a] = 0.5f;
+    }
+  }
+  const auto row_of = [&](Image* image, int y) {
+    return image ? image->pixels.data() + static_cast<std::size_t>(in.out_row + y) * width * image->channels : nullptr;
+  };
+  tbb::parallel_for(tbb::blocked_range<int>(0, samples.height), [&](const tbb::blocked_range<int>& rows) {
+    for (int y = rows.begin(); y != rows.end(); ++y) {
+      float* height = row_of(out.height, y);
+      float* position = row_of(out.position, y);
+      float* curv = row_of(out.curvature, y);
+      float* miss = row_of(out.miss, y);
+      for (int x = 0; x < width; ++x) {
+        const std::size_t texel = static_cast<std::size_t>(y) * width + x;
+        float h = 0.0f, m = 0.0f, k = 0.0f;
+        glm::vec3 p(0.0f);
+        int used = 0;
+        if (samples.coverage[texel]) {
+          for (int j = 0; j < spp; ++j) {
+            const std::size_t s = texel * spp + static_cast<std::size_t>(j);
+            const std::int32_t tri = samples.triangle[s];
+            if (tri < 0) continue;
+            ++used;
+            const std::int32_t hit = in.hits.triangle[s];
+            if (hit < 0) {
+              // A miss: height and curvature 0, the low surface point.
+              m += 1.0f;
+              if (kPosition) p += interpolate(in.surface.position, 3 * static_cast<std::size_t>(tri), samples.bary[s]);
+              continue;
+            }
+            h += in.hits.distance[s];
+            if (kPosition || kCurvature) {
+              const std::uint32_t* c = &in.high.indices[3 * static_cast<std::size_t>(hit)];
+              const glm::vec2 b = in.hits.bary[s];
+              const float w = 1.0f - b.x - b.y;
+              if (kPosition) {
+                p += in.high.positions[c[0]] * w + in.high.positions[c[1]] * b.x + in.high.positions[c[2]] * b.y;
+              }
+              if (kCurvature) k += (*curvature)[c[0]] * w + (*curvature)[c[1]] * b.x + (*curvature)[c[2]] * b.y;
+            }
+          }
+        }
+        // A covered texel has at least one sample in a chart (raster.hpp);
+        // uncovered texels hold 0 (position: the box's corner).
+        const float inv = used > 0 ? 1.0f / static_cast<float>(used) : 0.0f;
+        if (height) height[x] = h * inv;
+        if (miss) miss[x] = m * inv;
+        if (kCurvature) curv[x] = k * inv;
+        if (kPosition) {
+          for (int a = 0; a < 3; ++a) {
+            position[3 * x + a] =
+                used > 0 ? std::clamp((p[a] * inv - box.min[a]) * inv_extent[a] + flat[a], 0.0f, 1.0f) : 0.0f;
+          }
+        }
+      }
+    }
+  });
+}
+
+struct OcclusionModule final : MapSet::Module {
+  OcclusionModule() : Module(MapKind::ao) {}
+  void encode_band(const BandInputs& in, const MapSettings&, EncodeStats&) override {
+    texel_means<1>(in, image, {1.0f}, [&](std::size_t s, std::array<float, 1>& v) { v[0] = (*in.visibility)[s]; });
+  }
+};
+
+struct ThicknessModule final : MapSet::Module {
+  explicit ThicknessModule(float distance) : Module(MapKind::thickness), distance_(distance) {}
+  void encode_band(const BandInputs& in, const MapSettings&, EncodeStats&) override {
+    texel_means<1>(in, image, {0.0f}, [&](std::size_t s, std::array<float, 1>& v) { v[0] = (*in.thickness)[s]; });
+  }
+  void integer_mapping(float& scale, float& offset) const override {
+    scale = distance_ > 0.0f ? 1.0f / distance_ : 0.0f;
+    offset = 0.0f;
+  }
+  float distance_;
+};
+
+// The high mesh's vertex colours at the hit, RGB; a miss is black.
+struct VertexColorModule final : MapSet::Module {
+  VertexColorModule() : Module(MapKind::vertex_color) {}
+  void encode_band(const BandInputs& in, const MapSettings&, EncodeStats&) override {
+    texel_means<3>(in, image, {0.0f, 0.0f, 0.0f}, [&](std::size_t s, std::array<float, 3>& v) {
+      const std::int32_t hit = in.hits.triangle[s];
+      v = {0.0f, 0.0f, 0.0f};
+      if (hit < 0) return;
+      const std::uint32_t* c = &in.high.indices[3 * static_cast<std::size_t>(hit)];
+      const glm::vec2 b = in.hits.bary[s];
+      const glm::vec4 color =
+          in.high.colors[c[0]] * (1.0f - b.x - b.y) + in.high.colors[c[1]] * b.x + in.high.colors[c[2]] * b.y;
+      v = {color.r, color.g, color.b};
+    });
+  }
+};
+
+// The colour of the part most of a texel's samples hit (ties: the first in
+// the sample pattern's order); black where every sample missed. Never a
+// blend of two parts' colours, so the map is a mask.
+struct IdModule final : MapSet::Module {
+  IdModule() : Module(MapKind::id) {}
+  void encode_band(const BandInputs& in, const MapSettings& settings, EncodeStats&) override {
+    const TexelSamples& samples = in.samples;
+    const std::vector<std::uint32_t>& part = *settings.triangle_part;
+    const std::vector<glm::vec3>& colors = *settings.part_colors;
+    const int width = samples.width, spp = samples.samples;
+    tbb::parallel_for(tbb::blocked_range<int>(0, samples.height), [&](const tbb::blocked_range<int>& rows) {
+      std::vector<std::uint32_t> seen;
+      for (int y = rows.begin(); y != rows.end(); ++y) {
+        float* out = image.pixels.data() + static_cast<std::size_t>(in.out_row + y) * width * 3;
+        for (int x = 0; x < width; ++x) {
+          const std::size_t texel = static_cast<std::size_t>(y) * width + x;
+          seen.clear();
+          for (int k = 0; k < spp && samples.coverage[texel]; ++k) {
+            const std::size_t s = texel * spp + static_cast<std::size_t>(k);
+            if (samples.triangle[s] < 0 || in.hits.triangle[s] < 0) continue;
+            seen.push_back(part[static_cast<std::size_t>(in.hits.triangle[s])]);
+          }
+          glm::vec3 value(0.0f);
+          int best_count = 0;
+          for (std::size_t i = 0; i < seen.size(); ++i) {
+            const int count = static_cast<int>(std::count(seen.begin(), seen.end(), seen[i]));
+            if (count > best_count) {
+              best_count = count;
+              value = colors[seen[i]];
+            }
+          }
+          out[3 * x] = value.r;
+          out[3 * x + 1] = value.g;
+          out[3 * x + 2] = value.b;
+        }
+      }
+    });
+  }
+};
+
+}  // namespace
+
+void encode_hit_values(const BandInputs& in, const MapSettings& settings, const HitValueImages& out) {
+  if (out.position && out.curvature) return hit_values<true, true>(in, settings, out);
+  if (out.position) return hit_values<true, false>(in, settings, out);
+  if (out.curvature) return hit_values<false, true>(in, settings, out);
+  hit_values<false, false>(in, settings, out);
+}
+
+std::unique_ptr<MapSet::Module> make_value_module(MapKind map, const MapSettings& settings) {
+  switch (map) {
+    case MapKind::height: {
+      auto m = std::make_unique<HeightModule>();
+      m->given = settings.height_range;
+      return m;
+    }
+    case MapKind::curvature: {
+      NMBAKE_CHECK(settings.vertex_curvature != nullptr, "vertex curvature computed for a curvature map");
+      auto m = std::make_unique<CurvatureModule>();
+      m->given = settings.curvature_range;
+      return m;
+    }
+    case MapKind::position: return std::make_unique<PositionModule>(settings.position_bounds);
+    case MapKind::miss: return std::make_unique<MissModule>();
+    case MapKind::ao: return std::make_unique<OcclusionModule>();
+    case MapKind::thickness: return std::make_unique<ThicknessModule>(settings.thickness.distance);
+    case MapKind::vertex_color: return std::make_unique<VertexColorModule>();
+    case MapKind::id: {
+      NMBAKE_CHECK(settings.triangle_part != nullptr && settings.part_colors != nullptr, "parts for an id map");
+      return std::make_unique<IdModule>();
+    }
+    default: return nullptr;
+  }
+}
+
+std::unique_ptr<MapSet::Module> make_direction_module(MapKind map);
+
+std::unique_ptr<MapSet::Module> make_map_module(MapKind map, const MapSettings& settings) {
+  if (auto m = make_direction_module(map)) return m;
+  if (auto m = make_value_module(map, settings)) return m;
+  NMBAKE_CHECK(false, "a module for every implemented map");
+  return nullptr;
+}
+
+}  // namespace nmbake
