@@ -125,6 +125,18 @@ Status load_preview_meshes(const std::string& low_path, const std::string& high_
 Status render_preview(const LowSurface& surface, const Mesh& high, const Image& map,
                       const PreviewOptions& options, Image& sheet, PreviewStats& stats);
 
+// The map's normal at a point of the low surface (triangle `tri`,
+// barycentrics `b`: weights of corners 1 and 2), decoded exactly as the
+// low+map panel of render_preview (and an engine) decodes it: uv, T (with
+// its sign) and N interpolated from the corners, the map sampled bilinearly
+// at uv (texel centres at u = (x + 0.5) / W, v = 1 - (y + 0.5) / H, clamped
+// at the borders), t = 2 rgb - 1 (y negated for green down), then
+// tangent_to_world (T, N not normalised) or, in object space, t itself.
+// Counted fallback: a decoded vector of length ~0 gives the unit low normal
+// (or `otherwise` when N has no length either) and sets `fallback`.
+glm::vec3 decode_map_normal(const LowSurface& surface, const Image& map, std::int32_t tri, glm::vec2 b,
+                            NormalSpace space, GreenChannel green, const glm::vec3& otherwise, bool& fallback);
+
 struct TangentViewOptions {
   ViewOptions view;
   float length = 0.0f;  // of the drawn T, B, N, scene units; 0: 40% of the mean edge length
