@@ -238,10 +238,20 @@ Status render_preview(const LowSurface& surface, const Mesh& high, const Image& 
     return estimated;
   };
   RayOptions rays;
-  rays.cage = CageMode::averaged;
+  rays.cage = options.cage_mode;
   rays.hit = options.hit;
   rays.front = resolve(options.front, estimate.front);
   rays.back = resolve(options.back, estimate.back);
+  if (options.front.kind == Distance::Kind::automatic && options.back.kind == Distance::Kind::automatic) {
+    rays.retry_reach = kProbeReach * diagonal;  // as the bake does (BakeOptions::retry_misses)
+  }
+  LowSurface banded_surface;
+  const LowSurface* ray_surface = &surface;
+  if (rays.cage == CageMode::banded) {
+    banded_surface = surface;
+    prepare_edge_band(banded_surface, edge_band_reach(rays));
+    ray_surface = &banded_surface;
+  }
   stats.front = rays.front;
   stats.back = rays.back;
 
@@ -286,7 +296,7 @@ Status render_preview(const LowSurface& surface, const Mesh& high, const Image& 
     }
     Hits bake_hits;
     TraceStats trace_stats;
-    trace(bake_scene, surface, bake_samples, rays, bake_hits, trace_stats);
+    trace(bake_scene, *ray_surface, bake_samples, rays, bake_hits, trace_stats);
 
     std::fill(row_decode_fallbacks.begin(), row_decode_fallbacks.end(), 0);
     std::fill(row_high_fallbacks.begin(), row_high_fallbacks.end(), 0);

@@ -103,7 +103,7 @@ TEST(StabilityDegenerate, ZeroUvAreaAndZeroAreaFacesHaveFallbacks) {
   // The rest of the plane is unaffected, except where the collinear
   // triangle's UVs overlap the plane's (first triangle wins there).
   const auto truth = scenes::make_true_surface("heightfield");
-  const scenes::EvalResult r = score(*truth, s.low, b, CageMode::averaged);
+  const scenes::EvalResult r = score(*truth, s.low, b, CageMode::banded);
   std::printf("degenerate: %s\n", r.error.to_text().c_str());
   EXPECT_LT(r.error.median, 0.05);
 }
@@ -129,7 +129,7 @@ TEST(StabilityMirror, MirroredUvHalfDecodesToTheTruth) {
   const Baked b = bake_meshes(dir, mirrored, s.high, small_options());
   ASSERT_TRUE(b.status.is_ok()) << b.status.message();
   const auto truth = scenes::make_true_surface("heightfield");
-  const scenes::EvalResult r = score(*truth, mirrored, b, CageMode::averaged);
+  const scenes::EvalResult r = score(*truth, mirrored, b, CageMode::banded);
   std::printf("mirrored: %s\n", r.error.to_text().c_str());
   EXPECT_GT(r.error.texels, 128u * 128u * 9 / 10);
   EXPECT_LT(r.error.mean, 0.05);
@@ -245,8 +245,8 @@ TEST(StabilityConcave, NearestWinsInAGrooveFirstWinsOverAThinPlate) {
     const Baked nearest = bake_meshes(dir, s.low, s.high, o);
     ASSERT_TRUE(first.status.is_ok() && nearest.status.is_ok());
     const auto truth = scenes::make_true_surface("slot");
-    const scenes::EvalResult rf = score(*truth, s.low, first, CageMode::averaged);
-    const scenes::EvalResult rn = score(*truth, s.low, nearest, CageMode::averaged);
+    const scenes::EvalResult rf = score(*truth, s.low, first, CageMode::banded);
+    const scenes::EvalResult rn = score(*truth, s.low, nearest, CageMode::banded);
     std::printf("groove, first:   %s\ngroove, nearest: %s\n", rf.error.to_text().c_str(), rn.error.to_text().c_str());
     EXPECT_GT(rf.error.over_5deg, 0.5);
     EXPECT_LT(rn.error.median, 0.1);
@@ -327,7 +327,7 @@ TEST(StabilityOverlap, OverlappingHighShellsBakeTheOuterOne) {
   ASSERT_TRUE(b.status.is_ok()) << b.status.message();
   EXPECT_EQ(b.report.trace.misses, 0u);
   const auto truth = scenes::make_true_surface("heightfield");
-  const scenes::EvalResult r = score(*truth, s.low, b, CageMode::averaged);
+  const scenes::EvalResult r = score(*truth, s.low, b, CageMode::banded);
   std::printf("overlapping shells: %s\n", r.error.to_text().c_str());
   EXPECT_LT(r.error.mean, 0.05);
 }
@@ -366,7 +366,7 @@ TEST(StabilityThin, VeryThinTrianglesBakeLikeTheirPlane) {
   ASSERT_TRUE(b.status.is_ok()) << b.status.message();
   EXPECT_EQ(b.report.trace.misses, 0u);
   const auto truth = scenes::make_true_surface("heightfield");
-  const scenes::EvalResult r = score(*truth, low, b, CageMode::averaged);
+  const scenes::EvalResult r = score(*truth, low, b, CageMode::banded);
   std::printf("thin triangles: %s (tangent fallbacks %llu)\n", r.error.to_text().c_str(),
               static_cast<unsigned long long>(b.report.tangents.fallback_tangents));
   EXPECT_LT(r.error.mean, 0.05);
@@ -405,7 +405,7 @@ TEST(StabilityScale, MillimetreDetailAKilometreFromTheOrigin) {
   ASSERT_TRUE(b.status.is_ok()) << b.status.message();
   EXPECT_EQ(b.report.trace.misses, 0u);
   const KilometreHeightfield truth;
-  const scenes::EvalResult r = score(truth, s.low, b, CageMode::averaged);
+  const scenes::EvalResult r = score(truth, s.low, b, CageMode::banded);
   std::printf("1 km from the origin, 2 mm relief: %s\n", r.error.to_text().c_str());
   EXPECT_EQ(r.without_truth, 0u);
   EXPECT_LT(r.error.mean, 0.1);

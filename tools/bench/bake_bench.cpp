@@ -3,7 +3,7 @@
 // over the benchmark scenes). Timings are medians of --repeat runs; bake and
 // raw runs alternate, and the ratio is the median of each pair's ratio.
 //
-//   nmbake-bench --low L --high H --size 2048 --samples 4 [--threads N] [--repeat 3]
+//   nmbake-bench --low L --high H --size 2048 --samples 4 [--threads N] [--repeat 3] [--compare-old-rule N]
 //
 // The bake is the library's bake() with default options (auto distances,
 // averaged cage) writing a 16-bit PNG to a temp folder; "raw" is trace_raw():
@@ -43,6 +43,7 @@ int main(int argc, char** argv) {
   std::string low, high, label, bvh = "auto", quality = "low";
   int size = 2048, samples = 4, threads = 0, repeat = 3;
   std::size_t band_samples = 0;
+  int compare_pairs = 0;
   CLI::App app{"nmbake-bench: a whole bake beside raw Embree on the same rays"};
   app.add_option("--low", low)->required();
   app.add_option("--high", high)->required();
@@ -54,6 +55,10 @@ int main(int argc, char** argv) {
   app.add_option("--build-quality", quality, "low | medium | high")->capture_default_str();
   app.add_option("--repeat", repeat)->capture_default_str()->check(CLI::Range(1, 50));
   app.add_option("--band-samples", band_samples, "samples per band of rows (0: the library's default, 1M)")
+      ->capture_default_str();
+  app.add_option("--compare-old-rule", compare_pairs,
+                 "then N pairs of bakes, the defaults and the old ray rule (averaged cage, no retry), alternating: "
+                 "the median of the pairs' trace-time ratios")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   if (label.empty()) label = std::filesystem::path(high).stem().string();
@@ -156,6 +161,24 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  // The ray rule's own cost: the defaults (banded cage, misses retried)
+  // against the old rule (averaged cage, no retry), bake after bake in this
+  // process, the trace stage of each pair compared.
+  std::vector<double> rule_new, rule_old, rule_ratio;
+  for (int i = 0; i < compare_pairs; ++i) {
+    nmbake::BakeOptions old_rule = o;
+    old_rule.cage_mode = nmbake::CageMode::averaged;
+    old_rule.retry_misses = nmbake::BakeOptions::Retry::off;
+    nmbake::BakeReport r_new, r_old;
+    if (!nmbake::bake(o, r_new) || !nmbake::bake(old_rule, r_old)) return 2;
+    rule_new.push_back(stage(r_new, "trace"));
+    rule_old.push_back(stage(r_old, "trace"));
+    rule_ratio.push_back(rule_new.back() / rule_old.back());
+    if (std::getenv("NMBAKE_BENCH_PAIRS")) {
+      std::fprintf(stderr, "rule pair %d: trace %.4f s (banded, retry: %llu retried) vs %.4f s (averaged)\n", i + 1,
+                   rule_new.back(), static_cast<unsigned long long>(r_new.trace.retried), rule_old.back());
+    }
+  }
   std::filesystem::remove_all(dir);
 
   const double bake_rays_per_s = static_cast<double>(report.trace.rays) / median(trace);
@@ -170,5 +193,12 @@ int main(int argc, char** argv) {
       1e-6 * bake_rays_per_s, 1e-6 * raw_rays_per_s, median(ratio),
       static_cast<double>(bake_peak) / (1024.0 * 1024.0),
       static_cast<double>(bake_peak) / static_cast<double>(std::max<std::uint64_t>(1, report.high_triangles)));
+  if (compare_pairs > 0) {
+    std::printf("rule  %-12s map %5d x%-2d | trace %6.4f s (banded cage, retry) vs %6.4f s (averaged, no retry) | "
+                "ratio %.3f (median of %d pairs; min %.3f max %.3f)\n",
+                label.c_str(), size, samples, median(rule_new), median(rule_old), median(rule_ratio), compare_pairs,
+                *std::min_element(rule_ratio.begin(), rule_ratio.end()),
+                *std::max_element(rule_ratio.begin(), rule_ratio.end()));
+  }
   return 0;
 }

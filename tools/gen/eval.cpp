@@ -221,12 +221,13 @@ bool intersect_true_surface(const TrueSurface& s, const glm::dvec3& o, const glm
 Expected compute_expected(const TrueSurface& truth, const Mesh& low, const Mesh* cage, int width, int height,
                           const EvalOptions& options) {
   SurfaceStats surface_stats;
-  const LowSurface surface = build_low_surface(low, cage, surface_stats);  // MikkTSpace: what renderers decode with
+  LowSurface surface = build_low_surface(low, cage, surface_stats);  // MikkTSpace: what renderers decode with
   TexelSamples raster;
   RasterStats raster_stats;
   rasterize(surface, width, height, options.samples, raster, raster_stats);
   RayOptions rays = options.rays;
   if (cage != nullptr) rays.cage = CageMode::mesh;
+  if (rays.cage == CageMode::banded) prepare_edge_band(surface, edge_band_reach(rays));
 
   Expected e;
   e.width = width;
@@ -266,8 +267,15 @@ Expected compute_expected(const TrueSurface& truth, const Mesh& low, const Mesh*
         const Ray ray = make_ray(surface, tri, b, rays, fallback);
         glm::dvec3 hit, n;
         if (!intersect_true_surface(truth, glm::dvec3(ray.origin), glm::dvec3(ray.direction), ray.tfar, ray.t_surface,
-                                    hit, n))
-          continue;
+                                    hit, n)) {
+          // The bake retries a miss along the same line, out and in up to
+          // retry_reach from the low surface point: so does the truth.
+          const double reach = rays.retry_reach;
+          if (!(reach > 0.0) ||
+              !intersect_true_surface(truth, glm::dvec3(ray.surface_point) - reach * glm::dvec3(ray.direction),
+                                      glm::dvec3(ray.direction), 2.0 * reach, reach, hit, n))
+            continue;
+        }
         any_truth = true;
         if (tangent) {
           glm::vec3 t;
