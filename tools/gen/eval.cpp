@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <tbb/parallel_for.h>
 
+#include "hard_scenes.hpp"
 #include "nmbake/raster.hpp"
 #include "nmbake/surface.hpp"
 
@@ -87,11 +88,29 @@ class CraterTruth final : public ScaledSurface {
 
 class BoxTruth final : public ScaledSurface {
  public:
-  using ScaledSurface::ScaledSurface;
+  BoxTruth(double scale, double bevel) : ScaledSurface(scale) { p_.bevel = static_cast<float>(bevel); }
   double unit_field(int, const glm::dvec3& x) const override { return box_field(p_, x); }
   glm::dvec3 unit_normal(int, const glm::dvec3& x) const override { return box_normal(p_, x); }
-  double unit_step() const override { return 0.02; }
+  double unit_step() const override { return std::min(0.02, 0.25 * static_cast<double>(p_.bevel)); }
   BoxParams p_;
+};
+
+class RevolveTruth final : public ScaledSurface {
+ public:
+  RevolveTruth(double scale, const RevolveParams& p) : ScaledSurface(scale), profile_(p.profile) {}
+  double unit_field(int, const glm::dvec3& x) const override { return revolve_field(profile_, x); }
+  glm::dvec3 unit_normal(int, const glm::dvec3& x) const override { return revolve_normal(profile_, x); }
+  double unit_step() const override { return 0.01; }
+  RevolveProfile profile_;
+};
+
+class PanelTruth final : public ScaledSurface {
+ public:
+  explicit PanelTruth(double scale) : ScaledSurface(scale), p_(panel_params()) {}
+  double unit_field(int, const glm::dvec3& x) const override { return panel_field(p_, x); }
+  glm::dvec3 unit_normal(int, const glm::dvec3& x) const override { return panel_normal(p_, x); }
+  double unit_step() const override { return 0.004; }  // the dimple is 0.12 across
+  PanelParams p_;
 };
 
 class SlotTruth final : public ScaledSurface {
@@ -149,7 +168,11 @@ double refine(const TrueSurface& s, int patch, const glm::dvec3& o, const glm::d
 }  // namespace
 
 const std::vector<std::string>& lab_scene_names() {
-  static const std::vector<std::string> names = {"heightfield", "sphere", "torus", "craters", "box", "slot"};
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> n = {"heightfield", "sphere", "torus", "craters", "box", "slot"};
+    n.insert(n.end(), hard_scene_names().begin(), hard_scene_names().end());
+    return n;
+  }();
   return names;
 }
 
@@ -158,7 +181,10 @@ std::unique_ptr<TrueSurface> make_true_surface(const std::string& scene, double 
   if (scene == "sphere") return std::make_unique<SphereTruth>(scale);
   if (scene == "torus") return std::make_unique<TorusTruth>(scale);
   if (scene == "craters") return std::make_unique<CraterTruth>(scale);
-  if (scene == "box") return std::make_unique<BoxTruth>(scale);
+  if (const double bevel = lab_box_bevel(scene); bevel > 0.0) return std::make_unique<BoxTruth>(scale, bevel);
+  if (scene == "bowl") return std::make_unique<RevolveTruth>(scale, bowl_params());
+  if (scene == "cylinder") return std::make_unique<RevolveTruth>(scale, cylinder_params());
+  if (scene == "panel") return std::make_unique<PanelTruth>(scale);
   if (scene == "slot") return std::make_unique<SlotTruth>(scale);
   return nullptr;
 }
