@@ -93,6 +93,9 @@ bool embree_accepts(const glm::vec3& origin, const glm::vec3& direction, float t
                                                     glm::vec2 b) {
   return corner[base] * (1.0f - b.x - b.y) + corner[base + 1] * b.x + corner[base + 2] * b.y;
 }
+[[gnu::always_inline]] inline glm::vec3 interpolate_corners(const glm::vec3* corner, glm::vec2 b) {
+  return corner[0] * (1.0f - b.x - b.y) + corner[1] * b.x + corner[2] * b.y;
+}
 
 }  // namespace
 
@@ -218,9 +221,10 @@ glm::vec3 banded_direction(const LowSurface& surface, std::int32_t tri, glm::vec
   const std::size_t t = static_cast<std::size_t>(tri);
   const std::size_t base = 3 * t;
   const std::uint8_t hard = surface.hard_corners[t];
-  const float weight[3] = {1.0f - b.x - b.y, b.x, b.y};
-  glm::vec3 own(0.0f);
-  for (int k = 0; k < 3; ++k) own += weight[k] * ((hard >> k) & 1 ? surface.normal[base + k] : surface.cage_normal[base + k]);
+  glm::vec3 corner[3];
+  for (int k = 0; k < 3; ++k)
+    corner[k] = (hard >> k) & 1 ? surface.normal[base + k] : surface.cage_normal[base + k];
+  const glm::vec3 own = interpolate_corners(corner, b);
   const float band = options.edge_band * (options.front + options.back);
   if (!(band > 0.0f)) return own;
   NMBAKE_CHECK(surface.band_reach >= band, "prepare_edge_band() for this band first");
@@ -537,6 +541,51 @@ template <class F>
   });
 }
 
+// banded_direction() for four lanes on one triangle with a hard corner: the
+// same operations per lane, in the same order (simd4.hpp), so the lanes are
+// make_ray()'s bit for bit. P and A are the lanes' points and averaged
+// normals.
+detail::Axes banded_axes(const LowSurface& surface, std::int32_t tri, const detail::Weights& w,
+                         const detail::Axes& P, const detail::Axes& A, const RayOptions& options) {
+  using namespace detail;
+  const std::size_t t = static_cast<std::size_t>(tri);
+  const std::size_t base = 3 * t;
+  const std::uint8_t hard = surface.hard_corners[t];
+  glm::vec3 corner[3];
+  for (int k = 0; k < 3; ++k)
+    corner[k] = (hard >> k) & 1 ? surface.normal[base + k] : surface.cage_normal[base + k];
+  const Axes own = mix_axes(corner, w);
+  const float band = options.edge_band * (options.front + options.back);
+  if (!(band > 0.0f)) return own;
+  NMBAKE_CHECK(surface.band_reach >= band, "prepare_edge_band() for this band first");
+  const auto blend = [](i4 mask, f4 yes, f4 no) {
+    return reinterpret_cast<f4>((reinterpret_cast<i4>(yes) & mask) | (reinterpret_cast<i4>(no) & ~mask));
+  };
+  const f4 zero = splat4(0.0f), one = splat4(1.0f);
+  f4 nearest = splat4(band);
+  for (std::uint32_t e = surface.band_first[t]; e < surface.band_first[t + 1]; ++e) {
+    const std::uint32_t edge = surface.band_edges[e];
+    const glm::vec3 ea = surface.hard_edge_a[edge];
+    const glm::vec3 ab = surface.hard_edge_b[edge] - ea;
+    const float ab2 = glm::dot(ab, ab);
+    const f4 px = P.x - splat4(ea.x), py = P.y - splat4(ea.y), pz = P.z - splat4(ea.z);
+    f4 s = zero;
+    if (ab2 > 0.0f) {
+      s = (px * splat4(ab.x) + py * splat4(ab.y) + pz * splat4(ab.z)) / splat4(ab2);
+      s = blend(s < zero, zero, blend(one < s, one, s));  // std::clamp(s, 0, 1)
+    }
+    const f4 qx = P.x - (splat4(ea.x) + s * splat4(ab.x));
+    const f4 qy = P.y - (splat4(ea.y) + s * splat4(ab.y));
+    const f4 qz = P.z - (splat4(ea.z) + s * splat4(ab.z));
+    const f4 d = sqrt4(qx * qx + qy * qy + qz * qz);
+    nearest = blend(d < nearest, d, nearest);  // std::min(nearest, d)
+  }
+  const f4 x = one - nearest / splat4(band);
+  const f4 weight = x * x * (splat4(3.0f) - splat4(2.0f) * x);
+  return {own.x + weight * (A.x - own.x), own.y + weight * (A.y - own.y), own.z + weight * (A.z - own.z),
+          f4{}};
+}
+
 // Builds the queued lanes' rays four at a time in SIMD lanes, one vector per
 // axis: the point and the cage normal are interpolated, then come the
 // lengths, the unit normals and the origins. Four lanes on one low triangle
@@ -544,10 +593,13 @@ template <class F>
 // across the lanes; otherwise lane by lane, then transposed. The operations
 // are build_ray()'s, in its order, so the rays are bit for bit the same; a
 // lane whose normal is zero or not finite takes build_ray() and its fallback.
-// Of the other fields only those Embree writes (tfar, geomID) and the valid
-// mask are set, for all 16 lanes (lanes past the count are invalid); the
-// rest are set once per packet by start_packet(). Returns the number
-// of lanes that took the fallback.
+// Banded cage: four lanes on one triangle with a hard corner take
+// banded_axes(); in a group of lanes on several triangles, those on a
+// triangle with a hard corner take build_ray(). Of the other fields only
+// those Embree writes (tfar, geomID) and the valid mask are set, for all 16
+// lanes (lanes past the count are invalid); the rest are set once per
+// packet by start_packet(). Returns the number of lanes that took the
+// fallback.
 std::uint64_t build_queued_rays(Packet& p, const LowSurface& surface, const RayOptions& options) {
   using namespace detail;
   const std::vector<glm::vec3>& normals = options.cage == CageMode::interpolated ? surface.normal : surface.cage_normal;
@@ -570,11 +622,13 @@ std::uint64_t build_queued_rays(Packet& p, const LowSurface& surface, const RayO
   for (int g = 0; g < n; g += 4) {
     Axes P, a;
     const i4 tri = load4i(p.triangle + g);
-    if (all4(tri == splat4i(tri[0]))) {
+    const bool one_triangle = all4(tri == splat4i(tri[0]));
+    if (one_triangle) {
       const std::size_t base = 3 * static_cast<std::size_t>(tri[0]);
       const Weights w = lane_weights(&p.bary[g]);
       P = mix_axes(&surface.position[base], w);
       a = mix_axes(&normals[base], w);
+      if (banded && banded_triangle(surface, tri[0])) a = banded_axes(surface, tri[0], w, P, a, options);
     } else {
       f4 point[4], normal[4];
       for (int k = 0; k < 4; ++k) {
@@ -593,8 +647,8 @@ std::uint64_t build_queued_rays(Packet& p, const LowSurface& surface, const RayO
     }
     const f4 length = sqrt4(a.x * a.x + a.y * a.y + a.z * a.z);
     i4 ok = (length > splat4(1e-12f)) & finite4(length);
-    if (banded) {
-      // Lanes on a triangle with a hard corner: build_ray's banded direction.
+    if (banded && !one_triangle) {
+      // Lanes of several triangles, some with a hard corner: build_ray's banded direction.
       for (int k = 0; k < 4; ++k) ok[k] = banded_triangle(surface, p.triangle[g + k]) ? 0 : ok[k];
     }
     const f4 inv = splat4(1.0f) / length;

@@ -1,10 +1,12 @@
 #include <cmath>
+#include <string>
 
 #include <gtest/gtest.h>
 #include <glm/geometric.hpp>
 
 #include "nmbake/raster.hpp"
 #include "nmbake/trace.hpp"
+#include "hard_scenes.hpp"
 #include "lab_scenes.hpp"
 #include "nmbake/surface.hpp"
 #include "test_util.hpp"
@@ -425,31 +427,106 @@ TEST(Trace, BandedCageFollowsTheAveragedCageOnlyNearHardEdges) {
   EXPECT_LT(worst, 1e-5f);
 }
 
-TEST(Trace, BandedPacketRaysEqualMakeRayBitForBit) {
-  LowSurface box = box_surface(3);
+// The banded cage's rays built in SIMD lanes (four lanes on one triangle with
+// a hard corner: banded_axes(); lanes of several triangles: build_ray()) are
+// make_ray()'s bit for bit: on hard edges, in the smoothstep between the
+// averaged and the face's own normals, a band away, and with no band. Low
+// meshes: the lab box with every triangle on a hard edge, a finer one with
+// inner triangles too (packets that mix both), the box turned so its edges
+// follow no axis, and the cylinder and the panel of the lab (long thin and
+// fanned triangles, hard rims).
+void check_banded_packets(const char* name, LowSurface surface, float edge_band, int width, int height,
+                          bool beyond = true) {
   RayOptions o;
   o.cage = CageMode::banded;
   o.front = 0.03f;
   o.back = 0.12f;
-  prepare_edge_band(box, edge_band_reach(o));
-  for (int spp : {1, 4, 16}) {
+  o.edge_band = edge_band;
+  prepare_edge_band(surface, edge_band_reach(o));
+  RayOptions own = o, averaged = o;
+  own.edge_band = 0.0f;  // the face's own normals at hard corners everywhere
+  averaged.cage = CageMode::averaged;
+  std::size_t compared = 0, blended = 0, on_own = 0;
+  for (int spp : {1, 4, 16, 64}) {
+    SCOPED_TRACE(testing::Message() << name << ", " << spp << " spp, band " << edge_band);
     TexelSamples t;
     RasterStats raster_stats;
-    rasterize(box, 61, 43, spp, t, raster_stats);
-    const std::vector<PacketRay> rays = packet_rays(box, t, o);
-    std::size_t compared = 0;
+    rasterize(surface, spp == 64 ? width / 4 : width, spp == 64 ? height / 4 : height, spp, t, raster_stats);
+    const std::vector<PacketRay> rays = packet_rays(surface, t, o);
+    ASSERT_EQ(rays.size(), t.triangle.size());
     for (std::size_t i = 0; i < rays.size(); ++i) {
+      ASSERT_EQ(rays[i].traced, t.triangle[i] >= 0) << "sample " << i;
       if (!rays[i].traced) continue;
       bool fallback = false;
-      const Ray ray = make_ray(box, t.triangle[i], t.bary[i], o, fallback);
+      const Ray ray = make_ray(surface, t.triangle[i], t.bary[i], o, fallback);
       for (int k = 0; k < 3; ++k) {
-        ASSERT_EQ(rays[i].origin[k], ray.origin[k]) << spp << " spp, sample " << i;
-        ASSERT_EQ(rays[i].direction[k], ray.direction[k]) << spp << " spp, sample " << i;
+        ASSERT_EQ(rays[i].origin[k], ray.origin[k]) << "sample " << i << ", triangle " << t.triangle[i];
+        ASSERT_EQ(rays[i].direction[k], ray.direction[k]) << "sample " << i << ", triangle " << t.triangle[i];
       }
       ++compared;
+      if (surface.hard_corners[static_cast<std::size_t>(t.triangle[i])] == 0) continue;
+      const Ray f = make_ray(surface, t.triangle[i], t.bary[i], own, fallback);
+      const Ray a = make_ray(surface, t.triangle[i], t.bary[i], averaged, fallback);
+      const bool is_own = ray.direction == f.direction, is_averaged = ray.direction == a.direction;
+      on_own += is_own ? 1 : 0;
+      blended += !is_own && !is_averaged ? 1 : 0;
     }
-    EXPECT_GT(compared, 1000u);
   }
+  SCOPED_TRACE(testing::Message() << name << ", band " << edge_band);
+  EXPECT_GT(compared, 4000u);
+  if (edge_band > 0.0f) {
+    EXPECT_GT(blended, 500u);  // lanes in the smoothstep: the distance arithmetic counts
+    if (beyond) {
+      EXPECT_GT(on_own, 100u);  // lanes a band away
+    }
+  } else {
+    EXPECT_EQ(blended, 0u);
+  }
+}
+
+// The lab box turned about a skew axis: hard edges along no axis.
+LowSurface turned_box_surface() {
+  scenes::BoxParams p;
+  p.low_cells = 3;
+  p.high_cells = 8;
+  Mesh low = scenes::make_box(p).low;
+  const glm::vec3 axis = glm::normalize(glm::vec3(0.3f, -0.8f, 0.52f));
+  const float c = std::cos(0.7f), s = std::sin(0.7f);
+  const auto turn = [&](glm::vec3 v) {  // Rodrigues
+    return v * c + glm::cross(axis, v) * s + axis * glm::dot(axis, v) * (1.0f - c);
+  };
+  for (glm::vec3& v : low.positions) v = turn(v) + glm::vec3(0.37f, -1.21f, 2.9f);
+  for (glm::vec3& n : low.normals) n = turn(n);
+  SurfaceStats stats;
+  return build_low_surface(low, nullptr, stats);
+}
+
+LowSurface lab_low_surface(const std::string& name) {
+  scenes::ScenePair pair;
+  if (name == "panel") {
+    scenes::PanelParams p = scenes::panel_params();
+    p.high_cells = 16;
+    pair = scenes::make_panel(p);
+  } else {
+    scenes::RevolveParams p = name == "bowl" ? scenes::bowl_params() : scenes::cylinder_params();
+    p.high_segments = 32;
+    p.high_step = 0.1;
+    pair = scenes::make_revolved(p);
+  }
+  SurfaceStats stats;
+  return build_low_surface(pair.low, nullptr, stats);
+}
+
+TEST(Trace, BandedPacketRaysEqualMakeRayBitForBit) {
+  for (float band : {2.0f, 0.7f, 0.0f}) {
+    check_banded_packets("box 3", box_surface(3), band, 61, 43);
+    check_banded_packets("box 4", box_surface(4), band, 64, 40);
+  }
+  check_banded_packets("turned box", turned_box_surface(), 2.0f, 61, 43);
+  check_banded_packets("turned box", turned_box_surface(), 0.7f, 59, 47);
+  check_banded_packets("cylinder", lab_low_surface("cylinder"), 2.0f, 64, 64, false);
+  check_banded_packets("panel", lab_low_surface("panel"), 2.0f, 64, 64, false);
+  check_banded_packets("bowl", lab_low_surface("bowl"), 4.0f, 64, 64, false);
 }
 
 // A pit deeper than `back`: every ray misses, the retry (out and in up to
