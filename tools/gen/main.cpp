@@ -10,8 +10,9 @@
 //              [--size N] [--supersample K] [--depth-tolerance F] [--json out.json]
 //   nmbake-gen parts --out-dir DIR [--count N] [--high-triangles T]   (named parts, high as OBJ)
 //   nmbake-gen eval SCENE --map M --low L [--cage C] [--samples N] [--space tangent|object]
-//              [--cage-mode banded|averaged|interpolated] [--edge-band F] [--front F --back B | --report bake_report.json]
-//              [--json out.json] [--floors]
+//              [--cage-mode banded|averaged|interpolated] [--edge-band F]
+//              [--front F --back B | --report bake_report.json]
+//              [--retry-truth] [--json out.json] [--floors]
 //   nmbake-gen convert IN OUT     (mesh formats, for the loading benchmarks)
 //   nmbake-gen load FILE [--low]  (load only, for /usr/bin/time)
 // Every scene but the moon also gets <scene>_cage.obj: the low mesh pushed
@@ -133,8 +134,9 @@ int fail_with(const std::string& message) {
 
 int run_eval(const std::string& scene, const std::string& map_path, const std::string& low_path,
              const std::string& cage_path, const std::string& report_path, const std::string& json_path,
-             const std::string& space, const std::string& green, const std::string& cage_mode, int samples, int size,
-             float front, float back, float edge_band, bool floors, const std::string& cache) {
+             const std::string& space, const std::string& green, const std::string& cage_mode, int samples,
+             int size, float front, float back, float edge_band, bool floors, const std::string& cache,
+             bool retry_truth) {
   scenes::EvalOptions o;
   o.samples = samples;
   if (!nmbake::is_supported_sample_count(samples)) return fail_with("--truth-samples: use 1, 4, 16 or 64");
@@ -157,6 +159,7 @@ int run_eval(const std::string& scene, const std::string& map_path, const std::s
     }
   }
   if (!(front >= 0.0f) || !(back >= 0.0f)) return fail_with("eval needs the bake's distances: --front F --back B or --report");
+  if (retry_truth) o.rays.retry_reach = -1.0f;  // resolved once the low mesh is loaded
   o.rays.front = front;
   o.rays.back = back;
 
@@ -179,6 +182,8 @@ int run_eval(const std::string& scene, const std::string& map_path, const std::s
     return fail_with("eval needs --map (or --floors)");
   }
   const int width = map_path.empty() ? size : map.width, height = map_path.empty() ? size : map.height;
+  if (o.rays.retry_reach < 0.0f)
+    o.rays.retry_reach = nmbake::kProbeReach * nmbake::compute_bounds(low).diagonal();
   // On a low mesh without hard edges the banded cage's rays are the
   // averaged cage's: one truth serves both.
   nmbake::SurfaceStats surface_stats;
@@ -390,7 +395,7 @@ int main(int argc, char** argv) {
     int samples = 64, size = 512;
     std::string cache;
     float front = -1.0f, back = -1.0f;
-    bool floors = false;
+    bool floors = false, retry_truth = false;
   } ev;
   CLI::App* eval_cmd = app.add_subcommand("eval", "Coverage and angular error of a baked map of an analytic scene");
   eval_cmd->add_option("scene", ev.scene, "heightfield | sphere | torus | craters | box | slot")
@@ -412,6 +417,10 @@ int main(int argc, char** argv) {
   eval_cmd->add_option("--json", ev.json, "also write the figures here");
   eval_cmd->add_option("--size", ev.size, "--floors without --map: map size")->capture_default_str();
   eval_cmd->add_option("--threads", options.threads, "Worker threads, 0 = all cores")->check(CLI::Range(0, 1024));
+  eval_cmd->add_flag(
+      "--retry-truth", ev.retry_truth,
+      "where the bake's ray meets no true surface, search its line out and in up to the distance probes' "
+      "reach (as a retried bake does), whatever the bake did: a miss then counts as an error");
   eval_cmd->add_flag("--floors", ev.floors, "score the perfect map as float, 16-bit and 8-bit (the evaluator's floors)");
 
   AppearanceFlags ap;
@@ -508,8 +517,10 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (appearance_cmd->parsed()) return run_appearance(ap);
-    if (eval_cmd->parsed()) return run_eval(ev.scene, ev.map, ev.low, ev.cage, ev.report, ev.json, ev.space, ev.green,
-                                            ev.cage_mode, ev.samples, ev.size, ev.front, ev.back, ev.edge_band, ev.floors, ev.cache);
+    if (eval_cmd->parsed())
+      return run_eval(ev.scene, ev.map, ev.low, ev.cage, ev.report, ev.json, ev.space, ev.green, ev.cage_mode,
+                      ev.samples, ev.size, ev.front, ev.back, ev.edge_band, ev.floors, ev.cache,
+                      ev.retry_truth);
     for (const auto& [name, cmd] : hard) {
       if (!cmd->parsed()) continue;
       return generate_and_write(options, name, [&name = name] {
