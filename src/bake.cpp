@@ -6,6 +6,7 @@
 #include "huge_pages.hpp"
 #include "nmbake/budget.hpp"
 #include "nmbake/maps.hpp"
+#include "nmbake/job.hpp"
 #include "nmbake/task.hpp"
 #include "nmbake/udim.hpp"
 
@@ -190,6 +191,9 @@ Status validate_options(const BakeOptions& o) {
     }
     return Status::ok();
   };
+  if (!(o.edge_band >= 0.0f && o.edge_band <= 100.0f)) {
+    return Status::bad_input("--edge-band " + number_text(o.edge_band) + " is out of range (0 to 100)");
+  }
   NMBAKE_TRY(check_limit("front", o.front));
   NMBAKE_TRY(check_limit("back", o.back));
   if (o.padding < 0 || o.padding > 4096) {
@@ -880,6 +884,14 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   }
   rays.front = resolve(o.front, r.low_diagonal, estimate.front);
   rays.back = resolve(o.back, r.low_diagonal, estimate.back);
+  rays.edge_band = o.edge_band;
+  const bool retry = o.retry_misses == BakeOptions::Retry::on ||
+                     (o.retry_misses == BakeOptions::Retry::automatic && !use_cage_mesh &&
+                      o.front.kind == Distance::Kind::automatic && o.back.kind == Distance::Kind::automatic);
+  rays.retry_reach = retry ? kProbeReach * r.low_diagonal : 0.0f;
+  r.cage_mode = to_string(rays.cage);
+  r.edge_band = rays.cage == CageMode::banded ? rays.edge_band : 0.0f;
+  r.retry_reach = rays.retry_reach;
   r.front = rays.front;
   r.back = rays.back;
   for (std::size_t g = 0; g < groups.groups.size(); ++g) {
@@ -888,6 +900,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
     r.groups.push_back({groups.groups[g], rays.groups.back().front, rays.groups.back().back});
   }
   r.unused_high_parts = groups.unused_high_parts;
+  if (rays.cage == CageMode::banded) prepare_edge_band(surface, edge_band_reach(rays));
 
   Prepared prepared{o, high, scene, rays, MapSettings{}};
   MapSettings& map_settings = prepared.maps;

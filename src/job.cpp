@@ -37,8 +37,25 @@ bool parse_high_normals(const std::string& t, HighNormals& out) {
   return true;
 }
 bool parse_cage_mode(const std::string& t, CageMode& out) {
-  if (t == "averaged") out = CageMode::averaged;
+  if (t == "banded") out = CageMode::banded;
+  else if (t == "averaged") out = CageMode::averaged;
   else if (t == "interpolated") out = CageMode::interpolated;
+  else return false;
+  return true;
+}
+const char* to_string(CageMode mode) {
+  switch (mode) {
+    case CageMode::banded: return "banded";
+    case CageMode::averaged: return "averaged";
+    case CageMode::interpolated: return "interpolated";
+    case CageMode::mesh: break;
+  }
+  return "mesh";
+}
+bool parse_retry_misses(const std::string& t, BakeOptions::Retry& out) {
+  if (t == "auto") out = BakeOptions::Retry::automatic;
+  else if (t == "on") out = BakeOptions::Retry::on;
+  else if (t == "off") out = BakeOptions::Retry::off;
   else return false;
   return true;
 }
@@ -127,7 +144,14 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
   } else if (key == "high_normals") {
     if (!get_string(text) || !parse_high_normals(text, o.high_normals)) return bad("expected \"smooth\" or \"face\"");
   } else if (key == "cage_mode") {
-    if (!get_string(text) || !parse_cage_mode(text, o.cage_mode)) return bad("expected \"averaged\" or \"interpolated\"");
+    if (!get_string(text) || !parse_cage_mode(text, o.cage_mode))
+      return bad("expected \"banded\", \"averaged\" or \"interpolated\"");
+  } else if (key == "edge_band") {
+    if (!value.is_number() || !(*value.value<double>() >= 0.0 && *value.value<double>() <= 100.0))
+      return bad("expected a number from 0 to 100");
+    o.edge_band = static_cast<float>(*value.value<double>());
+  } else if (key == "retry_misses") {
+    if (!get_string(text) || !parse_retry_misses(text, o.retry_misses)) return bad("expected \"auto\", \"on\" or \"off\"");
   } else if (key == "build_quality") {
     if (!get_string(text) || !parse_build_quality(text, o.build_quality)) return bad("expected \"low\", \"medium\" or \"high\"");
   } else if (key == "bvh") {

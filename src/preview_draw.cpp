@@ -110,6 +110,20 @@ glm::vec3 shade(const glm::vec3& normal, const glm::vec3& to_eye, const Lights& 
   return display;
 }
 
+glm::vec3 high_normal(const Mesh& high, std::int32_t tri, glm::vec2 b, const glm::vec3& otherwise,
+                      bool& fallback) {
+  const std::uint32_t* h = &high.indices[3 * static_cast<std::size_t>(tri)];
+  const glm::vec3 n =
+      high.normals[h[0]] * (1.0f - b.x - b.y) + high.normals[h[1]] * b.x + high.normals[h[2]] * b.y;
+  const float l = glm::length(n);
+  if (l > 1e-12f && std::isfinite(l)) return n / l;
+  fallback = true;
+  const glm::vec3 f =
+      glm::cross(high.positions[h[1]] - high.positions[h[0]], high.positions[h[2]] - high.positions[h[0]]);
+  const float lf = glm::length(f);
+  return lf > 1e-12f && std::isfinite(lf) ? f / lf : otherwise;
+}
+
 // --- Embree ------------------------------------------------------------------
 
 namespace {

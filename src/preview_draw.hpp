@@ -53,6 +53,11 @@ Lights make_lights(const Camera& camera, const ViewOptions& view);
 // Returns display values (gamma 1/2.2), in 0..1.
 glm::vec3 shade(const glm::vec3& normal, const glm::vec3& to_eye, const Lights& lights);
 
+// The high normal at a hit, as encode() computes it: interpolated vertex
+// normals, else the face normal (`fallback` set), else `otherwise`.
+glm::vec3 high_normal(const Mesh& high, std::int32_t tri, glm::vec2 b, const glm::vec3& otherwise,
+                      bool& fallback);
+
 // One triangle soup or indexed mesh for primary rays. Triangle ids and
 // barycentrics (weights of corners 1 and 2) follow the given index order.
 struct RayHit {

@@ -109,22 +109,6 @@ glm::vec3 unit_or(const glm::vec3& v, const glm::vec3& fallback, bool& used_fall
   return fallback;
 }
 
-// The high normal at a hit, as encode() computes it: interpolated vertex
-// normals, else the face normal, else `otherwise`.
-glm::vec3 high_normal(const Mesh& high, std::int32_t tri, glm::vec2 b, const glm::vec3& otherwise,
-                      bool& fallback) {
-  const std::uint32_t* h = &high.indices[3 * static_cast<std::size_t>(tri)];
-  const glm::vec3 n =
-      high.normals[h[0]] * (1.0f - b.x - b.y) + high.normals[h[1]] * b.x + high.normals[h[2]] * b.y;
-  const float l = glm::length(n);
-  if (l > 1e-12f && std::isfinite(l)) return n / l;
-  fallback = true;
-  const glm::vec3 f =
-      glm::cross(high.positions[h[1]] - high.positions[h[0]], high.positions[h[2]] - high.positions[h[0]]);
-  bool unused = false;
-  return unit_or(f, otherwise, unused);
-}
-
 constexpr float kRadToDeg = 57.29577951308232f;
 const glm::vec3 kMissColour{0.9f, 0.1f, 0.85f};
 const glm::vec3 kGapColour{0.04f, 0.04f, 0.045f};
@@ -188,6 +172,45 @@ void draw_scale_bar(Image& panel, float heat_max, int scale) {
 
 }  // namespace
 
+glm::vec3 decode_map_normal(const LowSurface& surface, const Image& map, std::int32_t tri, glm::vec2 b,
+                            NormalSpace space, GreenChannel green, const glm::vec3& otherwise, bool& fallback,
+                            const NormalDecode& decode) {
+  const std::size_t base = 3 * static_cast<std::size_t>(tri);
+  const glm::vec3 N = interpolate(surface.normal, base, b);
+  const glm::vec4 tw = interpolate(surface.tangent, base, b);
+  const glm::vec2 uv = interpolate(surface.uv, base, b);
+  glm::vec3 t = 2.0f * sample_map(map, uv) - 1.0f;
+  const glm::vec3 low_normal = unit_or(N, otherwise, fallback);
+  if (space != NormalSpace::tangent) return unit_or(t, low_normal, fallback);
+  if (green == GreenChannel::down) t.y = -t.y;
+  if (decode.is_default()) {
+    const glm::vec3 T(tw);
+    const float sign = tw.w < 0.0f ? -1.0f : 1.0f;
+    const glm::vec3 raw = t.x * T + t.y * (sign * glm::cross(N, T)) + t.z * N;
+    const float l = glm::length(raw);
+    if (l > 1e-12f && std::isfinite(l)) return tangent_to_world(t, T, N, sign);
+    fallback = true;
+    return low_normal;
+  }
+  // Another engine's decode (preset.hpp): z from the filtered x, y, B per
+  // vertex, the frame normalised, as `decode` says.
+  if (decode.rebuild_blue) t.z = std::sqrt(std::max(0.0f, 1.0f - t.x * t.x - t.y * t.y));
+  glm::vec3 T(tw), B = decode_bitangent(surface, static_cast<std::size_t>(tri), b, decode.bitangent), M = N;
+  bool usable = true;
+  if (decode.unit_frame) {
+    for (glm::vec3* column : {&T, &B, &M}) {
+      const float lc = glm::length(*column);
+      usable = usable && lc > 1e-12f && std::isfinite(lc);
+      if (usable) *column /= lc;
+    }
+  }
+  const glm::vec3 raw = t.x * T + t.y * B + t.z * M;
+  const float l = glm::length(raw);
+  if (usable && l > 1e-12f && std::isfinite(l)) return raw / l;
+  fallback = true;
+  return low_normal;
+}
+
 Status render_preview(const LowSurface& surface, const Mesh& high, const Image& map,
                       const PreviewOptions& options, Image& sheet, PreviewStats& stats) {
   NMBAKE_TRY(validate_view_options(options.view));
@@ -235,10 +258,20 @@ Status render_preview(const LowSurface& surface, const Mesh& high, const Image& 
     return estimated;
   };
   RayOptions rays;
-  rays.cage = CageMode::averaged;
+  rays.cage = options.cage_mode;
   rays.hit = options.hit;
   rays.front = resolve(options.front, estimate.front);
   rays.back = resolve(options.back, estimate.back);
+  if (options.front.kind == Distance::Kind::automatic && options.back.kind == Distance::Kind::automatic) {
+    rays.retry_reach = kProbeReach * diagonal;  // as the bake does (BakeOptions::retry_misses)
+  }
+  LowSurface banded_surface;
+  const LowSurface* ray_surface = &surface;
+  if (rays.cage == CageMode::banded) {
+    banded_surface = surface;
+    prepare_edge_band(banded_surface, edge_band_reach(rays));
+    ray_surface = &banded_surface;
+  }
   stats.front = rays.front;
   stats.back = rays.back;
 
@@ -254,8 +287,6 @@ Status render_preview(const LowSurface& surface, const Mesh& high, const Image& 
   sheet = Image{3 * size + 2 * gap, views * size + (views - 1) * gap, 3, {}};
   sheet.pixels.assign(static_cast<std::size_t>(sheet.width) * sheet.height * 3, 0.0f);
   fill_rect(sheet, 0, 0, sheet.width, sheet.height, kGapColour);
-  const bool tangent_space = options.space == NormalSpace::tangent;
-  const float green = options.green == GreenChannel::down ? -1.0f : 1.0f;
 
   std::vector<float> all_angles;
   std::vector<RayHit> low_hits, high_hits;
@@ -285,7 +316,7 @@ Status render_preview(const LowSurface& surface, const Mesh& high, const Image& 
     }
     Hits bake_hits;
     TraceStats trace_stats;
-    trace(bake_scene, surface, bake_samples, rays, bake_hits, trace_stats);
+    trace(bake_scene, *ray_surface, bake_samples, rays, bake_hits, trace_stats);
 
     std::fill(row_decode_fallbacks.begin(), row_decode_fallbacks.end(), 0);
     std::fill(row_high_fallbacks.begin(), row_high_fallbacks.end(), 0);
@@ -307,51 +338,10 @@ Status render_preview(const LowSurface& surface, const Mesh& high, const Image& 
         if (tri < 0) continue;
         const std::size_t base = 3 * static_cast<std::size_t>(tri);
         const glm::vec2 b = low_hits[s].bary;
-        const glm::vec3 N = interpolate(surface.normal, base, b);
-        const glm::vec4 tw = interpolate(surface.tangent, base, b);
-        const glm::vec2 uv = interpolate(surface.uv, base, b);
-        glm::vec3 t = 2.0f * sample_map(map, uv) - 1.0f;
         bool fallback = false;
-        const glm::vec3 low_normal = unit_or(N, to_eye, fallback);
-        glm::vec3 n;
-        if (tangent_space && options.decode.is_default()) {
-          t.y *= green;
-          const glm::vec3 T(tw);
-          const float sign = tw.w < 0.0f ? -1.0f : 1.0f;
-          const glm::vec3 raw = t.x * T + t.y * (sign * glm::cross(N, T)) + t.z * N;
-          const float l = glm::length(raw);
-          if (l > 1e-12f && std::isfinite(l)) {
-            n = tangent_to_world(t, T, N, sign);
-          } else {
-            n = low_normal;
-            fallback = true;
-          }
-        } else if (tangent_space) {
-          // Another engine's decode (preset.hpp): z from the filtered x, y,
-          // B per vertex, the frame normalised, as options.decode says.
-          t.y *= green;
-          if (options.decode.rebuild_blue) t.z = std::sqrt(std::max(0.0f, 1.0f - t.x * t.x - t.y * t.y));
-          glm::vec3 T(tw), B = decode_bitangent(surface, static_cast<std::size_t>(tri), b, options.decode.bitangent),
-                           M = N;
-          bool usable = true;
-          if (options.decode.unit_frame) {
-            for (glm::vec3* column : {&T, &B, &M}) {
-              const float lc = glm::length(*column);
-              usable = usable && lc > 1e-12f && std::isfinite(lc);
-              if (usable) *column /= lc;
-            }
-          }
-          const glm::vec3 raw = t.x * T + t.y * B + t.z * M;
-          const float l = glm::length(raw);
-          if (usable && l > 1e-12f && std::isfinite(l)) {
-            n = raw / l;
-          } else {
-            n = low_normal;
-            fallback = true;
-          }
-        } else {
-          n = unit_or(t, low_normal, fallback);
-        }
+        const glm::vec3 low_normal = unit_or(interpolate(surface.normal, base, b), to_eye, fallback);
+        const glm::vec3 n = decode_map_normal(surface, map, tri, b, options.space, options.green, to_eye, fallback,
+                                             options.decode);
         row_decode_fallbacks[row] += fallback ? 1 : 0;
         low_colour[s] = shade(n, to_eye, lights);
         const std::int32_t hit = bake_hits.triangle[s];

@@ -81,7 +81,12 @@ std::string BakeReport::to_json() const {
                {"rays", trace.rays},
                {"hits", trace.hits},
                {"misses", trace.misses},
-               {"miss_rate", miss_rate()}};
+               {"miss_rate", miss_rate()},
+               {"cage", cage_mode},
+               {"edge_band", edge_band},
+               {"retry_reach", retry_reach},
+               {"retried", trace.retried},
+               {"retry_hits", trace.retry_hits}};
   j["fallbacks"] = {
       {"low_zero_area_triangles", low_mesh.zero_area_triangles},
       {"low_zero_length_normals", low_mesh.zero_length_normals},
@@ -197,6 +202,11 @@ std::string BakeReport::summary_line() const {
                 back, distances_estimated ? " (auto)" : "", total_seconds,
                 static_cast<double>(peak_rss_bytes) / (1024.0 * 1024.0));
   std::string text = line;
+  if (trace.retried > 0) {
+    std::snprintf(line, sizeof line, "; %llu missed samples retried, %llu found a surface",
+                  static_cast<unsigned long long>(trace.retried), static_cast<unsigned long long>(trace.retry_hits));
+    text += line;
+  }
   if (!groups.empty()) {
     std::snprintf(line, sizeof line, "; %zu bake groups", groups.size());
     text += line;

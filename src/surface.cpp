@@ -2,6 +2,7 @@
 #include "nmbake/surface.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <numeric>
 #include <string>
 #include <tuple>
@@ -9,6 +10,66 @@
 #include <glm/geometric.hpp>
 
 namespace nmbake {
+
+namespace {
+std::vector<std::uint32_t> position_identity(const Mesh& mesh);
+
+// Hard corners and hard edges (surface.hpp) from the corners' normals.
+void find_hard_edges(const Mesh& low, LowSurface& s) {
+  const std::size_t corner_count = s.position.size();
+  const std::vector<std::uint32_t> id = position_identity(low);
+  const float cos_limit = std::cos(kHardEdgeDegrees * 3.14159265358979f / 180.0f);
+  const auto differ = [&](std::uint32_t a, std::uint32_t b) { return glm::dot(s.normal[a], s.normal[b]) < cos_limit; };
+  // Corners grouped by position, in corner order.
+  std::vector<std::uint32_t> order(corner_count);
+  std::iota(order.begin(), order.end(), 0u);
+  std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return id[a] < id[b]; });
+  std::vector<std::uint8_t> hard(corner_count, 0);
+  for (std::size_t i = 0; i < corner_count;) {
+    std::size_t j = i;
+    while (j < corner_count && id[order[j]] == id[order[i]]) ++j;
+    for (std::size_t a = i; a < j; ++a) {
+      for (std::size_t b = i; b < j && !hard[order[a]]; ++b) hard[order[a]] = differ(order[a], order[b]) ? 1 : 0;
+    }
+    i = j;
+  }
+  // None: left empty, so the banded cage costs nothing on a smooth mesh.
+  if (std::find(hard.begin(), hard.end(), 1) == hard.end()) return;
+  s.hard_corners.assign(s.triangle_count(), 0);
+  for (std::size_t c = 0; c < corner_count; ++c) s.hard_corners[c / 3] |= static_cast<std::uint8_t>(hard[c] << (c % 3));
+  // Edges between two hard corners, keyed by their positions: hard where the
+  // triangles on the two sides disagree at either end.
+  struct Side {
+    std::uint32_t lo, hi;  // position identities, lo < hi
+    std::uint32_t corner_lo, corner_hi;
+  };
+  std::vector<Side> sides;
+  for (std::size_t c = 0; c < corner_count; ++c) {
+    const std::uint32_t d = static_cast<std::uint32_t>(c - c % 3 + (c + 1) % 3);
+    if (!hard[c] || !hard[d] || id[c] == id[d]) continue;
+    const bool forward = id[c] < id[d];
+    sides.push_back({forward ? id[c] : id[d], forward ? id[d] : id[c], forward ? static_cast<std::uint32_t>(c) : d,
+                     forward ? d : static_cast<std::uint32_t>(c)});
+  }
+  std::stable_sort(sides.begin(), sides.end(),
+                   [](const Side& a, const Side& b) { return a.lo != b.lo ? a.lo < b.lo : a.hi < b.hi; });
+  for (std::size_t i = 0; i < sides.size();) {
+    std::size_t j = i;
+    while (j < sides.size() && sides[j].lo == sides[i].lo && sides[j].hi == sides[i].hi) ++j;
+    bool is_hard = false;
+    for (std::size_t a = i; a < j && !is_hard; ++a) {
+      for (std::size_t b = a + 1; b < j && !is_hard; ++b) {
+        is_hard = differ(sides[a].corner_lo, sides[b].corner_lo) || differ(sides[a].corner_hi, sides[b].corner_hi);
+      }
+    }
+    if (is_hard) {
+      s.hard_edge_a.push_back(s.position[sides[i].corner_lo]);
+      s.hard_edge_b.push_back(s.position[sides[i].corner_hi]);
+    }
+    i = j;
+  }
+}
+}  // namespace
 
 LowSurface build_low_surface(const Mesh& low, const Mesh* cage, SurfaceStats& stats) {
   return build_low_surface(low, cage, TangentBasis::mikktspace, stats);
@@ -31,6 +92,7 @@ LowSurface build_low_surface(const Mesh& low, const Mesh* cage, TangentBasis bas
     s.uv[c] = low.uvs[v];
     s.cage_normal[c] = averaged[v];
   }
+  find_hard_edges(low, s);
   compute_tangents(low, basis, s.tangent, stats.tangents);
   NMBAKE_CHECK(s.tangent.size() == corner_count, "one tangent per corner");
   fill_corner_bitangents(s);

@@ -12,6 +12,8 @@
 // allocated, and the trailing hash finds a torn or altered file.
 #include "nmbake/task.hpp"
 
+#include "nmbake/job.hpp"
+
 #include <algorithm>
 #include <bit>
 #include <chrono>
@@ -76,7 +78,11 @@ std::string bake_key_text(const BakeOptions& o) {
                                                     : number(d.value));
   }
   line("hit", o.hit == HitRule::first ? "first" : "nearest");
-  line("cage_mode", o.cage_mode == CageMode::averaged ? "averaged" : "interpolated");
+  line("cage_mode", to_string(o.cage_mode));
+  if (o.cage_mode == CageMode::banded) line("edge_band", number(o.edge_band));
+  line("retry_misses", o.retry_misses == BakeOptions::Retry::on    ? "on"
+                       : o.retry_misses == BakeOptions::Retry::off ? "off"
+                                                                   : "auto");
   line("cage", o.cage_path.empty() ? "none" : "mesh");
   line("ignore_backfaces", o.ignore_backfaces ? "1" : "0");
   line("high_normals", o.high_normals == HighNormals::smooth ? "smooth" : "face");

@@ -20,6 +20,8 @@
 
 #include <embree3/rtcore.h>
 #include <glm/geometric.hpp>
+#include <glm/vec3.hpp>
+#include <glm/vector_relational.hpp>
 #include <tbb/parallel_for.h>
 
 #include "huge_pages.hpp"
@@ -77,6 +79,9 @@ void backface_filter(const RTCFilterFunctionNArguments* args) {
 [[gnu::always_inline]] inline glm::vec3 interpolate(const std::vector<glm::vec3>& corner, std::size_t base,
                                                     glm::vec2 b) {
   return corner[base] * (1.0f - b.x - b.y) + corner[base + 1] * b.x + corner[base + 2] * b.y;
+}
+[[gnu::always_inline]] inline glm::vec3 interpolate_corners(const glm::vec3* corner, glm::vec2 b) {
+  return corner[0] * (1.0f - b.x - b.y) + corner[1] * b.x + corner[2] * b.y;
 }
 
 }  // namespace
@@ -164,6 +169,46 @@ Status HighScene::build(const Mesh& mesh, BuildQuality quality, bool backface_fi
 
 namespace {
 
+// Whether the banded cage's rays on triangle `tri` differ from the averaged
+// cage's: it has a corner on a hard edge.
+[[gnu::always_inline]] inline bool banded_triangle(const LowSurface& surface, std::int32_t tri) {
+  return !surface.hard_corners.empty() && surface.hard_corners[static_cast<std::size_t>(tri)] != 0;
+}
+
+float point_segment_distance(const glm::vec3& p, const glm::vec3& a, const glm::vec3& b) {
+  const glm::vec3 ab = b - a;
+  const float ab2 = glm::dot(ab, ab);
+  const float t = ab2 > 0.0f ? std::clamp(glm::dot(p - a, ab) / ab2, 0.0f, 1.0f) : 0.0f;
+  return glm::length(p - (a + t * ab));
+}
+
+// The banded cage's (unnormalised) direction on a triangle with a hard
+// corner (trace.hpp): F + w (A - F), A the averaged normal `averaged`
+// interpolated at `b`, F the shading normal at hard corners and A elsewhere,
+// w = smoothstep(1 - d / band) of the distance d from P to the nearest hard
+// edge.
+glm::vec3 banded_direction(const LowSurface& surface, std::int32_t tri, glm::vec2 b, const RayOptions& options,
+                           const glm::vec3& point, const glm::vec3& averaged) {
+  const std::size_t t = static_cast<std::size_t>(tri);
+  const std::size_t base = 3 * t;
+  const std::uint8_t hard = surface.hard_corners[t];
+  glm::vec3 corner[3];
+  for (int k = 0; k < 3; ++k)
+    corner[k] = (hard >> k) & 1 ? surface.normal[base + k] : surface.cage_normal[base + k];
+  const glm::vec3 own = interpolate_corners(corner, b);
+  const float band = options.edge_band * (options.front + options.back);
+  if (!(band > 0.0f)) return own;
+  NMBAKE_CHECK(surface.band_reach >= band, "prepare_edge_band() for this band first");
+  float nearest = band;
+  for (std::uint32_t e = surface.band_first[t]; e < surface.band_first[t + 1]; ++e) {
+    const std::uint32_t edge = surface.band_edges[e];
+    nearest = std::min(nearest, point_segment_distance(point, surface.hard_edge_a[edge], surface.hard_edge_b[edge]));
+  }
+  const float x = 1.0f - nearest / band;  // 1 on a hard edge, 0 a band away
+  const float w = x * x * (3.0f - 2.0f * x);
+  return own + w * (averaged - own);
+}
+
 // make_ray()'s body, forced inline into the tracing loops: called once per
 // ray, it was about a tenth of the trace stage as a call.
 [[gnu::always_inline]] inline Ray build_ray(const LowSurface& surface, std::int32_t tri, glm::vec2 b,
@@ -200,6 +245,7 @@ namespace {
 
   const std::vector<glm::vec3>& normals = options.cage == CageMode::interpolated ? surface.normal : surface.cage_normal;
   glm::vec3 a = interpolate(normals, base, b);
+  if (options.cage == CageMode::banded && banded_triangle(surface, tri)) a = banded_direction(surface, tri, b, options, ray.surface_point, a);
   float length = glm::length(a);
   if (!(length > 1e-12f) || !std::isfinite(length)) {
     used_fallback = true;
@@ -223,6 +269,82 @@ namespace {
 Ray make_ray(const LowSurface& surface, std::int32_t tri, glm::vec2 b, const RayOptions& options,
              bool& used_fallback) {
   return build_ray(surface, tri, b, options, used_fallback);
+}
+
+float edge_band_reach(const RayOptions& options) {
+  float reach = options.edge_band * (options.front + options.back);
+  for (const GroupDistances& g : options.groups) reach = std::max(reach, options.edge_band * (g.front + g.back));
+  return reach;
+}
+
+void prepare_edge_band(LowSurface& surface, float reach) {
+  const std::size_t triangle_count = surface.triangle_count();
+  surface.band_first.assign(triangle_count + 1, 0);
+  surface.band_edges.clear();
+  surface.band_reach = reach;
+  const std::size_t edge_count = surface.hard_edge_a.size();
+  if (surface.hard_corners.empty() || edge_count == 0) return;
+  // A uniform grid over the hard edges, each entered in the cells its box
+  // grown by `reach` overlaps; a triangle's candidates are the edges of the
+  // cells its box overlaps whose grown box overlaps its own.
+  glm::vec3 lo = surface.hard_edge_a[0], hi = lo;
+  for (std::size_t e = 0; e < edge_count; ++e) {
+    lo = glm::min(lo, glm::min(surface.hard_edge_a[e], surface.hard_edge_b[e]));
+    hi = glm::max(hi, glm::max(surface.hard_edge_a[e], surface.hard_edge_b[e]));
+  }
+  lo -= glm::vec3(reach);
+  hi += glm::vec3(reach);
+  const glm::vec3 extent = hi - lo;
+  const float largest = std::max(extent.x, std::max(extent.y, extent.z));
+  const float cell = std::max({reach, largest / 48.0f, 1e-30f});
+  glm::ivec3 dims;
+  for (int k = 0; k < 3; ++k) dims[k] = std::clamp(static_cast<int>(extent[k] / cell) + 1, 1, 64);
+  const auto cell_of = [&](const glm::vec3& p) {
+    glm::ivec3 c;
+    for (int k = 0; k < 3; ++k) c[k] = std::clamp(static_cast<int>((p[k] - lo[k]) / cell), 0, dims[k] - 1);
+    return c;
+  };
+  const auto index = [&](int x, int y, int z) { return (static_cast<std::size_t>(z) * dims.y + y) * dims.x + x; };
+  std::vector<std::uint32_t> count(static_cast<std::size_t>(dims.x) * dims.y * dims.z + 1, 0);
+  std::vector<std::pair<std::size_t, std::uint32_t>> entries;
+  std::vector<glm::vec3> edge_lo(edge_count), edge_hi(edge_count);
+  for (std::size_t e = 0; e < edge_count; ++e) {
+    edge_lo[e] = glm::min(surface.hard_edge_a[e], surface.hard_edge_b[e]) - glm::vec3(reach);
+    edge_hi[e] = glm::max(surface.hard_edge_a[e], surface.hard_edge_b[e]) + glm::vec3(reach);
+    const glm::ivec3 a = cell_of(edge_lo[e]), b = cell_of(edge_hi[e]);
+    for (int z = a.z; z <= b.z; ++z)
+      for (int y = a.y; y <= b.y; ++y)
+        for (int x = a.x; x <= b.x; ++x) entries.emplace_back(index(x, y, z), static_cast<std::uint32_t>(e));
+  }
+  std::sort(entries.begin(), entries.end());
+  std::vector<std::uint32_t> cell_first(count.size(), 0);
+  for (const auto& entry : entries) ++cell_first[entry.first + 1];
+  for (std::size_t c = 1; c < cell_first.size(); ++c) cell_first[c] += cell_first[c - 1];
+  std::vector<std::uint32_t> candidates;
+  for (std::size_t t = 0; t < triangle_count; ++t) {
+    surface.band_first[t] = static_cast<std::uint32_t>(surface.band_edges.size());
+    if (surface.hard_corners[t] == 0) continue;
+    const glm::vec3& p0 = surface.position[3 * t];
+    const glm::vec3& p1 = surface.position[3 * t + 1];
+    const glm::vec3& p2 = surface.position[3 * t + 2];
+    const glm::vec3 tlo = glm::min(p0, glm::min(p1, p2)), thi = glm::max(p0, glm::max(p1, p2));
+    const glm::ivec3 a = cell_of(tlo), b = cell_of(thi);
+    candidates.clear();
+    for (int z = a.z; z <= b.z; ++z)
+      for (int y = a.y; y <= b.y; ++y)
+        for (int x = a.x; x <= b.x; ++x) {
+          const std::size_t c = index(x, y, z);
+          for (std::uint32_t i = cell_first[c]; i < cell_first[c + 1]; ++i) {
+            const std::uint32_t e = entries[i].second;
+            if (glm::all(glm::lessThanEqual(edge_lo[e], thi)) && glm::all(glm::lessThanEqual(tlo, edge_hi[e])))
+              candidates.push_back(e);
+          }
+        }
+    std::sort(candidates.begin(), candidates.end());
+    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+    surface.band_edges.insert(surface.band_edges.end(), candidates.begin(), candidates.end());
+  }
+  surface.band_first[triangle_count] = static_cast<std::uint32_t>(surface.band_edges.size());
 }
 
 namespace {
@@ -390,6 +512,51 @@ template <class F>
   });
 }
 
+// banded_direction() for four lanes on one triangle with a hard corner: the
+// same operations per lane, in the same order (simd4.hpp), so the lanes are
+// make_ray()'s bit for bit. P and A are the lanes' points and averaged
+// normals.
+detail::Axes banded_axes(const LowSurface& surface, std::int32_t tri, const detail::Weights& w,
+                         const detail::Axes& P, const detail::Axes& A, const RayOptions& options) {
+  using namespace detail;
+  const std::size_t t = static_cast<std::size_t>(tri);
+  const std::size_t base = 3 * t;
+  const std::uint8_t hard = surface.hard_corners[t];
+  glm::vec3 corner[3];
+  for (int k = 0; k < 3; ++k)
+    corner[k] = (hard >> k) & 1 ? surface.normal[base + k] : surface.cage_normal[base + k];
+  const Axes own = mix_axes(corner, w);
+  const float band = options.edge_band * (options.front + options.back);
+  if (!(band > 0.0f)) return own;
+  NMBAKE_CHECK(surface.band_reach >= band, "prepare_edge_band() for this band first");
+  const auto blend = [](i4 mask, f4 yes, f4 no) {
+    return reinterpret_cast<f4>((reinterpret_cast<i4>(yes) & mask) | (reinterpret_cast<i4>(no) & ~mask));
+  };
+  const f4 zero = splat4(0.0f), one = splat4(1.0f);
+  f4 nearest = splat4(band);
+  for (std::uint32_t e = surface.band_first[t]; e < surface.band_first[t + 1]; ++e) {
+    const std::uint32_t edge = surface.band_edges[e];
+    const glm::vec3 ea = surface.hard_edge_a[edge];
+    const glm::vec3 ab = surface.hard_edge_b[edge] - ea;
+    const float ab2 = glm::dot(ab, ab);
+    const f4 px = P.x - splat4(ea.x), py = P.y - splat4(ea.y), pz = P.z - splat4(ea.z);
+    f4 s = zero;
+    if (ab2 > 0.0f) {
+      s = (px * splat4(ab.x) + py * splat4(ab.y) + pz * splat4(ab.z)) / splat4(ab2);
+      s = blend(s < zero, zero, blend(one < s, one, s));  // std::clamp(s, 0, 1)
+    }
+    const f4 qx = P.x - (splat4(ea.x) + s * splat4(ab.x));
+    const f4 qy = P.y - (splat4(ea.y) + s * splat4(ab.y));
+    const f4 qz = P.z - (splat4(ea.z) + s * splat4(ab.z));
+    const f4 d = sqrt4(qx * qx + qy * qy + qz * qz);
+    nearest = blend(d < nearest, d, nearest);  // std::min(nearest, d)
+  }
+  const f4 x = one - nearest / splat4(band);
+  const f4 weight = x * x * (splat4(3.0f) - splat4(2.0f) * x);
+  return {own.x + weight * (A.x - own.x), own.y + weight * (A.y - own.y), own.z + weight * (A.z - own.z),
+          f4{}};
+}
+
 // Builds the queued lanes' rays four at a time in SIMD lanes, one vector per
 // axis: the point and the cage normal are interpolated, then come the
 // lengths, the unit normals and the origins. Four lanes on one low triangle
@@ -397,13 +564,19 @@ template <class F>
 // across the lanes; otherwise lane by lane, then transposed. The operations
 // are build_ray()'s, in its order, so the rays are bit for bit the same; a
 // lane whose normal is zero or not finite takes build_ray() and its fallback.
-// Of the other fields only those Embree writes (tfar, geomID) and the valid
-// mask are set, for all 16 lanes (lanes past the count are invalid); the
-// rest are set once per packet by start_packet(). Returns the number
-// of lanes that took the fallback.
+// Banded cage: four lanes on one triangle with a hard corner take
+// banded_axes(); in a group of lanes on several triangles, those on a
+// triangle with a hard corner take build_ray(). Of the other fields only
+// those Embree writes (tfar, geomID) and the valid mask are set, for all 16
+// lanes (lanes past the count are invalid); the rest are set once per
+// packet by start_packet(). Returns the number of lanes that took the
+// fallback.
 std::uint64_t build_queued_rays(Packet& p, const LowSurface& surface, const RayOptions& options) {
   using namespace detail;
   const std::vector<glm::vec3>& normals = options.cage == CageMode::interpolated ? surface.normal : surface.cage_normal;
+  // The banded cage's rays are the averaged cage's except on triangles with a
+  // hard corner: a surface without hard edges never looks.
+  const bool banded = options.cage == CageMode::banded && !surface.hard_corners.empty();
   RTCRay16& r = p.rayhit.ray;
   const int n = p.count;
   const f4 front = splat4(options.front);
@@ -420,11 +593,13 @@ std::uint64_t build_queued_rays(Packet& p, const LowSurface& surface, const RayO
   for (int g = 0; g < n; g += 4) {
     Axes P, a;
     const i4 tri = load4i(p.triangle + g);
-    if (all4(tri == splat4i(tri[0]))) {
+    const bool one_triangle = all4(tri == splat4i(tri[0]));
+    if (one_triangle) {
       const std::size_t base = 3 * static_cast<std::size_t>(tri[0]);
       const Weights w = lane_weights(&p.bary[g]);
       P = mix_axes(&surface.position[base], w);
       a = mix_axes(&normals[base], w);
+      if (banded && banded_triangle(surface, tri[0])) a = banded_axes(surface, tri[0], w, P, a, options);
     } else {
       f4 point[4], normal[4];
       for (int k = 0; k < 4; ++k) {
@@ -442,7 +617,11 @@ std::uint64_t build_queued_rays(Packet& p, const LowSurface& surface, const RayO
       a = transpose(normal[0], normal[1], normal[2], normal[3]);
     }
     const f4 length = sqrt4(a.x * a.x + a.y * a.y + a.z * a.z);
-    const i4 ok = (length > splat4(1e-12f)) & finite4(length);
+    i4 ok = (length > splat4(1e-12f)) & finite4(length);
+    if (banded && !one_triangle) {
+      // Lanes of several triangles, some with a hard corner: build_ray's banded direction.
+      for (int k = 0; k < 4; ++k) ok[k] = banded_triangle(surface, p.triangle[g + k]) ? 0 : ok[k];
+    }
     const f4 inv = splat4(1.0f) / length;
     const f4 ax = a.x * inv, ay = a.y * inv, az = a.z * inv;
     store4(r.org_x + g, P.x + front * ax);
@@ -552,7 +731,7 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
   }
 
   struct TileCounts {
-    std::uint64_t rays = 0, samples = 0, hits = 0, misses = 0, fallbacks = 0;
+    std::uint64_t rays = 0, samples = 0, hits = 0, misses = 0, fallbacks = 0, retried = 0, retry_hits = 0;
   };
   std::vector<TileCounts> tile_counts(tile_count);
 
@@ -567,6 +746,61 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
     const bool queued = !grouped && batched_rays(options);
     start_packet(packet, queued);
     int packet_scene = 0;
+
+    // Every sample of the tile that found nothing is traced once more (the
+    // retry, trace.hpp), in trace order: two rays from P along its ray's
+    // line, out and in up to retry_reach, the hit nearer to P kept.
+    auto retry = [&]() {
+      if (!(options.retry_reach > 0.0f) || counts.misses == 0) return;
+      Packet again;
+      reset_packet(again);
+      int again_scene = 0;
+      std::vector<std::size_t> retried;
+      auto flush = [&]() {
+        if (again.count == 0) return;
+        rtcIntersect16(again.valid, impl.scenes[again_scene], &context, &again.rayhit);
+        counts.rays += static_cast<std::uint64_t>(again.count);
+        for (int i = 0; i < again.count; ++i) {
+          const std::size_t s = again.sample[i];
+          const unsigned geometry = again.rayhit.hit.geomID[i];
+          if (geometry == RTC_INVALID_GEOMETRY_ID) continue;
+          const std::uint32_t first = impl.first_triangle[again_scene * per_scene + static_cast<int>(geometry)];
+          const float distance = again.sign[i] * (again.t_surface[i] - again.rayhit.ray.tfar[i]);
+          if (hits.triangle[s] < 0 || std::fabs(distance) < std::fabs(hits.distance[s]) ||
+              (std::fabs(distance) == std::fabs(hits.distance[s]) && distance > hits.distance[s])) {
+            hits.triangle[s] = static_cast<std::int32_t>(first + again.rayhit.hit.primID[i]);
+            hits.bary[s] = glm::vec2(again.rayhit.hit.u[i], again.rayhit.hit.v[i]);
+            hits.distance[s] = distance;
+          }
+        }
+        reset_packet(again);
+      };
+      for_each_sample_in_trace_order(samples, rect, [&](std::size_t s) {
+        const std::int32_t tri = samples.triangle[s];
+        if (tri < 0 || hits.triangle[s] >= 0) return;
+        const RayOptions* ray_options = &options;
+        unsigned mask = 0xffffffffu;
+        if (grouped) {
+          const std::uint32_t g = surface.group[static_cast<std::size_t>(tri)];
+          ray_options = &group_options[g];
+          const int scene_index = static_cast<int>(g) / per_scene;
+          if (per_scene > 1) mask = 1u << (static_cast<int>(g) % per_scene);
+          if (scene_index != again_scene) flush();
+          again_scene = scene_index;
+        }
+        bool fallback = false;  // counted when the sample was first traced
+        const Ray ray = build_ray(surface, tri, samples.bary[s], *ray_options, fallback);
+        if (again.count > kPacket - 2) flush();
+        add_ray(again, s, ray.surface_point, -ray.direction, options.retry_reach, 0.0f, -1.0f);
+        add_ray(again, s, ray.surface_point, ray.direction, options.retry_reach, 0.0f, 1.0f);
+        again.rayhit.ray.mask[again.count - 2] = mask;
+        again.rayhit.ray.mask[again.count - 1] = mask;
+        retried.push_back(s);
+      });
+      flush();
+      counts.retried += retried.size();
+      for (const std::size_t s : retried) counts.retry_hits += hits.triangle[s] >= 0 ? 1 : 0;
+    };
 
     // The common case (first hit, rays queued and built together): each
     // sample's result is written once, -1 for no sample or a miss, and the
@@ -586,6 +820,9 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
       flush();
       counts.samples = counts.rays;
       counts.misses = counts.samples - counts.hits;
+      retry();
+      counts.hits += counts.retry_hits;
+      counts.misses -= counts.retry_hits;
       return;
     }
 
@@ -662,6 +899,9 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
         }
       }
     }
+    retry();
+    counts.hits += counts.retry_hits;
+    counts.misses -= counts.retry_hits;
   };
 
   // Batches of tiles, so progress can be reported from this thread between
@@ -680,6 +920,8 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
     stats.hits += c.hits;
     stats.misses += c.misses;
     stats.ray_fallbacks += c.fallbacks;
+    stats.retried += c.retried;
+    stats.retry_hits += c.retry_hits;
   }
 }
 
@@ -706,7 +948,7 @@ DistanceEstimate estimate_distances(const HighScene& scene, const LowSurface& su
   std::vector<float> signed_distance(probe_count, 0.0f);
   std::vector<std::uint8_t> found(probe_count, 0);
 
-  const float reach = 0.25f * diagonal;
+  const float reach = kProbeReach * diagonal;
   RayOptions options;
   options.cage = CageMode::averaged;
   const HighScene::Impl& impl = *scene.impl();

@@ -827,8 +827,12 @@ TEST(LoadFormatsBake, ObjTransformedTwoPartGltfAndFbxBakeTheSameMap) {
   const json report = json::parse(report_file);
   EXPECT_DOUBLE_EQ(report["unit_meters"]["low"].get<double>(), 0.01);
   EXPECT_DOUBLE_EQ(report["unit_meters"]["high"].get<double>(), 0.0);
+  // Not bit-exact, the FBX's points give the automatic back distance 0.2%
+  // more (0.1407 against 0.1404: another probe lands on the 99.5th
+  // percentile), which widens the banded cage's band around the hard edges
+  // as much: half of the texels move by a 16-bit step (0.0017 degrees).
   const test::CommandResult fbx_diff = test::run_command(test::cli_path() + " diff " + dir.file("obj.png") + " " +
-                                                         dir.file("fbx.png") + " --max-max 0.05 --max-mean 0.001");
+                                                         dir.file("fbx.png") + " --max-max 0.05 --max-mean 0.002");
   EXPECT_EQ(fbx_diff.exit_code, 0) << fbx_diff.output;
   std::printf("OBJ vs transformed FBX (cm): %s\n", fbx_diff.output.c_str());
 }

@@ -16,6 +16,8 @@
 #include <vector>
 
 #include "nmbake/load.hpp"
+#include "hard_scenes.hpp"
+#include "lab_scenes.hpp"
 #include "noise.hpp"
 #include "test_util.hpp"
 
@@ -530,6 +532,147 @@ TEST(ScenesCli, WritesBothFilesAndRejectsBadUsage) {
     const nmbake::test::CommandResult bad = nmbake::test::run_command(nmbake::test::gen_path() + " " + args);
     EXPECT_EQ(bad.exit_code, 2) << args << ": " << bad.output;
   }
+}
+
+// --- Hard-edged and concave scenes (hard_scenes.hpp) -----------------------
+
+// The distance of a profile against a dense polyline of it, its sign against
+// the closed polygon (even-odd), and its normal against the gradient.
+TEST(ScenesHard, RevolvedProfileDistanceIsExact) {
+  for (const scenes::RevolveParams& p : {scenes::bowl_params(), scenes::cylinder_params()}) {
+    const scenes::RevolveProfile profile(p.profile);
+    std::vector<glm::dvec2> dense;
+    for (const auto& e : profile.elements()) {
+      for (int j = 0; j < 4000; ++j) dense.push_back(e.point(j / 4000.0));
+    }
+    dense.push_back(profile.elements().back().b);
+    const auto inside = [&](const glm::dvec2& q) {  // closed along the axis
+      bool in = false;
+      for (std::size_t i = 0; i < dense.size(); ++i) {
+        const glm::dvec2 a = dense[i], b = dense[(i + 1) % dense.size()];
+        if ((a.y > q.y) != (b.y > q.y) && q.x < a.x + (q.y - a.y) * (b.x - a.x) / (b.y - a.y)) in = !in;
+      }
+      return in;
+    };
+    double worst = 0.0, worst_angle = 0.0;
+    for (int i = 0; i < 3000; ++i) {
+      const glm::dvec2 q(0.013 + 1.1 * std::fmod(0.7548776662 * (i + 1), 1.0), -0.95 + 1.9 * std::fmod(0.5698402910 * (i + 1), 1.0));
+      double near = 1e9;
+      for (const glm::dvec2& d : dense) near = std::min(near, glm::length(q - d));
+      glm::dvec2 n;
+      const double sd = profile.signed_distance(q, &n);
+      if (near < 0.002) continue;  // the polyline's own error
+      worst = std::max(worst, std::fabs(std::fabs(sd) - near));
+      EXPECT_EQ(sd < 0.0, inside(q)) << q.x << " " << q.y;
+      // The gradient of the field at q, by central differences.
+      const double h = 1e-6;
+      const glm::dvec2 g((profile.signed_distance(q + glm::dvec2(h, 0), nullptr) - profile.signed_distance(q - glm::dvec2(h, 0), nullptr)) / (2 * h),
+                         (profile.signed_distance(q + glm::dvec2(0, h), nullptr) - profile.signed_distance(q - glm::dvec2(0, h), nullptr)) / (2 * h));
+      if (std::fabs(glm::length(g) - 1.0) > 1e-3) continue;  // on a medial axis
+      // Nearest to a sharp corner, the gradient points from the corner.
+      bool corner = false;
+      for (std::size_t k = 0; k + 1 < profile.elements().size(); ++k) {
+        const auto& e = profile.elements()[k];
+        if (glm::dot(e.normal_at(1.0), profile.elements()[k + 1].normal_at(0.0)) < 1.0 - 1e-9 &&
+            std::fabs(glm::length(q - e.b) - std::fabs(sd)) < 1e-9)
+          corner = true;
+      }
+      if (corner) continue;
+      worst_angle = std::max(worst_angle, std::acos(std::clamp(glm::dot(glm::normalize(g), n), -1.0, 1.0)) / kDegree);
+    }
+    EXPECT_LT(worst, 1e-4);
+    EXPECT_LT(worst_angle, 0.01);
+  }
+}
+
+TEST(ScenesHard, MeshesAreClosedOutwardAndOnTheirSurface) {
+  for (const std::string name : {"bowl", "cylinder", "panel", "box_r0.05"}) {
+    SCOPED_TRACE(name);
+    // The lab's scenes at a lower resolution (the generators are the same).
+    scenes::ScenePair pair;
+    if (name == "bowl" || name == "cylinder") {
+      scenes::RevolveParams p = name == "bowl" ? scenes::bowl_params() : scenes::cylinder_params();
+      p.high_segments = 96;
+      p.high_step = 0.02;
+      pair = scenes::make_revolved(p);
+    } else if (name == "panel") {
+      scenes::PanelParams p = scenes::panel_params();
+      p.high_cells = 64;
+      pair = scenes::make_panel(p);
+    } else {
+      scenes::BoxParams p;
+      p.bevel = 0.05f;
+      p.high_cells = 48;
+      pair = scenes::make_box(p);
+    }
+    expect_finite(pair.low);
+    expect_finite(pair.high);
+    expect_watertight(pair.low);
+    expect_watertight(pair.high);
+    ASSERT_TRUE(pair.low.has_uvs());
+    for (const glm::vec2& uv : pair.low.uvs) {
+      ASSERT_GE(std::min(uv.x, uv.y), 0.0f);
+      ASSERT_LE(std::max(uv.x, uv.y), 1.0f);
+    }
+    // Windings agree with the normals (outward), and the high vertices lie on
+    // the true surface with its normals.
+    for (const Mesh* m : {&pair.low, &pair.high}) {
+      std::size_t against = 0;
+      for (std::size_t t = 0; t < m->triangle_count(); ++t) {
+        const std::uint32_t* v = &m->indices[3 * t];
+        const glm::vec3 face = glm::cross(m->positions[v[1]] - m->positions[v[0]], m->positions[v[2]] - m->positions[v[0]]);
+        if (glm::dot(face, m->normals[v[0]] + m->normals[v[1]] + m->normals[v[2]]) <= 0.0f) ++against;
+      }
+      EXPECT_EQ(against, 0u);
+    }
+    const auto truth = [&](const glm::dvec3& x, glm::dvec3& n) {
+      if (name == "panel") {
+        n = scenes::panel_normal(scenes::panel_params(), x);
+        return scenes::panel_field(scenes::panel_params(), x);
+      }
+      if (name == "box_r0.05") {
+        scenes::BoxParams b;
+        b.bevel = 0.05f;
+        n = scenes::box_normal(b, x);
+        return scenes::box_field(b, x);
+      }
+      const scenes::RevolveProfile profile((name == "bowl" ? scenes::bowl_params() : scenes::cylinder_params()).profile);
+      n = scenes::revolve_normal(profile, x);
+      return scenes::revolve_field(profile, x);
+    };
+    double worst = 0.0, worst_angle = 0.0;
+    for (std::size_t v = 0; v < pair.high.vertex_count(); ++v) {
+      glm::dvec3 n;
+      worst = std::max(worst, std::fabs(truth(glm::dvec3(pair.high.positions[v]), n)));
+      // At a crease the mesh has a vertex per side: the truth there is either
+      // side's, or a hair inside on the vertex's side (or the other's, skipped).
+      double a = angle_deg(n, glm::dvec3(pair.high.normals[v]));
+      truth(glm::dvec3(pair.high.positions[v]) - 1e-5 * glm::dvec3(pair.high.normals[v]), n);
+      a = std::min(a, angle_deg(n, glm::dvec3(pair.high.normals[v])));
+      if (a < 10.0) worst_angle = std::max(worst_angle, a);
+    }
+    EXPECT_LT(worst, 2e-6);
+    EXPECT_LT(worst_angle, 0.01);
+  }
+}
+
+TEST(ScenesHard, PanelNormalMatchesTheFieldGradient) {
+  const scenes::PanelParams p = scenes::panel_params();
+  double worst = 0.0;
+  for (int i = 0; i < 4000; ++i) {
+    const double x = -0.99 + 1.98 * std::fmod(0.7548776662 * (i + 1), 1.0);
+    const double z = -0.99 + 1.98 * std::fmod(0.5698402910 * (i + 1), 1.0);
+    const glm::dvec3 q(x, p.top - scenes::panel_depth(p, x, z, nullptr, nullptr), z);
+    const double h = 1e-7;
+    glm::dvec3 g;
+    for (int c = 0; c < 3; ++c) {
+      glm::dvec3 e(0.0);
+      e[c] = h;
+      g[c] = (scenes::panel_field(p, q + e) - scenes::panel_field(p, q - e)) / (2 * h);
+    }
+    worst = std::max(worst, angle_deg(g, scenes::panel_normal(p, q)));
+  }
+  EXPECT_LT(worst, 0.01);
 }
 
 }  // namespace

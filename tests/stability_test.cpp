@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include "eval.hpp"
+#include "hard_scenes.hpp"
 #include "lab_scenes.hpp"
 #include "nmbake/bake.hpp"
 #include "nmbake/load.hpp"
@@ -103,7 +104,7 @@ TEST(StabilityDegenerate, ZeroUvAreaAndZeroAreaFacesHaveFallbacks) {
   // The rest of the plane is unaffected, except where the collinear
   // triangle's UVs overlap the plane's (first triangle wins there).
   const auto truth = scenes::make_true_surface("heightfield");
-  const scenes::EvalResult r = score(*truth, s.low, b, CageMode::averaged);
+  const scenes::EvalResult r = score(*truth, s.low, b, CageMode::banded);
   std::printf("degenerate: %s\n", r.error.to_text().c_str());
   EXPECT_LT(r.error.median, 0.05);
 }
@@ -129,7 +130,7 @@ TEST(StabilityMirror, MirroredUvHalfDecodesToTheTruth) {
   const Baked b = bake_meshes(dir, mirrored, s.high, small_options());
   ASSERT_TRUE(b.status.is_ok()) << b.status.message();
   const auto truth = scenes::make_true_surface("heightfield");
-  const scenes::EvalResult r = score(*truth, mirrored, b, CageMode::averaged);
+  const scenes::EvalResult r = score(*truth, mirrored, b, CageMode::banded);
   std::printf("mirrored: %s\n", r.error.to_text().c_str());
   EXPECT_GT(r.error.texels, 128u * 128u * 9 / 10);
   EXPECT_LT(r.error.mean, 0.05);
@@ -209,25 +210,70 @@ TEST(StabilitySeam, DecodedNormalsAgreeAcrossUvSeams) {
   EXPECT_LT(worst, 0.5f);
 }
 
-TEST(StabilityHardEdge, AveragedCageLeavesNoGapsAlongHardEdges) {
+TEST(StabilityHardEdge, BandedAndAveragedCagesLeaveNoGapsAlongHardEdges) {
   test::TempDir dir;
   scenes::BoxParams p;
   p.high_cells = 64;
   p.low_cells = 2;
   const scenes::ScenePair s = scenes::make_box(p);
+  for (const CageMode cage : {CageMode::banded, CageMode::averaged}) {
+    BakeOptions o = small_options(256);
+    o.back = {Distance::Kind::absolute, 0.25f};
+    o.cage_mode = cage;
+    const Baked b = bake_meshes(dir, s.low, s.high, o);
+    ASSERT_TRUE(b.status.is_ok()) << b.status.message();
+    EXPECT_EQ(b.report.trace.misses, 0u);
+    const auto truth = scenes::make_true_surface("box");
+    const scenes::EvalResult r = score(*truth, s.low, b, cage);
+    std::printf("box, %s cage: %s\n", cage == CageMode::banded ? "banded" : "averaged", r.error.to_text().c_str());
+    EXPECT_EQ(r.without_truth, 0u);
+    // What is left is the bevel's tessellation (64 cells per face, ~2.5
+    // degrees per facet across the bevel), not gaps: a gap would be ~45 degrees.
+    EXPECT_LT(r.error.p99, 2.0);
+    EXPECT_LT(r.error.max, 5.0);
+  }
+}
+
+// A dimple deeper (0.11) than everything else on a panel (0.05): the
+// automatic back distance (99.5th percentile) stops short of its floor. Its
+// rays miss unless retried; retried, none does.
+TEST(StabilityDimple, MissesBeyondTheEstimatedDistanceAreRetried) {
+  test::TempDir dir;
+  scenes::PanelParams p = scenes::panel_params();
+  p.high_cells = 160;
+  const scenes::ScenePair s = scenes::make_panel(p);
   BakeOptions o = small_options(256);
-  o.back = {Distance::Kind::absolute, 0.25f};
-  const Baked b = bake_meshes(dir, s.low, s.high, o);
-  ASSERT_TRUE(b.status.is_ok()) << b.status.message();
-  EXPECT_EQ(b.report.trace.misses, 0u);
-  const auto truth = scenes::make_true_surface("box");
-  const scenes::EvalResult r = score(*truth, s.low, b, CageMode::averaged);
-  std::printf("box, averaged cage: %s\n", r.error.to_text().c_str());
-  EXPECT_EQ(r.without_truth, 0u);
-  // What is left is the bevel's tessellation (64 cells per face, ~2.5
-  // degrees per facet across the bevel), not gaps: a gap would be ~45 degrees.
-  EXPECT_LT(r.error.p99, 2.0);
-  EXPECT_LT(r.error.max, 5.0);
+  o.front = o.back = Distance{};  // auto
+  o.retry_misses = BakeOptions::Retry::off;
+  const Baked before = bake_meshes(dir, s.low, s.high, o);
+  o.retry_misses = BakeOptions::Retry::automatic;
+  const Baked after = bake_meshes(dir, s.low, s.high, o);
+  ASSERT_TRUE(before.status.is_ok() && after.status.is_ok());
+  std::printf("dimple: back %.4f; misses %llu without retry, %llu with (%llu retried, %llu found)\n",
+              after.report.back, static_cast<unsigned long long>(before.report.trace.misses),
+              static_cast<unsigned long long>(after.report.trace.misses),
+              static_cast<unsigned long long>(after.report.trace.retried),
+              static_cast<unsigned long long>(after.report.trace.retry_hits));
+  EXPECT_LT(after.report.back, 0.11f);
+  EXPECT_GT(before.report.trace.misses, 0u);
+  EXPECT_EQ(before.report.trace.retried, 0u);
+  EXPECT_EQ(after.report.trace.misses, 0u);
+  EXPECT_GE(after.report.trace.retried, before.report.trace.misses / 2);
+  EXPECT_EQ(after.report.trace.retry_hits, after.report.trace.retried);
+  // Retried texels hold the dimple's floor, not the flat normal: the analytic
+  // error of the retried bake is the smaller.
+  const auto truth = scenes::make_true_surface("panel");
+  scenes::EvalOptions e;
+  e.samples = 4;
+  e.rays.cage = CageMode::banded;
+  e.rays.front = after.report.front;
+  e.rays.back = 0.2f;  // the truth along the whole dimple
+  const scenes::Expected expected = scenes::compute_expected(*truth, s.low, nullptr, 256, 256, e);
+  const scenes::EvalResult rb = scenes::evaluate(expected, before.map, e);
+  const scenes::EvalResult ra = scenes::evaluate(expected, after.map, e);
+  std::printf("dimple: worst texel %.1f deg without retry, %.1f with; over 5 deg %.4f%% / %.4f%%\n", rb.error.max,
+              ra.error.max, 100.0 * rb.error.over_5deg, 100.0 * ra.error.over_5deg);
+  EXPECT_LT(ra.error.over_5deg, rb.error.over_5deg);
 }
 
 TEST(StabilityConcave, NearestWinsInAGrooveFirstWinsOverAThinPlate) {
@@ -245,8 +291,8 @@ TEST(StabilityConcave, NearestWinsInAGrooveFirstWinsOverAThinPlate) {
     const Baked nearest = bake_meshes(dir, s.low, s.high, o);
     ASSERT_TRUE(first.status.is_ok() && nearest.status.is_ok());
     const auto truth = scenes::make_true_surface("slot");
-    const scenes::EvalResult rf = score(*truth, s.low, first, CageMode::averaged);
-    const scenes::EvalResult rn = score(*truth, s.low, nearest, CageMode::averaged);
+    const scenes::EvalResult rf = score(*truth, s.low, first, CageMode::banded);
+    const scenes::EvalResult rn = score(*truth, s.low, nearest, CageMode::banded);
     std::printf("groove, first:   %s\ngroove, nearest: %s\n", rf.error.to_text().c_str(), rn.error.to_text().c_str());
     EXPECT_GT(rf.error.over_5deg, 0.5);
     EXPECT_LT(rn.error.median, 0.1);
@@ -327,7 +373,7 @@ TEST(StabilityOverlap, OverlappingHighShellsBakeTheOuterOne) {
   ASSERT_TRUE(b.status.is_ok()) << b.status.message();
   EXPECT_EQ(b.report.trace.misses, 0u);
   const auto truth = scenes::make_true_surface("heightfield");
-  const scenes::EvalResult r = score(*truth, s.low, b, CageMode::averaged);
+  const scenes::EvalResult r = score(*truth, s.low, b, CageMode::banded);
   std::printf("overlapping shells: %s\n", r.error.to_text().c_str());
   EXPECT_LT(r.error.mean, 0.05);
 }
@@ -366,7 +412,7 @@ TEST(StabilityThin, VeryThinTrianglesBakeLikeTheirPlane) {
   ASSERT_TRUE(b.status.is_ok()) << b.status.message();
   EXPECT_EQ(b.report.trace.misses, 0u);
   const auto truth = scenes::make_true_surface("heightfield");
-  const scenes::EvalResult r = score(*truth, low, b, CageMode::averaged);
+  const scenes::EvalResult r = score(*truth, low, b, CageMode::banded);
   std::printf("thin triangles: %s (tangent fallbacks %llu)\n", r.error.to_text().c_str(),
               static_cast<unsigned long long>(b.report.tangents.fallback_tangents));
   EXPECT_LT(r.error.mean, 0.05);
@@ -405,7 +451,7 @@ TEST(StabilityScale, MillimetreDetailAKilometreFromTheOrigin) {
   ASSERT_TRUE(b.status.is_ok()) << b.status.message();
   EXPECT_EQ(b.report.trace.misses, 0u);
   const KilometreHeightfield truth;
-  const scenes::EvalResult r = score(truth, s.low, b, CageMode::averaged);
+  const scenes::EvalResult r = score(truth, s.low, b, CageMode::banded);
   std::printf("1 km from the origin, 2 mm relief: %s\n", r.error.to_text().c_str());
   EXPECT_EQ(r.without_truth, 0u);
   EXPECT_LT(r.error.mean, 0.1);

@@ -75,7 +75,12 @@ struct BakeOptions {
   Distance front;  // auto
   Distance back;   // auto
   HitRule hit = HitRule::first;
-  CageMode cage_mode = CageMode::averaged;  // `mesh` is implied by cage_path
+  CageMode cage_mode = CageMode::banded;  // `mesh` is implied by cage_path
+  float edge_band = kDefaultEdgeBand;     // the banded cage's band, in units of front + back
+  // Misses traced again out and in up to the distance probes' reach
+  // (trace.hpp): `automatic` = when neither distance nor a cage is given.
+  enum class Retry : std::uint8_t { automatic, on, off };
+  Retry retry_misses = Retry::automatic;
   bool ignore_backfaces = false;
   HighNormals high_normals = HighNormals::smooth;
   TangentEncode tangent_encode = TangentEncode::inverse;
@@ -161,6 +166,9 @@ struct BakeReport {
   std::uint64_t low_triangles = 0, high_triangles = 0, high_vertices = 0;
   float front = 0.0f, back = 0.0f;  // resolved, scene units
   bool distances_estimated = false;
+  std::string cage_mode;         // banded | averaged | interpolated | mesh
+  float edge_band = 0.0f;        // banded: the band's width / (front + back)
+  float retry_reach = 0.0f;      // 0: misses not retried
   bool compact_bvh = false;  // the BVH was built in Embree's compact layout (--bvh)
   float low_diagonal = 0.0f;
   LoadStats low_load, high_load;

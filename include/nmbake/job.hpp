@@ -12,7 +12,7 @@
 //   report = "out/moon_report.json"
 //
 // Keys of [defaults] and [[bake]]: size, width, height, samples, space,
-// green, front, back, hit, cage_mode, ignore_backfaces, high_normals, padding,
+// green, front, back, hit, cage_mode, edge_band, retry_misses, ignore_backfaces, high_normals, padding,
 // build_quality, bvh, cage, max_memory (bytes or "8G"), match, unmatched,
 // low_suffix, high_suffix, cage_suffix, cache, and the map set's maps
 // (["normal", "ao"] or "normal,ao"), height_range, curvature_range ("auto" or
@@ -45,7 +45,9 @@ bool parse_normal_space(const std::string& text, NormalSpace& out);   // tangent
 bool parse_green_channel(const std::string& text, GreenChannel& out);  // up | down (also opengl | directx)
 bool parse_hit_rule(const std::string& text, HitRule& out);            // first | nearest
 bool parse_high_normals(const std::string& text, HighNormals& out);    // smooth | face
-bool parse_cage_mode(const std::string& text, CageMode& out);          // averaged | interpolated
+bool parse_cage_mode(const std::string& text, CageMode& out);          // banded | averaged | interpolated
+const char* to_string(CageMode mode);                                  // banded | averaged | interpolated | mesh
+bool parse_retry_misses(const std::string& text, BakeOptions::Retry& out);  // auto | on | off
 bool parse_build_quality(const std::string& text, BuildQuality& out);  // low | medium | high
 bool parse_bvh_memory(const std::string& text, BvhMemory& out);        // auto | fast | compact
 bool parse_tangent_encode(const std::string& text, TangentEncode& out);  // inverse | transpose

@@ -79,6 +79,9 @@ struct PreviewOptions {
   Distance front;
   Distance back;
   HitRule hit = HitRule::first;
+  // The bake's cage (the default edge band); with both distances auto, misses
+  // are retried as the bake retries them.
+  CageMode cage_mode = CageMode::banded;
   float heat_max_degrees = 5.0f;  // the top of the colour ramp
 };
 
@@ -118,7 +121,8 @@ Status load_preview_meshes(const std::string& low_path, const std::string& high_
 //   and turned into a world normal with tangent_to_world (T, N not
 //   normalised, B = sign cross(N, T)); object space maps are used directly.
 // * error: for each sample that hits the low mesh, the bake's own ray
-//   (make_ray with the resolved front/back, the hit rule) finds the high
+//   (make_ray with the resolved front/back, the hit rule, the cage mode and
+//   the bake's retry of misses) finds the high
 //   normal the baker should have stored there; the panel shows the angle
 //   between it and the decoded normal (0 .. heat_max_degrees on the ramp,
 //   a scale bar, the mean and p99 printed). Bake-ray misses are magenta. This
@@ -128,6 +132,21 @@ Status load_preview_meshes(const std::string& low_path, const std::string& high_
 // encoded normal map with >= 3 channels. Deterministic for any thread count.
 Status render_preview(const LowSurface& surface, const Mesh& high, const Image& map,
                       const PreviewOptions& options, Image& sheet, PreviewStats& stats);
+
+// The map's normal at a point of the low surface (triangle `tri`,
+// barycentrics `b`: weights of corners 1 and 2), decoded exactly as the
+// low+map panel of render_preview (and an engine) decodes it: uv, T (with
+// its sign) and N interpolated from the corners, the map sampled bilinearly
+// at uv (texel centres at u = (x + 0.5) / W, v = 1 - (y + 0.5) / H, clamped
+// at the borders), t = 2 rgb - 1 (y negated for green down), then
+// tangent_to_world (T, N not normalised) or, in object space, t itself.
+// With another engine's `decode` (preset.hpp): z rebuilt from x and y, B per
+// vertex, the frame normalised, as it says. Counted fallback: a decoded
+// vector of length ~0 gives the unit low normal (or `otherwise` when N has no
+// length either) and sets `fallback`.
+glm::vec3 decode_map_normal(const LowSurface& surface, const Image& map, std::int32_t tri, glm::vec2 b,
+                            NormalSpace space, GreenChannel green, const glm::vec3& otherwise, bool& fallback,
+                            const NormalDecode& decode = {});
 
 struct TangentViewOptions {
   ViewOptions view;

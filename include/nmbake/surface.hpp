@@ -27,10 +27,24 @@ struct LowSurface {
   std::vector<glm::vec3> cage_normal;  // unit averaged normal: where the default cage is pushed
   std::vector<glm::vec3> cage_position;  // explicit cage mesh corners; empty without --cage
   std::vector<std::uint32_t> group;       // bake group per triangle (parts.hpp); empty: one group
+  // Hard edges: low edges whose two triangles' normals differ at an end (split
+  // normals, more than kHardEdgeDegrees apart), as segments; per triangle, bit
+  // k set when corner k's position carries more than one normal (empty when
+  // no position does).
+  std::vector<glm::vec3> hard_edge_a, hard_edge_b;
+  std::vector<std::uint8_t> hard_corners;
+  // The banded cage's search structure (trace.hpp, prepare_edge_band): per
+  // triangle, the hard edges within band_reach of it, band_edges[band_first[t]
+  // .. band_first[t + 1]). band_reach < 0: not prepared.
+  std::vector<std::uint32_t> band_first, band_edges;
+  float band_reach = -1.0f;
 
   std::size_t triangle_count() const { return position.size() / 3; }
   bool has_cage_mesh() const { return !cage_position.empty(); }
 };
+
+// Normals of one position further apart than this make a hard edge.
+constexpr float kHardEdgeDegrees = 1.0f;
 
 struct SurfaceStats {
   MeshStats mesh;

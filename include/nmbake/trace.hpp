@@ -2,9 +2,22 @@
 //
 // Where a ray is built: make_ray() below, the one place. For every sample the
 // ray starts on the cage and points at the low surface (DESIGN.md, "Rays"):
-//   * averaged cage (default): origin = P + front * A, direction = -A, where
-//     P is the low surface point and A the normalised, barycentrically
-//     interpolated averaged normal; the ray searches [0, front + back];
+//   * banded cage (default): the averaged cage near hard edges, the low
+//     mesh's own normals away from them. Origin = P + front * D, direction
+//     = -D, D = normalize(F + w (A - F)), where P is the low surface point, A
+//     the barycentrically interpolated averaged normal and F the same
+//     interpolation of A at smooth corners and of the shading normal at
+//     corners on a hard edge (split normals); w = smoothstep(1 - d / band)
+//     with d the distance from P to the nearest hard edge and band =
+//     edge_band * (front + back). At a hard edge D = A on both sides (no gap
+//     opens, as with the averaged cage); a band's width from it D is the
+//     shading normal (no skew: the averaged normal, interpolated across a
+//     whole triangle, slants the rays over the flat face beside a hard edge
+//     and moves a bevel's normals to the wrong texels). On a triangle with no
+//     hard corner F = A: the averaged cage's rays, bit for bit. Needs
+//     prepare_edge_band() first;
+//   * averaged cage: origin = P + front * A, direction = -A; the ray
+//     searches [0, front + back];
 //   * interpolated cage: the same with the low shading normal instead of A
 //     (kept for the method comparison; it opens gaps at hard edges);
 //   * cage mesh: origin = the cage point with the same barycentrics,
@@ -12,6 +25,10 @@
 // Hit rules: `first` keeps the first hit from the cage; `nearest` keeps the
 // hit nearest to the low surface point P (two rays from P, outwards up to the
 // cage and inwards up to back, the nearer hit wins).
+// Retry (RayOptions::retry_reach > 0): a sample whose ray (or rays) found
+// nothing is traced once more, from P along the same line, outwards and
+// inwards up to retry_reach each (the distance probes' reach); the hit
+// nearer to P wins. Counted in TraceStats (retried, retry_hits).
 //
 // Bake groups (parts.hpp): a scene built with SceneGroups holds group g's
 // high triangles as [first[g], first[g + 1]) of its mesh, and a ray of a low
@@ -40,7 +57,7 @@
 
 namespace nmbake {
 
-enum class CageMode : std::uint8_t { averaged, interpolated, mesh };
+enum class CageMode : std::uint8_t { averaged, interpolated, mesh, banded };
 enum class HitRule : std::uint8_t { first, nearest };
 enum class BuildQuality : std::uint8_t { low, medium, high };
 // BVH layout: `fast` lets Embree copy each leaf's triangle vertices into the
@@ -55,8 +72,17 @@ struct GroupDistances {
   float back = 0.0f;
 };
 
+// The banded cage's band around hard edges, in units of front + back:
+// measured in the accuracy lab (README, "Accuracy lab").
+constexpr float kDefaultEdgeBand = 2.0f;
+// How far the distance probes look, and a retried ray, each way: a share of
+// the low mesh's bounding-box diagonal.
+constexpr float kProbeReach = 0.25f;
+
 struct RayOptions {
-  CageMode cage = CageMode::averaged;
+  CageMode cage = CageMode::averaged;  // bake.hpp's default is `banded`
+  float edge_band = kDefaultEdgeBand;  // CageMode::banded: the band's width / (front + back)
+  float retry_reach = 0.0f;            // > 0: retry a sample that missed (see above), scene units
   HitRule hit = HitRule::first;
   float front = 0.0f;  // scene units, already resolved from % / auto
   float back = 0.0f;
@@ -81,6 +107,13 @@ struct Ray {
   glm::vec3 surface_point{0.0f};  // P: where the ray crosses the low surface (t = distance to P)
   float t_surface = 0.0f;
 };
+
+// CageMode::banded needs, per low triangle with a hard corner, the hard
+// edges within reach of it: prepare_edge_band() finds them for rays whose
+// band (edge_band * (front + back), every group's) is at most `reach`;
+// edge_band_reach() is that largest band of `options`.
+float edge_band_reach(const RayOptions& options);
+void prepare_edge_band(LowSurface& surface, float reach);
 
 // Builds the ray of one sample on triangle `tri` at barycentrics `b`
 // (weights of corners 1 and 2). Counted fallback: a zero-length interpolated
@@ -130,6 +163,8 @@ struct TraceStats {
   // Zero-length interpolated normal: face normal used; or a ray Embree would
   // not take (a component beyond 1.8e18 or not finite): not traced, a miss.
   std::uint64_t ray_fallbacks = 0;
+  std::uint64_t retried = 0;     // samples traced again after a miss (retry_reach)
+  std::uint64_t retry_hits = 0;  // of those, found a surface (counted in hits, not in misses)
 };
 
 // Traces every sample with triangle >= 0. Parallel over tiles of texels;

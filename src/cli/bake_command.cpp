@@ -32,12 +32,13 @@ struct BakeFlags {
   int adaptive_max = 16;
   AdaptiveOptions adaptive;  // thresholds (experts; adaptive.hpp)
   std::string space = "tangent", front = "auto", back = "auto", hit = "first";
-  std::string cage_mode = "averaged", high_normals = "smooth", build_quality = "low", encode = "inverse", bvh = "auto";
+  std::string cage_mode = "banded", retry_misses = "auto", high_normals = "smooth", build_quality = "low", encode = "inverse", bvh = "auto";
   std::string format;
   std::string tangent_basis = "mikktspace";
   std::string tangents = "mikktspace";
   int uv_set = 0;
   bool ignore_backfaces = false;
+  float edge_band = kDefaultEdgeBand;
   int padding = 16;
   std::string report;
   std::string debug_dump;
@@ -136,7 +137,9 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
   if (f.dither != "on" && f.dither != "off") return Status::bad_input("--dither " + f.dither + ": expected on or off");
   o.dither = f.dither == "on";
   if (!parse_hit_rule(f.hit, o.hit)) return Status::bad_input("--hit " + f.hit + ": expected first or nearest");
-  if (!parse_cage_mode(f.cage_mode, o.cage_mode)) return Status::bad_input("--cage-mode " + f.cage_mode + ": expected averaged or interpolated");
+  if (!parse_cage_mode(f.cage_mode, o.cage_mode)) return Status::bad_input("--cage-mode " + f.cage_mode + ": expected banded, averaged or interpolated");
+  o.edge_band = f.edge_band;
+  if (!parse_retry_misses(f.retry_misses, o.retry_misses)) return Status::bad_input("--retry-misses " + f.retry_misses + ": expected auto, on or off");
   if (!parse_high_normals(f.high_normals, o.high_normals)) return Status::bad_input("--high-normals " + f.high_normals + ": expected smooth or face");
   if (!parse_bvh_memory(f.bvh, o.bvh_memory)) return Status::bad_input("--bvh " + f.bvh + ": expected auto, fast or compact");
   if (!parse_build_quality(f.build_quality, o.build_quality)) return Status::bad_input("--build-quality " + f.build_quality + ": expected low, medium or high");
@@ -474,7 +477,9 @@ Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--front", flags->front, "cage distance outside the low surface: units, N% of the bbox diagonal, auto")->default_val("auto");
   cmd->add_option("--back", flags->back, "search distance inside the low surface: units, N%, auto")->default_val("auto");
   cmd->add_option("--hit", flags->hit, "first (from the cage) | nearest (to the low surface)")->default_val("first");
-  cmd->add_option("--cage-mode", flags->cage_mode, "averaged | interpolated normals push the default cage")->default_val("averaged");
+  cmd->add_option("--cage-mode", flags->cage_mode, "banded (averaged normals near hard edges, shading normals elsewhere) | averaged | interpolated: how the default cage is pushed")->default_val("banded");
+  cmd->add_option("--edge-band", flags->edge_band, "banded cage: width of the band around hard edges, in units of front + back")->default_val(kDefaultEdgeBand);
+  cmd->add_option("--retry-misses", flags->retry_misses, "trace a ray that missed again, out and in up to a quarter of the diagonal: auto (when no distance or cage is given) | on | off")->default_val("auto");
   cmd->add_flag("--ignore-backfaces", flags->ignore_backfaces, "skip high triangles that face away from the ray");
   cmd->add_option("--high-normals", flags->high_normals, "smooth (interpolated vertex normals) | face")->default_val("smooth");
   cmd->add_option("--padding", flags->padding, "texels of dilation around charts")->default_val(16);

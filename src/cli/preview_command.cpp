@@ -61,7 +61,7 @@ namespace {
 
 struct PreviewFlags {
   std::string map, output, green, preset, bitangent, tbn, blue, low, high, space = "tangent", front = "auto", back = "auto",
-                           hit = "first";
+                           hit = "first", cage_mode = "banded";
   int max_size = 1024;
   int turntable = 1;
   float heat_max = 5.0f;
@@ -99,6 +99,8 @@ int run_preview_3d(const PreviewFlags& f, const GlobalOptions& global, const Ima
   }
   if (!parse_hit_rule(f.hit, options.hit))
     return fail(Status::bad_input("--hit " + f.hit + ": expected first or nearest"));
+  if (!parse_cage_mode(f.cage_mode, options.cage_mode))
+    return fail(Status::bad_input("--cage-mode " + f.cage_mode + ": expected banded, averaged or interpolated"));
   if (!parse_distance(f.front, options.front)) {
     return fail(Status::bad_input("--front " + f.front + ": expected a distance, N% or auto"));
   }
@@ -209,6 +211,8 @@ Runner add_preview_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--back", flags->back, "3D: the bake's back distance (units, N%, auto)")
       ->default_val("auto");
   cmd->add_option("--hit", flags->hit, "3D: the bake's hit rule: first | nearest")->default_val("first");
+  cmd->add_option("--cage-mode", flags->cage_mode, "3D: the bake's cage mode: banded | averaged | interpolated")
+      ->default_val("banded");
   cmd->add_option("--turntable", flags->turntable, "3D: views in the sheet, one row each, yaw + 360 k / N")
       ->default_val(1)
       ->check(CLI::Range(1, 64));

@@ -3,7 +3,7 @@
 // over the benchmark scenes). Timings are medians of --repeat runs; bake and
 // raw runs alternate, and the ratio is the median of each pair's ratio.
 //
-//   nmbake-bench --low L --high H --size 2048 --samples 4 [--threads N] [--repeat 3]
+//   nmbake-bench --low L --high H --size 2048 --samples 4 [--threads N] [--repeat 3] [--compare-old-rule N]
 //
 // The bake is the library's bake() with default options (auto distances,
 // averaged cage) writing a 16-bit PNG to a temp folder; "raw" is trace_raw():
@@ -22,6 +22,7 @@
 //                          the line gives AO rays/s of the bake's occlusion
 //                          stage against it.
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -58,6 +59,7 @@ int main(int argc, char** argv) {
   std::size_t band_samples = 0;
   std::string maps_text = "normal", versus_text;
   int ao_rays = 64;
+  int compare_pairs = 0;
   CLI::App app{"nmbake-bench: a whole bake beside raw Embree on the same rays"};
   app.add_option("--map", maps_text, "maps to bake (comma list)")->capture_default_str();
   app.add_option("--versus", versus_text, "a second map set baked alternately: the ratio of whole-bake times");
@@ -72,6 +74,10 @@ int main(int argc, char** argv) {
   app.add_option("--build-quality", quality, "low | medium | high")->capture_default_str();
   app.add_option("--repeat", repeat)->capture_default_str()->check(CLI::Range(1, 50));
   app.add_option("--band-samples", band_samples, "samples per band of rows (0: the library's default, 1M)")
+      ->capture_default_str();
+  app.add_option("--compare-old-rule", compare_pairs,
+                 "then N passes over the map's bands, each band traced with the defaults and with the old ray rule "
+                 "(averaged cage, no retry) in turn: the median of the passes' trace-time ratios")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   if (label.empty()) label = std::filesystem::path(high).stem().string();
@@ -239,6 +245,58 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  // The ray rule's own cost: the trace stage with the defaults (banded cage,
+  // misses retried) and with the old rule (averaged cage, no retry), on the
+  // same scene and samples, band by band in the order ABBA, so that a slow
+  // spell of the shared machine falls on both; per pass the ratio of the
+  // sums, the median over the passes.
+  std::vector<double> rule_new, rule_old, rule_ratio;
+  std::uint64_t rule_retried = 0;
+  if (compare_pairs > 0) {
+    nmbake::Mesh low_mesh, high_mesh;
+    nmbake::LoadStats ls;
+    nmbake::MeshStats ms;
+    if (!nmbake::load_mesh(low, {}, low_mesh, ls) || !nmbake::load_mesh(high, {false, true}, high_mesh, ls)) return 2;
+    nmbake::prepare_low_normals(low_mesh, ms);
+    nmbake::pad_for_embree(high_mesh);
+    nmbake::SurfaceStats ss;
+    nmbake::LowSurface surface = nmbake::build_low_surface(low_mesh, nullptr, ss);
+    nmbake::HighScene scene;
+    if (!nmbake::HighScene::build(high_mesh, o.build_quality, false, scene, o.bvh_memory)) return 2;
+    nmbake::RayOptions rule[2];  // 0: the defaults, 1: the old rule
+    rule[0].cage = nmbake::CageMode::banded;
+    rule[0].front = rule[1].front = report.front;
+    rule[0].back = rule[1].back = report.back;
+    rule[0].retry_reach = report.retry_reach;
+    rule[1].cage = nmbake::CageMode::averaged;
+    nmbake::prepare_edge_band(surface, nmbake::edge_band_reach(rule[0]));
+    const int rows = nmbake::band_rows(size, size, samples, band_samples);
+    nmbake::TexelSamples ts;
+    nmbake::Hits hits;
+    for (int pass = 0; pass < compare_pairs; ++pass) {
+      double seconds[2] = {0.0, 0.0};
+      int band = 0;
+      for (int row = 0; row < size; row += rows, ++band) {
+        nmbake::RasterStats rs;
+        nmbake::rasterize(surface, size, size, samples, ts, rs, row, std::min(row + rows, size));
+        for (int k = 0; k < 2; ++k) {
+          const int r = (band % 2 == 0) == (k == 0) ? 0 : 1;
+          nmbake::TraceStats stats;
+          const auto begin = std::chrono::steady_clock::now();
+          nmbake::trace(scene, surface, ts, rule[r], hits, stats);
+          seconds[r] += std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
+          if (r == 0 && pass == 0) rule_retried += stats.retried;
+        }
+      }
+      rule_new.push_back(seconds[0]);
+      rule_old.push_back(seconds[1]);
+      rule_ratio.push_back(seconds[0] / seconds[1]);
+      if (std::getenv("NMBAKE_BENCH_PAIRS")) {
+        std::fprintf(stderr, "rule pass %d: trace %.4f s (banded, retry) vs %.4f s (averaged, no retry)\n", pass + 1,
+                     seconds[0], seconds[1]);
+      }
+    }
+  }
   std::filesystem::remove_all(dir);
 
   const double bake_rays_per_s = static_cast<double>(report.trace.rays) / median(trace);
@@ -266,6 +324,14 @@ int main(int argc, char** argv) {
         median(raw_occlusion), 1e-6 * static_cast<double>(raw_occlusion_rays) / median(raw_occlusion),
         median(occlusion_ratio), occlusion_ratio.size(), static_cast<unsigned long long>(occlusion_rays),
         median(total));
+  }
+  if (compare_pairs > 0) {
+    std::printf("rule  %-12s map %5d x%-2d | trace %6.4f s (banded cage, retry: %llu retried) vs %6.4f s (averaged, "
+                "no retry) | ratio %.3f (median of %d passes; min %.3f max %.3f)\n",
+                label.c_str(), size, samples, median(rule_new), static_cast<unsigned long long>(rule_retried),
+                median(rule_old), median(rule_ratio), compare_pairs,
+                *std::min_element(rule_ratio.begin(), rule_ratio.end()),
+                *std::max_element(rule_ratio.begin(), rule_ratio.end()));
   }
   return 0;
 }

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <tbb/parallel_for.h>
 
+#include "hard_scenes.hpp"
 #include "nmbake/raster.hpp"
 #include "nmbake/surface.hpp"
 
@@ -87,11 +88,29 @@ class CraterTruth final : public ScaledSurface {
 
 class BoxTruth final : public ScaledSurface {
  public:
-  using ScaledSurface::ScaledSurface;
+  BoxTruth(double scale, double bevel) : ScaledSurface(scale) { p_.bevel = static_cast<float>(bevel); }
   double unit_field(int, const glm::dvec3& x) const override { return box_field(p_, x); }
   glm::dvec3 unit_normal(int, const glm::dvec3& x) const override { return box_normal(p_, x); }
-  double unit_step() const override { return 0.02; }
+  double unit_step() const override { return std::min(0.02, 0.25 * static_cast<double>(p_.bevel)); }
   BoxParams p_;
+};
+
+class RevolveTruth final : public ScaledSurface {
+ public:
+  RevolveTruth(double scale, const RevolveParams& p) : ScaledSurface(scale), profile_(p.profile) {}
+  double unit_field(int, const glm::dvec3& x) const override { return revolve_field(profile_, x); }
+  glm::dvec3 unit_normal(int, const glm::dvec3& x) const override { return revolve_normal(profile_, x); }
+  double unit_step() const override { return 0.01; }
+  RevolveProfile profile_;
+};
+
+class PanelTruth final : public ScaledSurface {
+ public:
+  explicit PanelTruth(double scale) : ScaledSurface(scale), p_(panel_params()) {}
+  double unit_field(int, const glm::dvec3& x) const override { return panel_field(p_, x); }
+  glm::dvec3 unit_normal(int, const glm::dvec3& x) const override { return panel_normal(p_, x); }
+  double unit_step() const override { return 0.004; }  // the dimple is 0.12 across
+  PanelParams p_;
 };
 
 class SlotTruth final : public ScaledSurface {
@@ -149,7 +168,11 @@ double refine(const TrueSurface& s, int patch, const glm::dvec3& o, const glm::d
 }  // namespace
 
 const std::vector<std::string>& lab_scene_names() {
-  static const std::vector<std::string> names = {"heightfield", "sphere", "torus", "craters", "box", "slot"};
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> n = {"heightfield", "sphere", "torus", "craters", "box", "slot"};
+    n.insert(n.end(), hard_scene_names().begin(), hard_scene_names().end());
+    return n;
+  }();
   return names;
 }
 
@@ -158,7 +181,10 @@ std::unique_ptr<TrueSurface> make_true_surface(const std::string& scene, double 
   if (scene == "sphere") return std::make_unique<SphereTruth>(scale);
   if (scene == "torus") return std::make_unique<TorusTruth>(scale);
   if (scene == "craters") return std::make_unique<CraterTruth>(scale);
-  if (scene == "box") return std::make_unique<BoxTruth>(scale);
+  if (const double bevel = lab_box_bevel(scene); bevel > 0.0) return std::make_unique<BoxTruth>(scale, bevel);
+  if (scene == "bowl") return std::make_unique<RevolveTruth>(scale, bowl_params());
+  if (scene == "cylinder") return std::make_unique<RevolveTruth>(scale, cylinder_params());
+  if (scene == "panel") return std::make_unique<PanelTruth>(scale);
   if (scene == "slot") return std::make_unique<SlotTruth>(scale);
   return nullptr;
 }
@@ -221,12 +247,13 @@ bool intersect_true_surface(const TrueSurface& s, const glm::dvec3& o, const glm
 Expected compute_expected(const TrueSurface& truth, const Mesh& low, const Mesh* cage, int width, int height,
                           const EvalOptions& options) {
   SurfaceStats surface_stats;
-  const LowSurface surface = build_low_surface(low, cage, surface_stats);  // MikkTSpace: what renderers decode with
+  LowSurface surface = build_low_surface(low, cage, surface_stats);  // MikkTSpace: what renderers decode with
   TexelSamples raster;
   RasterStats raster_stats;
   rasterize(surface, width, height, options.samples, raster, raster_stats);
   RayOptions rays = options.rays;
   if (cage != nullptr) rays.cage = CageMode::mesh;
+  if (rays.cage == CageMode::banded) prepare_edge_band(surface, edge_band_reach(rays));
 
   Expected e;
   e.width = width;
@@ -266,8 +293,15 @@ Expected compute_expected(const TrueSurface& truth, const Mesh& low, const Mesh*
         const Ray ray = make_ray(surface, tri, b, rays, fallback);
         glm::dvec3 hit, n;
         if (!intersect_true_surface(truth, glm::dvec3(ray.origin), glm::dvec3(ray.direction), ray.tfar, ray.t_surface,
-                                    hit, n))
-          continue;
+                                    hit, n)) {
+          // The bake retries a miss along the same line, out and in up to
+          // retry_reach from the low surface point: so does the truth.
+          const double reach = rays.retry_reach;
+          if (!(reach > 0.0) ||
+              !intersect_true_surface(truth, glm::dvec3(ray.surface_point) - reach * glm::dvec3(ray.direction),
+                                      glm::dvec3(ray.direction), 2.0 * reach, reach, hit, n))
+            continue;
+        }
         any_truth = true;
         if (tangent) {
           glm::vec3 t;

@@ -67,7 +67,7 @@ struct EvalOptions {
   int samples = 64;  // of the truth (box filter), not of the bake
   NormalSpace space = NormalSpace::tangent;
   GreenChannel green = GreenChannel::up;
-  RayOptions rays;  // cage mode and resolved front/back of the bake (hit rule unused)
+  RayOptions rays;  // cage mode, edge band and resolved front/back of the bake (hit rule and retry unused)
 };
 
 struct EvalResult {

@@ -470,6 +470,12 @@ LabDistances lab_distances(const std::string& scene) {
   if (scene == "craters") return {0.05f, 0.08f};
   if (scene == "box") return {0.05f, 0.25f};
   if (scene == "slot") return {0.5f, 0.05f};  // longer than the groove is wide (0.4)
+  // Deeper than the deepest bevel corner ((sqrt 3 - 1) r), the chamfer and the dimple.
+  if (scene == "box_r0.05") return {0.05f, 0.1f};
+  if (scene == "box_r0.1") return {0.05f, 0.15f};
+  if (scene == "box_r0.4") return {0.05f, 0.4f};
+  if (scene == "bowl" || scene == "cylinder") return {0.05f, 0.1f};
+  if (scene == "panel") return {0.05f, 0.15f};
   return {};
 }
 

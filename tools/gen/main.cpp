@@ -5,10 +5,14 @@
 //   R] nmbake-gen heightfield --out-dir DIR [--high-cells N] [--low-cells N] [--amplitude A] [--size S]
 //   nmbake-gen sphere      --out-dir DIR [--high-cells N] [--low-cells N] [--amplitude A] [--radius R]
 //   nmbake-gen torus|craters|box|slot --out-dir DIR [--high-cells N] [--low-cells N]
+//   nmbake-gen box_r0.05|box_r0.1|box_r0.4|bowl|cylinder|panel --out-dir DIR   (hard_scenes.hpp)
+//   nmbake-gen appearance --low L --high H --map M [--map M2 ...] [--space S] [--green G]
+//              [--size N] [--supersample K] [--depth-tolerance F] [--json out.json]
 //   nmbake-gen parts --out-dir DIR [--count N] [--high-triangles T]   (named parts, high as OBJ)
 //   nmbake-gen eval SCENE --map M --low L [--cage C] [--samples N] [--space tangent|object]
-//              [--cage-mode averaged|interpolated] [--front F --back B | --report bake_report.json]
-//              [--json out.json] [--floors]
+//              [--cage-mode banded|averaged|interpolated] [--edge-band F]
+//              [--front F --back B | --report bake_report.json]
+//              [--retry-truth] [--json out.json] [--floors]
 //   nmbake-gen convert IN OUT     (mesh formats, for the loading benchmarks)
 //   nmbake-gen load FILE [--low]  (load only, for /usr/bin/time)
 //   nmbake-gen maplab [--out DIR] [--size N]   (the map set against its closed forms: map_lab.hpp)
@@ -32,9 +36,13 @@
 
 #include "convert.hpp"
 #include "eval.hpp"
+#include "hard_scenes.hpp"
 #include "lab_scenes.hpp"
 #include "map_lab_run.hpp"
+#include "nmbake/appearance.hpp"
 #include "nmbake/image.hpp"
+#include "nmbake/job.hpp"
+#include "nmbake/preview.hpp"
 #include "nmbake/load.hpp"
 #include "scenes.hpp"
 #include "score.hpp"
@@ -129,16 +137,16 @@ int fail_with(const std::string& message) {
 int run_eval(const std::string& scene, const std::string& map_path, const std::string& low_path,
              const std::string& cage_path, const std::string& report_path, const std::string& json_path,
              const std::string& space, const std::string& green, const std::string& cage_mode, int samples,
-             int size, float front, float back, bool floors, const std::string& cache,
-             const std::string& truth_map) {
+             int size, float front, float back, float edge_band, bool floors, const std::string& cache,
+             bool retry_truth, const std::string& truth_map) {
   scenes::EvalOptions o;
   o.samples = samples;
   if (!nmbake::is_supported_sample_count(samples)) return fail_with("--truth-samples: use 1, 4, 16 or 64");
   if (space != "tangent" && space != "object") return fail_with("--space: expected tangent or object");
   o.space = space == "object" ? nmbake::NormalSpace::object : nmbake::NormalSpace::tangent;
   o.green = green == "down" ? nmbake::GreenChannel::down : nmbake::GreenChannel::up;
-  if (cage_mode != "averaged" && cage_mode != "interpolated") return fail_with("--cage-mode: expected averaged or interpolated");
-  o.rays.cage = cage_mode == "interpolated" ? nmbake::CageMode::interpolated : nmbake::CageMode::averaged;
+  if (!nmbake::parse_cage_mode(cage_mode, o.rays.cage)) return fail_with("--cage-mode: expected banded, averaged or interpolated");
+  o.rays.edge_band = edge_band;
   if (!report_path.empty()) {
     std::ifstream in(report_path);
     if (!in) return fail_with(report_path + ": cannot read the bake report");
@@ -146,11 +154,14 @@ int run_eval(const std::string& scene, const std::string& map_path, const std::s
       const nlohmann::json j = nlohmann::json::parse(in);
       front = j.at("distances").at("front").get<float>();
       back = j.at("distances").at("back").get<float>();
+      // Reports before the retry existed have none.
+      if (j.at("rays").contains("retry_reach")) o.rays.retry_reach = j.at("rays").at("retry_reach").get<float>();
     } catch (const std::exception& e) {
       return fail_with(report_path + ": not a bake report (" + e.what() + ")");
     }
   }
   if (!(front >= 0.0f) || !(back >= 0.0f)) return fail_with("eval needs the bake's distances: --front F --back B or --report");
+  if (retry_truth) o.rays.retry_reach = -1.0f;  // resolved once the low mesh is loaded
   o.rays.front = front;
   o.rays.back = back;
 
@@ -173,6 +184,13 @@ int run_eval(const std::string& scene, const std::string& map_path, const std::s
     return fail_with("eval needs --map (or --floors)");
   }
   const int width = map_path.empty() ? size : map.width, height = map_path.empty() ? size : map.height;
+  if (o.rays.retry_reach < 0.0f)
+    o.rays.retry_reach = nmbake::kProbeReach * nmbake::compute_bounds(low).diagonal();
+  // On a low mesh without hard edges the banded cage's rays are the
+  // averaged cage's: one truth serves both.
+  nmbake::SurfaceStats surface_stats;
+  const bool banded_differs = !nmbake::build_low_surface(low, nullptr, surface_stats).hard_corners.empty();
+  const std::string ray_rule = cage_mode == "banded" && !banded_differs ? std::string("averaged") : cage_mode;
   const std::unique_ptr<scenes::TrueSurface> truth = scenes::make_true_surface(scene);
   scenes::Expected expected;
   auto stamp = [](const std::string& path) {
@@ -182,7 +200,9 @@ int run_eval(const std::string& scene, const std::string& map_path, const std::s
            std::to_string(std::filesystem::last_write_time(path, ec).time_since_epoch().count());
   };
   const std::string key = scene + " " + std::to_string(width) + "x" + std::to_string(height) + " s" +
-                          std::to_string(samples) + " " + space + " " + green + " " + cage_mode + " " +
+                          std::to_string(samples) + " " + space + " " + green + " " + ray_rule + " " +
+                          (cage_mode == "banded" && banded_differs ? std::to_string(edge_band) + " " : std::string()) +
+                          (o.rays.retry_reach > 0.0f ? "retry " + std::to_string(o.rays.retry_reach) + " " : std::string()) +
                           std::to_string(front) + " " + std::to_string(back) + " " + stamp(low_path) + " " +
                           stamp(cage_path);
   if (cache.empty() || !scenes::load_expected(cache, key, expected)) {
@@ -217,6 +237,100 @@ int run_eval(const std::string& scene, const std::string& map_path, const std::s
     std::ofstream f(json_path);
     f << out.dump(2) << "\n";
     if (!f) return fail_with(json_path + ": cannot write");
+  }
+  return 0;
+}
+
+struct AppearanceFlags {
+  std::string low, high, json, heat, space = "tangent", green = "up";
+  float heat_max = 10.0f;
+  std::vector<std::string> maps;
+  nmbake::AppearanceOptions options;
+};
+
+// nmbake-gen appearance: the appearance error of one or more maps of one
+// low/high pair (appearance.hpp), with the two references; the renders are
+// made once and every map is scored against them.
+int run_appearance(const AppearanceFlags& f) {
+  if (f.space != "tangent" && f.space != "object") return fail_with("--space: expected tangent or object");
+  if (f.green != "up" && f.green != "down") return fail_with("--green: expected up or down");
+  const nmbake::NormalSpace space = f.space == "object" ? nmbake::NormalSpace::object : nmbake::NormalSpace::tangent;
+  const nmbake::GreenChannel green = f.green == "down" ? nmbake::GreenChannel::down : nmbake::GreenChannel::up;
+  nmbake::Mesh low, high;
+  nmbake::LowSurface surface;
+  if (const nmbake::Status st = nmbake::load_preview_meshes(f.low, f.high, low, surface, high); !st)
+    return fail_with(st.message());
+  std::vector<nmbake::Image> maps(f.maps.size());
+  for (std::size_t i = 0; i < f.maps.size(); ++i) {
+    if (const nmbake::Status st = nmbake::read_image(f.maps[i], maps[i]); !st) return fail_with(st.message());
+    if (maps[i].channels < 3) return fail_with(f.maps[i] + ": a normal map needs three channels");
+    if (maps[i].width != maps[0].width || maps[i].height != maps[0].height)
+      return fail_with(f.maps[i] + ": every map must have the first map's size");
+  }
+  nmbake::AppearanceSamples samples;
+  const auto start = std::chrono::steady_clock::now();
+  if (const nmbake::Status st =
+          nmbake::render_appearance(surface, high, maps[0].width, maps[0].height, f.options, samples);
+      !st)
+    return fail_with(st.message());
+  const double render_seconds = seconds_since(start);
+  const nmbake::AppearanceError floor = nmbake::appearance_floor(samples);
+  const nmbake::AppearanceError bare = nmbake::appearance_without_map(samples, surface);
+  const double compared_share =
+      samples.low_hits ? static_cast<double>(samples.sample_count()) / static_cast<double>(samples.low_hits) : 0.0;
+  std::printf("appearance: %zu views, %zu samples compared (%.1f%% of the low mesh's; high missed %llu, depth "
+              "apart > %.4g %llu), rendered in %.2f s\n",
+              nmbake::appearance_views().size(), samples.sample_count(), 100.0 * compared_share,
+              static_cast<unsigned long long>(samples.high_missed), samples.depth_tolerance,
+              static_cast<unsigned long long>(samples.depth_rejected), render_seconds);
+  std::printf("%-28s %s\n", "floor (consensus)", floor.to_text().c_str());
+  std::printf("%-28s %s  (%.2fx floor)\n", "low mesh, no map", bare.to_text().c_str(),
+              floor.mean > 0 ? bare.mean / floor.mean : 0.0);
+  nlohmann::ordered_json out;
+  const auto figures = [](const nmbake::AppearanceError& e, double floor_mean) {
+    nlohmann::ordered_json j;
+    j["samples"] = e.samples;
+    j["mean_deg"] = e.mean;
+    j["p95_deg"] = e.p95;
+    j["p99_deg"] = e.p99;
+    j["max_deg"] = e.max;
+    j["ratio_to_floor"] = floor_mean > 0.0 ? e.mean / floor_mean : 0.0;
+    return j;
+  };
+  out["views"] = nmbake::appearance_views().size();
+  out["low_samples"] = samples.low_hits;
+  out["compared_samples"] = samples.sample_count();
+  out["high_missed"] = samples.high_missed;
+  out["depth_rejected"] = samples.depth_rejected;
+  out["depth_tolerance"] = samples.depth_tolerance;
+  out["floor"] = figures(floor, floor.mean);
+  out["no_map"] = figures(bare, floor.mean);
+  out["maps"] = nlohmann::json::array();
+  std::vector<std::vector<float>> angles(maps.size() + 1);
+  angles[0] = nmbake::appearance_floor_angles(samples);
+  for (std::size_t i = 0; i < maps.size(); ++i) {
+    std::uint64_t fallbacks = 0;
+    angles[i + 1] = nmbake::appearance_angles(samples, surface, maps[i], space, green, &fallbacks);
+    nmbake::AppearanceError e = nmbake::summarize_appearance(angles[i + 1]);
+    e.decode_fallbacks = fallbacks;
+    std::printf("%-28s %s  (%.2fx floor)\n", f.maps[i].c_str(), e.to_text().c_str(),
+                floor.mean > 0 ? e.mean / floor.mean : 0.0);
+    nlohmann::ordered_json j = figures(e, floor.mean);
+    j["path"] = f.maps[i];
+    j["decode_fallbacks"] = e.decode_fallbacks;
+    out["maps"].push_back(j);
+  }
+  if (!f.heat.empty()) {
+    std::vector<const std::vector<float>*> columns;
+    for (const std::vector<float>& a : angles) columns.push_back(&a);
+    const nmbake::Image heat = nmbake::appearance_heat(samples, columns, f.heat_max);
+    if (const nmbake::Status st = nmbake::write_image(heat, f.heat, nmbake::PixelFormat::png8); !st)
+      return fail_with(st.message());
+  }
+  if (!f.json.empty()) {
+    std::ofstream file(f.json);
+    file << out.dump(2) << "\n";
+    if (!file) return fail_with(f.json + ": cannot write");
   }
   return 0;
 }
@@ -267,6 +381,18 @@ int main(int argc, char** argv) {
   CLI::App* slot = app.add_subcommand("slot", "Concave U groove with bumps: long rays cross the far wall");
   add_common_options(*slot, options, options.slot.high_cells, options.slot.low_cells);
 
+  // The hard-edged and concave scenes (hard_scenes.hpp), fixed parameters.
+  std::vector<std::pair<std::string, CLI::App*>> hard;
+  for (const std::string& name : scenes::hard_scene_names()) {
+    CLI::App* cmd = app.add_subcommand(name, name == "bowl"       ? "Dish turned around y: concave and convex hard edges, filleted high"
+                                             : name == "cylinder" ? "Cylinder, hard-edged caps in the low mesh, chamfered in the high"
+                                             : name == "panel"    ? "Hard-edged slab with pockets, a groove and a deep dimple carved in its top"
+                                                                  : "Hard-edged low cube over a rounded high cube of this bevel radius");
+    cmd->add_option("--out-dir", options.out_dir, "Folder to write <scene>_low.obj and <scene>_high.ply into")->required();
+    cmd->add_option("--threads", options.threads, "Worker threads, 0 = all cores")->check(CLI::Range(0, 1024));
+    hard.emplace_back(name, cmd);
+  }
+
   CLI::App* parts = app.add_subcommand("parts", "Many heightfield plates, each a named part (p<i>_low / p<i>_high, high as OBJ)");
   parts->add_option("--out-dir", options.out_dir, "Folder to write parts_low.obj and parts_high.obj into")->required();
   parts->add_option("--count", options.parts.count, "Number of parts")->check(CLI::Range(1, 10000))->capture_default_str();
@@ -275,12 +401,13 @@ int main(int argc, char** argv) {
 
   // The lab's evaluator (eval.hpp).
   struct EvalFlags {
-    std::string scene, map, low, cage, report, json, space = "tangent", cage_mode = "averaged", green = "up";
+    std::string scene, map, low, cage, report, json, space = "tangent", cage_mode = "banded", green = "up";
+    float edge_band = nmbake::kDefaultEdgeBand;
     int samples = 64, size = 512;
     std::string cache;
     std::string truth_map;
     float front = -1.0f, back = -1.0f;
-    bool floors = false;
+    bool floors = false, retry_truth = false;
   } ev;
   CLI::App* eval_cmd = app.add_subcommand("eval", "Coverage and angular error of a baked map of an analytic scene");
   eval_cmd->add_option("scene", ev.scene, "heightfield | sphere | torus | craters | box | slot")
@@ -296,14 +423,40 @@ int main(int argc, char** argv) {
   eval_cmd->add_option("--truth-map", ev.truth_map, "also write the perfect map (the truth, float EXR) here");
   eval_cmd->add_option("--space", ev.space, "tangent | object")->capture_default_str();
   eval_cmd->add_option("--green", ev.green, "up | down")->capture_default_str();
-  eval_cmd->add_option("--cage-mode", ev.cage_mode, "averaged | interpolated (the bake's)")->capture_default_str();
+  eval_cmd->add_option("--cage-mode", ev.cage_mode, "banded | averaged | interpolated (the bake's)")->capture_default_str();
+  eval_cmd->add_option("--edge-band", ev.edge_band, "the bake's --edge-band (banded cage)")->capture_default_str();
   eval_cmd->add_option("--front", ev.front, "the bake's front distance, scene units");
   eval_cmd->add_option("--back", ev.back, "the bake's back distance, scene units");
   eval_cmd->add_option("--report", ev.report, "read the resolved front/back from this bake report");
   eval_cmd->add_option("--json", ev.json, "also write the figures here");
   eval_cmd->add_option("--size", ev.size, "--floors without --map: map size")->capture_default_str();
   eval_cmd->add_option("--threads", options.threads, "Worker threads, 0 = all cores")->check(CLI::Range(0, 1024));
+  eval_cmd->add_flag(
+      "--retry-truth", ev.retry_truth,
+      "where the bake's ray meets no true surface, search its line out and in up to the distance probes' "
+      "reach (as a retried bake does), whatever the bake did: a miss then counts as an error");
   eval_cmd->add_flag("--floors", ev.floors, "score the perfect map as float, 16-bit and 8-bit (the evaluator's floors)");
+
+  AppearanceFlags ap;
+  CLI::App* appearance_cmd = app.add_subcommand(
+      "appearance", "What a renderer shows: high normals vs the low mesh with each map, from 14 cameras");
+  appearance_cmd->add_option("--low", ap.low, "the low mesh that was baked")->required();
+  appearance_cmd->add_option("--high", ap.high, "the high mesh")->required();
+  appearance_cmd->add_option("--map", ap.maps, "a baked map (repeat: every map is scored against one render)")
+      ->required();
+  appearance_cmd->add_option("--space", ap.space, "tangent | object")->capture_default_str();
+  appearance_cmd->add_option("--green", ap.green, "up | down")->capture_default_str();
+  appearance_cmd->add_option("--size", ap.options.size, "pixels per side of each view")->capture_default_str();
+  appearance_cmd->add_option("--supersample", ap.options.supersample, "k x k samples per pixel")
+      ->capture_default_str();
+  appearance_cmd
+      ->add_option("--depth-tolerance", ap.options.depth_tolerance,
+                   "compare samples whose low and high hits are at most this share of the diagonal apart")
+      ->capture_default_str();
+  appearance_cmd->add_option("--json", ap.json, "also write the figures here");
+  appearance_cmd->add_option("--heat", ap.heat, "write where the error is (PNG): a row per view, the floor then each map");
+  appearance_cmd->add_option("--heat-max", ap.heat_max, "degrees at the red end of the heat ramp")->capture_default_str();
+  appearance_cmd->add_option("--threads", options.threads, "Worker threads, 0 = all cores")->check(CLI::Range(0, 1024));
 
   // Scoring a bake of an analytic scene against its true normals.
   struct ScoreOptions {
@@ -383,11 +536,20 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (maplab->parsed()) return scenes::run_map_lab(maplab_out, maplab_size);
+    if (appearance_cmd->parsed()) return run_appearance(ap);
     if (eval_cmd->parsed())
       return run_eval(ev.scene, ev.map, ev.low, ev.cage, ev.report, ev.json, ev.space, ev.green, ev.cage_mode,
-                      ev.samples, ev.size, ev.front, ev.back, ev.floors, ev.cache, ev.truth_map);
-    if (torus->parsed())
-      return generate_and_write(options, "torus", [&] { return scenes::make_torus(options.torus); });
+                      ev.samples, ev.size, ev.front, ev.back, ev.edge_band, ev.floors, ev.cache, ev.retry_truth,
+                      ev.truth_map);
+    for (const auto& [name, cmd] : hard) {
+      if (!cmd->parsed()) continue;
+      return generate_and_write(options, name, [&name = name] {
+        scenes::ScenePair pair;
+        NMBAKE_CHECK(scenes::make_hard_scene(name, pair), "a hard scene name");
+        return pair;
+      });
+    }
+    if (torus->parsed()) return generate_and_write(options, "torus", [&] { return scenes::make_torus(options.torus); });
     if (craters->parsed()) {
       return generate_and_write(options, "craters", [&] { return scenes::make_craters(options.craters); });
     }
