@@ -21,11 +21,6 @@ using namespace preview_detail;
 
 namespace {
 
-template <class V>
-V interpolate(const std::vector<V>& corner, std::size_t base, glm::vec2 b) {
-  return corner[base] * (1.0f - b.x - b.y) + corner[base + 1] * b.x + corner[base + 2] * b.y;
-}
-
 // atan2 of |a x b| and a.b in double: acos of a float dot product cannot
 // resolve angles below ~0.02 degrees (a zero error must read as zero).
 float angle_degrees(const glm::vec3& a, const glm::vec3& b) {
@@ -102,13 +97,9 @@ Status render_appearance(const LowSurface& surface, const Mesh& high, int map_wi
   NMBAKE_CHECK(high.has_normals(), "high mesh normals prepared");
   NMBAKE_CHECK(surface.triangle_count() > 0, "low surface built");
 
-  std::vector<glm::vec3> low_positions;
-  low_positions.reserve(surface.position.size() + 1);  // Embree's spare element
-  low_positions.assign(surface.position.begin(), surface.position.end());
-  std::vector<std::uint32_t> low_indices(surface.position.size());
-  std::iota(low_indices.begin(), low_indices.end(), 0u);
-  RayScene low_scene, high_scene;
-  NMBAKE_TRY(low_scene.build(low_positions, low_indices));
+  LowSoup low_soup;
+  NMBAKE_TRY(low_soup.build(surface));
+  RayScene high_scene;
   NMBAKE_TRY(high_scene.build(high.positions, high.indices));
 
   Bounds bounds;
@@ -135,7 +126,7 @@ Status render_appearance(const LowSurface& surface, const Mesh& high, int map_wi
     view.pitch_degrees = view_angles.y;
     view.up = UpAxis::y;
     const Camera camera = make_camera(framing, view, view_angles.x);
-    trace_primary(low_scene, camera, options.supersample, low_hits);
+    trace_primary(low_soup.scene, camera, options.supersample, low_hits);
     trace_primary(high_scene, camera, options.supersample, high_hits);
     for (std::size_t s = 0; s < low_hits.size(); ++s) {
       const RayHit& low = low_hits[s];

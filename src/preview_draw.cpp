@@ -13,6 +13,7 @@
 #include <glm/geometric.hpp>
 #include <limits>
 #include <mutex>
+#include <numeric>
 
 namespace nmbake::preview_detail {
 
@@ -149,6 +150,14 @@ struct RayScene::Impl {
 
 RayScene::RayScene() = default;
 RayScene::~RayScene() = default;
+
+Status LowSoup::build(const LowSurface& surface) {
+  positions.reserve(surface.position.size() + 1);  // Embree's spare element
+  positions.assign(surface.position.begin(), surface.position.end());
+  indices.resize(surface.position.size());
+  std::iota(indices.begin(), indices.end(), 0u);
+  return scene.build(positions, indices);
+}
 
 Status RayScene::build(const std::vector<glm::vec3>& positions, const std::vector<std::uint32_t>& indices) {
   NMBAKE_CHECK(positions.capacity() > positions.size(), "one spare position for Embree");

@@ -81,6 +81,21 @@ class RayScene {
   std::unique_ptr<Impl> impl_;
 };
 
+// The low surface's corners as a triangle soup for primary rays (triangle
+// id = low triangle), with the arrays Embree shares.
+struct LowSoup {
+  std::vector<glm::vec3> positions;
+  std::vector<std::uint32_t> indices;
+  RayScene scene;
+  Status build(const LowSurface& surface);
+};
+
+// A corner attribute at barycentrics b (weights of corners 1 and 2).
+template <class V>
+V interpolate(const std::vector<V>& corner, std::size_t base, glm::vec2 b) {
+  return corner[base] * (1.0f - b.x - b.y) + corner[base + 1] * b.x + corner[base + 2] * b.y;
+}
+
 // For each sample of a view (row-major over a (size k) x (size k) grid): the
 // primary ray's hit. Parallel over rows; each result depends only on its index.
 void trace_primary(const RayScene& scene, const Camera& camera, int supersample, std::vector<RayHit>& hits);

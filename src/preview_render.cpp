@@ -61,11 +61,6 @@ Status load_preview_meshes(const std::string& low_path, const std::string& high_
 
 namespace {
 
-template <class V>
-V interpolate(const std::vector<V>& corner, std::size_t base, glm::vec2 b) {
-  return corner[base] * (1.0f - b.x - b.y) + corner[base + 1] * b.x + corner[base + 2] * b.y;
-}
-
 Bounds bounds_of(const std::vector<glm::vec3>& points) {
   Bounds b;
   if (points.empty()) return b;
@@ -228,13 +223,9 @@ Status render_preview(const LowSurface& surface, const Mesh& high, const Image& 
 
   // Primary-ray scenes: the low corners as a triangle soup (triangle id =
   // low triangle), the high mesh on its own buffers.
-  std::vector<glm::vec3> low_positions;
-  low_positions.reserve(surface.position.size() + 1);  // Embree's spare element
-  low_positions.assign(surface.position.begin(), surface.position.end());
-  std::vector<std::uint32_t> low_indices(surface.position.size());
-  std::iota(low_indices.begin(), low_indices.end(), 0u);
-  RayScene low_scene, high_scene;
-  NMBAKE_TRY(low_scene.build(low_positions, low_indices));
+  LowSoup low_soup;
+  NMBAKE_TRY(low_soup.build(surface));
+  RayScene high_scene;
   NMBAKE_TRY(high_scene.build(high.positions, high.indices));
   // The baker's own scene and rays for the reference normals.
   HighScene bake_scene;
@@ -298,7 +289,7 @@ Status render_preview(const LowSurface& surface, const Mesh& high, const Image& 
     const float yaw = options.view.yaw_degrees + 360.0f * static_cast<float>(v) / static_cast<float>(views);
     const Camera camera = make_camera(framing, options.view, yaw);
     const Lights lights = make_lights(camera, options.view);
-    trace_primary(low_scene, camera, k, low_hits);
+    trace_primary(low_soup.scene, camera, k, low_hits);
     trace_primary(high_scene, camera, k, high_hits);
 
     // The bake rays from every low point seen, traced exactly as the baker does.

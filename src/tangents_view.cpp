@@ -21,11 +21,6 @@ using namespace preview_detail;
 
 namespace {
 
-template <class V>
-V interpolate(const std::vector<V>& corner, std::size_t base, glm::vec2 b) {
-  return corner[base] * (1.0f - b.x - b.y) + corner[base + 1] * b.x + corner[base + 2] * b.y;
-}
-
 glm::vec3 unit_or(const glm::vec3& v, const glm::vec3& fallback) {
   const float l = glm::length(v);
   return l > 1e-12f && std::isfinite(l) ? v / l : fallback;
