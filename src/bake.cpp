@@ -765,7 +765,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   NMBAKE_TRY(load_mesh(o.high_path, high_options, high, r.high_load));
   if (high_options.keep_colors && !high.has_colors()) {
     return Status::bad_input(o.high_path + ": --map vertex-color, but the high mesh has no vertex colours (read from "
-                             "PLY red/green/blue properties; glTF COLOR_0 and other formats are not read yet)");
+                             "PLY red/green/blue properties and glTF COLOR_0; FBX, Collada and OBJ colours are not read)");
   }
   const bool use_cage_mesh = !o.cage_path.empty();
   if (use_cage_mesh) {

@@ -265,6 +265,75 @@ TEST(LoadGltf, EmbeddedAndBinaryBuffersLoadTheSameMesh) {
   EXPECT_EQ(glb.mesh.parts[0].name, "only");
 }
 
+// COLOR_0 (the vertex-color map): float RGBA and normalised unsigned-short
+// RGB, linear in the file, come back sRGB-encoded; a primitive without it is
+// white; a file without any has no colours; a 2-component COLOR_0 is an error.
+TEST(LoadGltf, VertexColoursAreReadAndEncoded) {
+  TempDir dir;
+  GltfFile file;
+  const int indices = file.indices({0, 1, 2});
+  const int positions_a = file.floats({0, 0, 0, 1, 0, 0, 0, 1, 0}, 3);
+  const int positions_b = file.floats({5, 0, 0, 6, 0, 0, 5, 1, 0}, 3);
+  const int positions_c = file.floats({9, 0, 0, 10, 0, 0, 9, 1, 0}, 3);
+  const int rgba = file.floats({0.0f, 0.5f, 1.0f, 0.25f, 1.0f, 1.0f, 1.0f, 1.0f, 0.002f, 0.0f, 0.0f, 1.0f}, 4);
+  const int rgb16 = file.unsigned_shorts({65535, 32768, 0, 0, 0, 0, 65535, 65535, 65535}, 3, true);
+  const int mesh_a = file.mesh({{"POSITION", positions_a}, {"COLOR_0", rgba}}, indices, "a");
+  const int mesh_b = file.mesh({{"POSITION", positions_b}}, indices, "b");
+  const int mesh_c = file.mesh({{"POSITION", positions_c}, {"COLOR_0", rgb16}}, indices, "c");
+  file.node({{"mesh", mesh_a}});
+  file.node({{"mesh", mesh_b}});
+  file.node({{"mesh", mesh_c}});
+  file.scene({0, 1, 2});
+  file.write_gltf(dir, "colours.gltf");
+  LoadOptions options;
+  options.keep_colors = true;
+  const Loaded loaded = load(dir.file("colours.gltf"), options);
+  ASSERT_TRUE(loaded.status.is_ok()) << loaded.status.message();
+  ASSERT_EQ(loaded.mesh.colors.size(), loaded.mesh.positions.size());
+  const float half = 1.055f * std::pow(0.5f, 1.0f / 2.4f) - 0.055f;  // 0.7354
+  const float half16 = 1.055f * std::pow(32768.0f / 65535.0f, 1.0f / 2.4f) - 0.055f;
+  const auto colour_at = [&](glm::vec3 p) {
+    for (std::size_t v = 0; v < loaded.mesh.positions.size(); ++v) {
+      if (loaded.mesh.positions[v] == p) return loaded.mesh.colors[v];
+    }
+    ADD_FAILURE() << "no vertex at " << p.x << " " << p.y;
+    return glm::vec4(-1.0f);
+  };
+  const auto expect_colour = [](glm::vec4 actual, glm::vec4 expected) {
+    for (int c = 0; c < 4; ++c) EXPECT_NEAR(actual[c], expected[c], 1e-5f) << "channel " << c;
+  };
+  expect_colour(colour_at({0, 0, 0}), {0.0f, half, 1.0f, 0.25f});
+  expect_colour(colour_at({1, 0, 0}), {1.0f, 1.0f, 1.0f, 1.0f});
+  expect_colour(colour_at({0, 1, 0}), {12.92f * 0.002f, 0.0f, 0.0f, 1.0f});  // the curve's linear toe
+  expect_colour(colour_at({5, 0, 0}), {1.0f, 1.0f, 1.0f, 1.0f});              // no COLOR_0: white
+  expect_colour(colour_at({9, 0, 0}), {1.0f, half16, 0.0f, 1.0f});
+  expect_colour(colour_at({9, 1, 0}), {1.0f, 1.0f, 1.0f, 1.0f});
+  // Not asked for: none read.
+  const Loaded plain = load(dir.file("colours.gltf"));
+  ASSERT_TRUE(plain.status.is_ok());
+  EXPECT_FALSE(plain.mesh.has_colors());
+
+  GltfFile none;
+  const Triangle t = add_triangle(none);
+  none.node({{"mesh", none.mesh({{"POSITION", t.positions}}, t.indices)}});
+  none.scene({0});
+  none.write_gltf(dir, "none.gltf");
+  const Loaded without = load(dir.file("none.gltf"), options);
+  ASSERT_TRUE(without.status.is_ok());
+  EXPECT_FALSE(without.mesh.has_colors());
+
+  GltfFile broken;
+  const Triangle u = add_triangle(broken);
+  const int two = broken.floats({0, 0, 1, 1, 0, 1}, 2);
+  broken.node({{"mesh", broken.mesh({{"POSITION", u.positions}, {"COLOR_0", two}}, u.indices)}});
+  broken.scene({0});
+  broken.write_gltf(dir, "broken.gltf");
+  const Loaded bad = load(dir.file("broken.gltf"), options);
+  EXPECT_EQ(bad.status.code(), StatusCode::bad_input);
+  EXPECT_TRUE(contains(bad.status.message(), "COLOR_0 has 2 components per element")) << bad.status.message();
+  EXPECT_TRUE(contains(bad.status.message(), dir.file("broken.gltf"))) << bad.status.message();
+}
+
 TEST(LoadGltf, StripsFansNormalizedUvsAndSparseAccessors) {
   TempDir dir;
   GltfFile file;

@@ -644,6 +644,17 @@ TEST(Maps, VertexColorIsTheHighMeshsColourAtTheHit) {
     EXPECT_EQ(e.texels, 32u * 32u);
     EXPECT_LT(e.max, 1e-5) << "channel " << c;
   }
+  // The same colours from a .glb (COLOR_0, written linear by save_mesh and
+  // read back through the sRGB curve) give the same map.
+  test::TempDir glb_dir;
+  ASSERT_TRUE(save_mesh(glb_dir.file("high.glb"), pair.high).is_ok());
+  o.high_path = glb_dir.file("high.glb");
+  bake_maps(glb_dir, o, {MapKind::vertex_color});
+  const Image from_glb = read_map(glb_dir, MapKind::vertex_color);
+  ASSERT_EQ(from_glb.pixels.size(), map.pixels.size());
+  float largest = 0.0f;
+  for (std::size_t i = 0; i < map.pixels.size(); ++i) largest = std::max(largest, std::abs(from_glb.pixels[i] - map.pixels[i]));
+  EXPECT_LT(largest, 1e-5f);
 }
 
 // The id map: each texel the colour of the part its samples hit, by name

@@ -89,9 +89,11 @@ struct LoadOptions {
   bool keep_normals = true;  // false: file normals are dropped (e.g. --high-normals face)
   int uv_set = 0;            // glTF TEXCOORD_N / FBX UV channel N (OBJ and PLY have one: N must be 0)
   bool keep_tangents = false;  // glTF TANGENT / FBX tangents into Mesh::tangents (--tangents file)
-  // PLY vertex colours (red, green, blue, optional alpha: unsigned char or
-  // short scaled to [0, 1], float as stored) into Mesh::colors (the
-  // vertex-color map). Other formats: not read yet.
+  // Vertex colours into Mesh::colors (the vertex-color map): PLY red, green,
+  // blue, optional alpha (unsigned char or short scaled to [0, 1], float as
+  // stored); glTF COLOR_0 (float or normalised unsigned byte/short, RGB or
+  // RGBA; linear in the file, stored sRGB-encoded like a PLY's bytes; white
+  // on primitives without it). FBX, Collada and OBJ: not read.
   bool keep_colors = false;
   // Tuning of the parallel parsers, for tests and benchmarks; the loaded mesh
   // and every error are the same whatever they are set to.

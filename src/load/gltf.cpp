@@ -375,6 +375,9 @@ class GltfReader {
     if (!all_normals_) out_.normals.clear();
     if (!all_uvs_) out_.uvs.clear();
     if (!all_tangents_) out_.tangents.clear();
+    // Vertex colours: white where a primitive has no COLOR_0 (the
+    // specification's default), none at all when no primitive has them.
+    if (!any_colors_) out_.colors.clear();
     stats_.triangles = out_.triangle_count();
     stats_.polygons = stats_.triangles;
     return Status::ok();
@@ -586,8 +589,22 @@ class GltfReader {
     } else {
       all_tangents_ = false;
     }
+    const int color_accessor = options_.keep_colors ? attribute("COLOR_0") : -1;
+    int color_components = 0;
+    if (color_accessor >= 0) {
+      if (static_cast<std::size_t>(color_accessor) >= model_.accessors.size()) {
+        return error(part, where + "COLOR_0: accessor " + std::to_string(color_accessor) + " does not exist");
+      }
+      color_components = tinygltf::GetNumComponentsInType(
+          static_cast<std::uint32_t>(model_.accessors[static_cast<std::size_t>(color_accessor)].type));
+      if (color_components != 3 && color_components != 4) {
+        return error(part, where + "COLOR_0 has " + std::to_string(std::max(color_components, 0)) +
+                               " components per element, expected 3 (RGB) or 4 (RGBA)");
+      }
+    }
     for (const auto& [accessor, key] : {std::pair{normal_accessor, std::string("NORMAL")}, std::pair{uv_accessor, uv_key},
-                                        std::pair{tangent_accessor, std::string("TANGENT")}}) {
+                                        std::pair{tangent_accessor, std::string("TANGENT")},
+                                        std::pair{color_accessor, std::string("COLOR_0")}}) {
       if (accessor < 0) continue;
       if (std::string e = check_count(accessor, key); !e.empty()) return error(part, where + e);
     }
@@ -645,6 +662,27 @@ class GltfReader {
     } else {
       out_.tangents.clear();
     }
+    if (options_.keep_colors) {
+      // glTF colours are linear; nmbake's colours (as a PLY's bytes, and as
+      // the vertex-color map writes them, with no curve) are sRGB-encoded:
+      // RGB goes through the sRGB curve, alpha stays linear.
+      out_.colors.resize(base + vertex_count, glm::vec4(1.0f));
+      if (color_accessor >= 0) {
+        any_colors_ = true;
+        const auto encode = [](float c) {
+          c = std::clamp(c, 0.0f, 1.0f);
+          return c <= 0.0031308f ? 12.92f * c : 1.055f * std::pow(c, 1.0f / 2.4f) - 0.055f;
+        };
+        if (std::string e = read_accessor(model_, color_accessor, color_components, false, count,
+                                          [&](std::size_t v, const float* c) {
+                                            out_.colors[base + v] = glm::vec4(encode(c[0]), encode(c[1]), encode(c[2]),
+                                                                              color_components == 4 ? c[3] : 1.0f);
+                                          });
+            !e.empty()) {
+          return error(part, where + "COLOR_0: " + e);
+        }
+      }
+    }
 
     const auto emit = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
       // A mirroring matrix turns counter-clockwise into clockwise: swap two
@@ -692,6 +730,7 @@ class GltfReader {
   bool all_tangents_ = true;
   bool any_tangents_ = false;
   bool any_without_tangents_ = false;
+  bool any_colors_ = false;
 };
 
 // Geometry only: images are neither decoded nor, being external, read

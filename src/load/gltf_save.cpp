@@ -1,7 +1,9 @@
 // glTF 2.0 writer (tinygltf): positions, normals, UVs (TEXCOORD_0), tangents
-// (TANGENT) and indices of a Mesh as .glb, or as .gltf JSON with its buffer
+// (TANGENT), vertex colours (COLOR_0, linear) and indices of a Mesh as .glb, or as .gltf JSON with its buffer
 // for a .bin beside it; save_mesh() writes each to a temporary name and
 // renames it.
+#include <algorithm>
+#include <cmath>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -74,6 +76,20 @@ Status encode_gltf(const Mesh& mesh, const std::string& bin_uri, std::string& by
   if (mesh.has_tangents()) {
     const int view = add_view(model, mesh.tangents.data(), vertex_count * sizeof(glm::vec4), TINYGLTF_TARGET_ARRAY_BUFFER);
     attributes["TANGENT"] = add_accessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC4, vertex_count);
+  }
+  std::vector<glm::vec4> linear_colors;  // must live until the buffer is encoded
+  if (mesh.has_colors()) {
+    // glTF colours are linear; nmbake's are sRGB-encoded (load.hpp): the
+    // loader's curve, inverted.
+    const auto decode = [](float c) {
+      c = std::clamp(c, 0.0f, 1.0f);
+      return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
+    };
+    linear_colors.reserve(vertex_count);
+    for (const glm::vec4& c : mesh.colors) linear_colors.emplace_back(decode(c.r), decode(c.g), decode(c.b), c.a);
+    const int view =
+        add_view(model, linear_colors.data(), vertex_count * sizeof(glm::vec4), TINYGLTF_TARGET_ARRAY_BUFFER);
+    attributes["COLOR_0"] = add_accessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC4, vertex_count);
   }
   const int index_view = add_view(model, mesh.indices.data(), mesh.indices.size() * sizeof(std::uint32_t),
                                   TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
