@@ -661,6 +661,28 @@ std::uint64_t build_queued_rays(Packet& p, const LowSurface& surface, const RayO
 // miss, whose bary and distance are left 0) and returns the number of hits.
 // Four lanes that hold consecutive samples, as they mostly do (a texel's
 // samples, or a row of a 4 x 4 texel block at 1 spp), are written at once.
+// A returned packet of two-ray samples (`nearest`, and the retry of misses):
+// per sample the hit nearer the low surface is kept (a tie goes to the one
+// outside), over what the sample holds; `always` keeps every hit (first hit:
+// one ray a sample). `first_triangle`: the mesh's first triangle of each of
+// the packet scene's geometries.
+void keep_nearer_hits(const Packet& p, const std::uint32_t* first_triangle, bool always, Hits& hits) {
+  for (int i = 0; i < p.count; ++i) {
+    const std::size_t s = p.sample[i];
+    const unsigned geometry = p.rayhit.hit.geomID[i];
+    if (geometry == RTC_INVALID_GEOMETRY_ID) continue;
+    const float distance = p.sign[i] * (p.t_surface[i] - p.rayhit.ray.tfar[i]);
+    const bool better = hits.triangle[s] < 0 || std::fabs(distance) < std::fabs(hits.distance[s]) ||
+                        (std::fabs(distance) == std::fabs(hits.distance[s]) && distance > hits.distance[s]);
+    if (always || better) {
+      // The hit's triangle in the mesh: its group's range + Embree's primID.
+      hits.triangle[s] = static_cast<std::int32_t>(first_triangle[geometry] + p.rayhit.hit.primID[i]);
+      hits.bary[s] = glm::vec2(p.rayhit.hit.u[i], p.rayhit.hit.v[i]);
+      hits.distance[s] = distance;
+    }
+  }
+}
+
 std::uint64_t store_first_hits(const Packet& p, float front, Hits& hits) {
   using namespace detail;
   const RTCHit16& h = p.rayhit.hit;
@@ -760,19 +782,7 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
         if (again.count == 0) return;
         rtcIntersect16(again.valid, impl.scenes[again_scene], &context, &again.rayhit);
         counts.rays += static_cast<std::uint64_t>(again.count);
-        for (int i = 0; i < again.count; ++i) {
-          const std::size_t s = again.sample[i];
-          const unsigned geometry = again.rayhit.hit.geomID[i];
-          if (geometry == RTC_INVALID_GEOMETRY_ID) continue;
-          const std::uint32_t first = impl.first_triangle[again_scene * per_scene + static_cast<int>(geometry)];
-          const float distance = again.sign[i] * (again.t_surface[i] - again.rayhit.ray.tfar[i]);
-          if (hits.triangle[s] < 0 || std::fabs(distance) < std::fabs(hits.distance[s]) ||
-              (std::fabs(distance) == std::fabs(hits.distance[s]) && distance > hits.distance[s])) {
-            hits.triangle[s] = static_cast<std::int32_t>(first + again.rayhit.hit.primID[i]);
-            hits.bary[s] = glm::vec2(again.rayhit.hit.u[i], again.rayhit.hit.v[i]);
-            hits.distance[s] = distance;
-          }
-        }
+        keep_nearer_hits(again, &impl.first_triangle[static_cast<std::size_t>(again_scene * per_scene)], false, hits);
         reset_packet(again);
       };
       for_each_sample_in_trace_order(samples, rect, [&](std::size_t s) {
@@ -832,22 +842,8 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
       if (packet.count == 0) return;
       rtcIntersect16(packet.valid, impl.scenes[packet_scene], &context, &packet.rayhit);
       counts.rays += static_cast<std::uint64_t>(packet.count);
-      for (int i = 0; i < packet.count; ++i) {
-        const std::size_t s = packet.sample[i];
-        const unsigned geometry = packet.rayhit.hit.geomID[i];
-        if (geometry == RTC_INVALID_GEOMETRY_ID) continue;
-        // The hit's triangle in the mesh: its group's range + Embree's primID.
-        const std::uint32_t first = impl.first_triangle[packet_scene * per_scene + static_cast<int>(geometry)];
-        const float t = packet.rayhit.ray.tfar[i];
-        const float distance = packet.sign[i] * (packet.t_surface[i] - t);
-        const bool better = hits.triangle[s] < 0 || std::fabs(distance) < std::fabs(hits.distance[s]) ||
-                            (std::fabs(distance) == std::fabs(hits.distance[s]) && distance > hits.distance[s]);
-        if (options.hit == HitRule::first || better) {
-          hits.triangle[s] = static_cast<std::int32_t>(first + packet.rayhit.hit.primID[i]);
-          hits.bary[s] = glm::vec2(packet.rayhit.hit.u[i], packet.rayhit.hit.v[i]);
-          hits.distance[s] = distance;
-        }
-      }
+      keep_nearer_hits(packet, &impl.first_triangle[static_cast<std::size_t>(packet_scene * per_scene)],
+                       options.hit == HitRule::first, hits);
       reset_packet(packet);
     };
 
