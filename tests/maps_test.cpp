@@ -566,6 +566,25 @@ TEST_F(MapsCli, UdimTilesTimesMapsAndTheCache) {
   }
 }
 
+// A curvature map whose covered values are all subnormal: the auto range's
+// histogram scale (4096 / largest) overflows, and the range is still the
+// exact 99th percentile (fuzz_tile found the NaN bin a 0 texel got).
+TEST(MapsFinish, SubnormalCurvatureRangeIsExact) {
+  MapSettings settings;
+  settings.maps = {MapKind::curvature};
+  MapSet set(settings, 8, 0, 16);
+  Image& image = set.image(MapKind::curvature);
+  for (std::size_t i = 0; i < image.pixels.size(); ++i) {
+    image.pixels[i] = i % 4 == 0 ? 0.0f : (i % 2 ? 1e-39f : -2e-39f);
+  }
+  std::vector<std::uint8_t> coverage(image.pixels.size(), 1);
+  DilateStats stats;
+  set.finish(coverage, 0, stats);
+  const MapReport report = set.reports(1001).front();
+  EXPECT_EQ(static_cast<float>(report.figure("range")), 2e-39f);  // rank 126 of 128: |-2e-39|
+  EXPECT_EQ(report.figure("flat_range_fallback"), 0.0);
+}
+
 // Dilation of a map set: the modes on an exact case, and several images in
 // one call get exactly what each would get alone.
 TEST(MapsDilate, ModesAndLayers) {

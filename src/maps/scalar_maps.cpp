@@ -74,7 +74,12 @@ float covered_percentile_99(const Image& image, const std::vector<std::uint8_t>&
   if (e.texels == 0 || !(e.largest > 0.0f)) return 0.0f;
   constexpr int kBins = 4096;
   const float scale = static_cast<float>(kBins) / e.largest;
-  const auto bin_of = [&](float v) { return std::min(kBins - 1, static_cast<int>(std::fabs(v) * scale)); };
+  // A largest |v| below 4096 / FLT_MAX (subnormal) overflows the scale (0 * inf
+  // is NaN): then every value shares bin 0, and the rank is found among all.
+  const bool scaled = std::isfinite(scale);
+  const auto bin_of = [&](float v) {
+    return scaled ? std::min(kBins - 1, static_cast<int>(std::fabs(v) * scale)) : 0;
+  };
   constexpr std::size_t kChunk = std::size_t{1} << 18;
   const std::size_t chunks = (coverage.size() + kChunk - 1) / kChunk;
   std::vector<std::vector<std::uint32_t>> histograms(chunks, std::vector<std::uint32_t>(kBins, 0));
