@@ -15,7 +15,8 @@
 //   per map: f32 texels[rows * width * channels] | u8 coverage[rows * width]
 //   | u64 XXH3-64 of everything before it.
 // Every count is checked against what is left of the file before anything
-// is allocated, and the trailing hash finds a torn or altered file. The
+// is allocated, the trailing hash finds a torn or altered file, and texels
+// must be finite (and bounded: read_tile). The
 // normal-like maps' encode options (space, green, tangent encode) are not
 // written: their texels are encoded, and dilating and writing them does not
 // read the options (the key holds them).
@@ -522,6 +523,18 @@ Status read_tile(const std::string& path, TileData& tile) {
     return bad("its checksum does not match (a torn or altered file)");
   for (const std::uint8_t c : tile.coverage) {
     if (c > 1) return bad("coverage values other than 0 and 1");
+  }
+  // A bake writes finite texels; these bounds keep the finishing finite
+  // (a NaN would reach the integer conversion of the writers): a dilated
+  // texel sums 8 neighbours, and the normal-like maps' dilation squares
+  // them. Far beyond any bake's (heights and thicknesses are at most 1e12).
+  for (std::size_t i = 0; i < m.maps.size(); ++i) {
+    const float limit = map_traits(m.maps[i]).dilate == DilateMode::unit_vector ? 1e15f : 1e30f;
+    for (const float x : tile.texels[i]) {
+      if (!(std::fabs(x) <= limit)) {
+        return bad(std::string("texels of the ") + to_string(m.maps[i]) + " map out of range");
+      }
+    }
   }
   return Status::ok();
 }

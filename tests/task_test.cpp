@@ -383,6 +383,11 @@ TEST(TaskTiles, HostileMapSetFieldsAreRefused) {
   EXPECT_TRUE(says(patched(third_counter, &negative, sizeof negative), "bad counter"));
   const std::uint8_t nothing = 0;
   EXPECT_TRUE(says(patched(0, &nothing, 0, 4), "bytes where the header says"));  // 4 bytes short
+  // Texels a bake never writes: NaN, or too large for the normal map's dilation.
+  const std::size_t texels = good.size() - 8 - 4 * 32 * (1 + 4 * 7);
+  EXPECT_TRUE(says(f32(texels + 4 * 5, std::nanf("")), "texels of the normal map out of range"));
+  EXPECT_TRUE(says(f32(texels + 4 * 5, 1e20f), "texels of the normal map out of range"));
+  EXPECT_TRUE(says(f32(texels + 4 * 4 * 32 * 3, INFINITY), "texels of the height map out of range"));
   // The file itself is fine: its checksum is what a flipped field breaks.
   std::string flipped = good;
   flipped[settings] ^= 1;

@@ -8,7 +8,9 @@
 //     report and debug-dump paths. `auto` distances enter as "auto": they
 //     are a function of the meshes, which are in the key;
 //   * any band of rows can be baked alone (a tile, bake_tile_rows) and the
-//     tiles merged before dilation give the bytes of the whole bake.
+//     tiles merged before dilation give the bytes of the whole bake, for
+//     every map of a map set (a tile holds each map's raw texels; the merge
+//     takes auto ranges from the whole map, as the whole bake does).
 // Scheduling is left to existing engines (plan.hpp writes Ninja files,
 // Slurm scripts and JSON task lists).
 #pragma once
