@@ -83,15 +83,7 @@ Status validate_map_set(const BakeOptions& o) {
   for (const MapKind map : o.maps) {
     if (!map_traits(map).implemented) return Status::bad_input(std::string("--map ") + to_string(map) + ": not implemented yet");
   }
-  if (o.maps.size() > 1) {
-    for (const OutputSpec& out : o.outputs) {
-      if (!has_map_token(out.path)) {
-        return Status::bad_input(printable_text(out.path) + ": " + std::to_string(o.maps.size()) + " maps are baked (" +
-                                 map_list_text(o.maps) + "): the output path needs the " + kMapToken +
-                                 " token, e.g. asset_" + kMapToken + ".png");
-      }
-    }
-  }
+  NMBAKE_TRY(check_map_tokens(o.outputs, o.maps));
   for (const MapOutput& out : map_outputs(o)) {
     if (const Status target = check_output_target(out.path); !target) return Status::bad_input(target.message());
   }
@@ -127,20 +119,54 @@ Status validate_map_set(const BakeOptions& o) {
     return Status::bad_input("--samples adaptive bakes the normal map alone; the map set (" + map_list_text(o.maps) +
                              ") needs a fixed sample count (1, 4, 16 or 64)");
   }
-  if (o.tile_count > 0 && (o.maps.size() != 1 || o.maps.front() != MapKind::normal)) {
-    return Status::bad_input("the map set (" + map_list_text(o.maps) +
-                             ") cannot be baked in tiles (--tile) yet: bake it whole, or tile a bake of the normal map "
-                             "alone");
-  }
   return Status::ok();
 }
 
 }  // namespace
 
-std::vector<MapOutput> map_outputs(const BakeOptions& o) {
+Status write_map_files(MapSet& maps, const std::vector<MapOutput>& files, bool dither) {
+  std::vector<std::pair<MapKind, PixelFormat>> kinds;
+  for (const MapOutput& out : files) kinds.emplace_back(out.map, out.format);
+  maps.prepare_files(kinds);
+  std::vector<Status> written(files.size());
+  std::vector<Image> scratch(files.size());
+  tbb::parallel_for(std::size_t{0}, files.size(), [&](std::size_t i) {
+    const MapOutput& out = files[i];
+    written[i] =
+        write_image(maps.stored(out.map, out.format, scratch[i]), out.path, out.format, WriteOptions{dither});
+  });
+  for (const Status& s : written) NMBAKE_TRY(s);
+  return Status::ok();
+}
+
+std::vector<MapReport> map_file_reports(const MapSet& maps, const std::vector<MapOutput>& files, int tile) {
+  std::vector<MapReport> reports = maps.reports(tile);
+  for (MapReport& m : reports) {
+    for (const MapOutput& out : files) {
+      if (out.map == m.map) m.outputs.push_back(out.path);
+    }
+  }
+  return reports;
+}
+
+Status check_map_tokens(const std::vector<OutputSpec>& outputs, const std::vector<MapKind>& maps) {
+  if (maps.size() <= 1) return Status::ok();
+  for (const OutputSpec& out : outputs) {
+    if (!has_map_token(out.path)) {
+      return Status::bad_input(printable_text(out.path) + ": " + std::to_string(maps.size()) +
+                               " maps are baked (" + map_list_text(maps) + "): the output path needs the " +
+                               kMapToken + " token, e.g. asset_" + kMapToken + ".png");
+    }
+  }
+  return Status::ok();
+}
+
+std::vector<MapOutput> map_outputs(const BakeOptions& o) { return map_outputs(o.outputs, o.maps); }
+
+std::vector<MapOutput> map_outputs(const std::vector<OutputSpec>& outputs, const std::vector<MapKind>& maps) {
   std::vector<MapOutput> out;
-  for (const OutputSpec& spec : o.outputs) {
-    for (const MapKind map : o.maps) {
+  for (const OutputSpec& spec : outputs) {
+    for (const MapKind map : maps) {
       MapOutput m;
       m.path = map_path(spec.path, map);
       m.format = map_format(map, spec.format, spec.format_given, spec.path);
@@ -685,7 +711,9 @@ Status bake_tile(const Prepared& p, const LowSurface& surface, const std::vector
   }
   if (debug) NMBAKE_TRY(debug->write(debug_prefix));
   if (tile != nullptr) {
-    tile->pixels = std::move(maps.image(MapKind::normal).pixels);
+    // Every map's raw texels and what its bands counted: the merge finishes them.
+    for (const MapKind map : p.maps.maps) tile->texels.push_back(std::move(maps.image(map).pixels));
+    tile->counts = maps.counts();
     tile->coverage = std::move(coverage);
     return Status::ok();
   }
@@ -694,25 +722,10 @@ Status bake_tile(const Prepared& p, const LowSurface& surface, const std::vector
   maps.finish(coverage, o.padding, r.dilate);
   timer.stop();
 
-  // Every output is written at once (each writer is single-threaded).
   timer.start("write");
-  std::vector<std::pair<MapKind, PixelFormat>> files;
-  for (const MapOutput& out : outputs) files.emplace_back(out.map, out.format);
-  maps.prepare_files(files);
-  std::vector<Status> written(outputs.size());
-  std::vector<Image> scratch(outputs.size());
-  tbb::parallel_for(std::size_t{0}, outputs.size(), [&](std::size_t i) {
-    const MapOutput& out = outputs[i];
-    written[i] = write_image(maps.stored(out.map, out.format, scratch[i]), out.path, out.format, WriteOptions{o.dither});
-  });
-  for (const Status& s : written) NMBAKE_TRY(s);
+  NMBAKE_TRY(write_map_files(maps, outputs, o.dither));
   timer.stop();
-  for (MapReport& m : maps.reports(udim_tile)) {
-    for (const MapOutput& out : outputs) {
-      if (out.map == m.map) m.outputs.push_back(out.path);
-    }
-    r.map_reports.push_back(std::move(m));
-  }
+  for (MapReport& m : map_file_reports(maps, outputs, udim_tile)) r.map_reports.push_back(std::move(m));
   return Status::ok();
 }
 
@@ -950,8 +963,11 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
       rows.count = o.tile_count;
       rows.padding = o.padding;
       rows.dither = o.dither;
-      rows.outputs = o.outputs;
-      for (OutputSpec& out : rows.outputs) out.path = map_path(out.path, MapKind::normal);  // tiles: the normal map alone
+      rows.outputs = o.outputs;  // <MAP> kept: the merge names each map's file as the bake does
+      rows.maps = map_settings;
+      rows.maps.vertex_curvature = nullptr;  // the mesh data is encoding's alone
+      rows.maps.triangle_part = nullptr;
+      rows.maps.part_colors = nullptr;
       NMBAKE_TRY(bake_tile(prepared, surface, outputs, debug_prefix, r, timer, progress, done.covered_texels,
                            rows.row_begin, rows.row_end, tile, &rows));
       timer.start("write");

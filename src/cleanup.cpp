@@ -69,6 +69,11 @@ void TempFileGuard::release() {
 
 Status write_file_atomically(const std::string& path, std::initializer_list<std::string_view> pieces,
                              const char* what, unsigned mode) {
+  return write_file_atomically(path, std::vector<std::string_view>(pieces), what, mode);
+}
+
+Status write_file_atomically(const std::string& path, const std::vector<std::string_view>& pieces,
+                             const char* what, unsigned mode) {
   static std::atomic<unsigned> counter{0};
   const std::string temp = path + ".tmp" + std::to_string(::getpid()) + "_" + std::to_string(counter++);
   const TempFileGuard guard(temp);

@@ -93,9 +93,8 @@ Status plan_jobs(const std::vector<BakeJob>& jobs, const PlanOptions& options, s
     const bool udim = maps.size() != map_outputs(job.options).size() ||
                       std::any_of(job.options.outputs.begin(), job.options.outputs.end(),
                                   [](const OutputSpec& o) { return has_udim_token(o.path); });
-    // Tiles bake the normal map alone (a map set is refused in tiles).
-    const bool map_set = job.options.maps.size() != 1 || job.options.maps.front() != MapKind::normal;
-    const bool tiled = options.tiles > 1 && !udim && !map_set &&
+    // A tile file carries every map of a map set; <UDIM> outputs are not tiled.
+    const bool tiled = options.tiles > 1 && !udim &&
                        std::max(job.options.width, job.options.height) >= options.tiles_min_size;
     if (!tiled) {
       PlanTask t;

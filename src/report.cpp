@@ -5,10 +5,21 @@
 
 #include <nlohmann/json.hpp>
 
+#include "map_report_json.hpp"
 #include "nmbake/bake.hpp"
 #include "nmbake/preset.hpp"
 
 namespace nmbake {
+
+nlohmann::ordered_json detail::map_reports_json(const std::vector<MapReport>& reports) {
+  nlohmann::ordered_json out = nlohmann::ordered_json::array();
+  for (const MapReport& m : reports) {
+    nlohmann::ordered_json entry = {{"map", to_string(m.map)}, {"tile", m.tile}, {"outputs", m.outputs}};
+    for (const auto& [name, value] : m.figures) entry[name] = value;
+    out.push_back(entry);
+  }
+  return out;
+}
 
 double BakeReport::miss_rate() const {
   return trace.samples > 0 ? static_cast<double>(trace.misses) / static_cast<double>(trace.samples) : 0.0;
@@ -142,13 +153,7 @@ std::string BakeReport::to_json() const {
   }
   // The map set: each map of each UDIM tile, with the ranges it used and
   // its counters (maps.hpp).
-  ordered_json map_json = ordered_json::array();
-  for (const MapReport& m : map_reports) {
-    ordered_json entry = {{"map", to_string(m.map)}, {"tile", m.tile}, {"outputs", m.outputs}};
-    for (const auto& [name, value] : m.figures) entry[name] = value;
-    map_json.push_back(entry);
-  }
-  j["maps"] = map_json;
+  j["maps"] = detail::map_reports_json(map_reports);
   if (!id_parts.empty()) {
     ordered_json parts = ordered_json::array();
     for (const auto& [name, color] : id_parts) {

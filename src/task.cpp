@@ -3,20 +3,32 @@
 // Key: XXH3-128 (xxHash 0.8, Yann Collet) over, in order, the canonical
 // option text and, for each of low, high, cage, the file's length and bytes.
 //
-// Tile file, little endian:
-//   "NMBTILE2" | key (high, low: u64) | i32 width, height, row_begin,
-//   row_end, index, count, padding, dither, output count | per output: u8 format,
-//   u32 path length, path | f32 pixels[rows * width * 3] | u8
-//   coverage[rows * width] | u64 XXH3-64 of everything before it.
-// The sizes are checked against the file's length before anything is
-// allocated, and the trailing hash finds a torn or altered file.
+// Tile file (format 3), little endian:
+//   "NMBTILE3" | key (high, low: u64) | i32 width, height, row_begin,
+//   row_end, index, count, padding, dither, output count, map count |
+//   per output: u8 format, u8 format given, u32 path length, path (<MAP>
+//   unreplaced) | per map: u8 MapKind | the map set's settings: f32 height
+//   range, f32 curvature range (0: auto), i32 AO rays, f32 AO distance, i32
+//   thickness rays, f32 thickness distance, f32 position box min xyz, max
+//   xyz | u64 OcclusionStats (7) and ThicknessStats (6) fields | per map:
+//   u32 counter count, per counter: u8 name length, name, f64 value |
+//   per map: f32 texels[rows * width * channels] | u8 coverage[rows * width]
+//   | u64 XXH3-64 of everything before it.
+// Every count is checked against what is left of the file before anything
+// is allocated, the trailing hash finds a torn or altered file, and texels
+// must be finite (and bounded: read_tile). The
+// normal-like maps' encode options (space, green, tangent encode) are not
+// written: their texels are encoded, and dilating and writing them does not
+// read the options (the key holds them).
 #include "nmbake/task.hpp"
 
 #include "nmbake/job.hpp"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -30,6 +42,7 @@
 #include <tbb/parallel_for.h>
 #include <xxhash.h>
 
+#include "map_report_json.hpp"
 #include "nmbake/cleanup.hpp"
 #include "nmbake/preset.hpp"
 #include "nmbake/udim.hpp"
@@ -236,12 +249,30 @@ bool parse_tile_spec(const std::string& text, int& index, int& count) {
 
 namespace {
 
-// "2": the dither flag joined the header (a "1" file is refused as one of another build).
-constexpr char kMagic[8] = {'N', 'M', 'B', 'T', 'I', 'L', 'E', '2'};
+// The format's number is the magic's last byte. "2": the dither flag joined
+// the header; "3": every map of a map set, its settings and counts.
+constexpr char kMagic[8] = {'N', 'M', 'B', 'T', 'I', 'L', 'E', '3'};
+constexpr std::size_t kMaxTileOutputs = 64, kMaxPathBytes = 65536, kMaxFigures = 64, kMaxFigureName = 64;
+constexpr std::size_t kMapKindCount = static_cast<std::size_t>(MapKind::miss) + 1;
 
 template <typename T>
 void put(std::string& out, const T& value) {
   out.append(reinterpret_cast<const char*>(&value), sizeof value);
+}
+
+// The two stats structs field by field, in the file's order.
+std::array<std::uint64_t*, 7> fields(OcclusionStats& s) {
+  return {&s.samples,          &s.rays,         &s.unoccluded,   &s.mirrored_rays,
+          &s.normal_fallbacks, &s.all_occluded, &s.untraced_rays};
+}
+std::array<std::uint64_t*, 6> fields(ThicknessStats& s) {
+  return {&s.samples, &s.rays, &s.exits, &s.samples_no_exit, &s.normal_fallbacks, &s.untraced_rays};
+}
+
+std::size_t map_channels(const std::vector<MapKind>& maps) {
+  std::size_t channels = 0;
+  for (const MapKind m : maps) channels += static_cast<std::size_t>(map_traits(m).channels);
+  return channels;
 }
 
 // XXH3-64 of the header and the tile's arrays: the trailer of a tile file.
@@ -250,35 +281,113 @@ std::uint64_t tile_checksum(const std::string& header, const TileData& tile) {
   NMBAKE_CHECK(state != nullptr, "xxHash state");
   XXH3_64bits_reset(state.get());
   XXH3_64bits_update(state.get(), header.data(), header.size());
-  XXH3_64bits_update(state.get(), tile.pixels.data(), tile.pixels.size() * sizeof(float));
+  for (const std::vector<float>& texels : tile.texels) {
+    XXH3_64bits_update(state.get(), texels.data(), texels.size() * sizeof(float));
+  }
   XXH3_64bits_update(state.get(), tile.coverage.data(), tile.coverage.size());
   return XXH3_64bits_digest(state.get());
+}
+
+// Reads a tile file's header field by field; no read (and so no
+// allocation) is larger than what is left of the file. The bytes read are
+// kept for the checksum.
+class HeaderReader {
+ public:
+  HeaderReader(std::ifstream& in, std::uint64_t file_size) : in_(in), left_(file_size) {}
+  bool bytes(void* out, std::uint64_t n) {
+    if (n > left_) return false;
+    const std::size_t at = header.size();
+    header.resize(at + n);
+    if (!in_.read(header.data() + at, static_cast<std::streamsize>(n))) return false;
+    std::memcpy(out, header.data() + at, n);
+    left_ -= n;
+    return true;
+  }
+  template <typename T>
+  bool get(T& value) {
+    return bytes(&value, sizeof value);
+  }
+  bool text(std::string& out, std::uint64_t n) {
+    if (n > left_) return false;
+    out.resize(n);
+    return bytes(out.data(), n);
+  }
+  std::uint64_t left() const { return left_; }
+  std::string header;
+
+ private:
+  std::ifstream& in_;
+  std::uint64_t left_;
+};
+
+bool finite_at_least_zero(float v) { return std::isfinite(v) && v >= 0.0f; }
+
+// Whether two tiles' map sets finish and write alike (what a tile file holds
+// of MapSettings).
+bool same_map_set(const MapSettings& a, const MapSettings& b) {
+  return a.maps == b.maps && a.height_range == b.height_range && a.curvature_range == b.curvature_range &&
+         a.occlusion.rays == b.occlusion.rays && a.occlusion.distance == b.occlusion.distance &&
+         a.thickness.rays == b.thickness.rays && a.thickness.distance == b.thickness.distance &&
+         a.position_bounds.min == b.position_bounds.min && a.position_bounds.max == b.position_bounds.max;
 }
 
 }  // namespace
 
 Status write_tile(const std::string& path, const TileData& tile) {
-  const std::size_t rows = static_cast<std::size_t>(tile.row_end - tile.row_begin);
-  NMBAKE_CHECK(tile.pixels.size() == rows * tile.width * 3 && tile.coverage.size() == rows * tile.width,
-               "tile arrays of its rows");
+  const std::size_t texels = static_cast<std::size_t>(tile.row_end - tile.row_begin) * tile.width;
+  const MapSettings& m = tile.maps;
+  NMBAKE_CHECK(tile.texels.size() == m.maps.size() && tile.counts.maps.size() == m.maps.size() &&
+                   tile.coverage.size() == texels,
+               "a tile's arrays: one per map, of its rows");
+  for (std::size_t i = 0; i < m.maps.size(); ++i) {
+    NMBAKE_CHECK(tile.texels[i].size() == texels * static_cast<std::size_t>(map_traits(m.maps[i]).channels),
+                 "a map's texels of the tile's rows");
+  }
   std::string header(kMagic, sizeof kMagic);
   put(header, tile.key.high);
   put(header, tile.key.low);
-  for (const int v : {tile.width, tile.height, tile.row_begin, tile.row_end, tile.index, tile.count, tile.padding,
-                      tile.dither ? 1 : 0, static_cast<int>(tile.outputs.size())}) {
+  for (const int v :
+       {tile.width, tile.height, tile.row_begin, tile.row_end, tile.index, tile.count, tile.padding,
+        tile.dither ? 1 : 0, static_cast<int>(tile.outputs.size()), static_cast<int>(m.maps.size())}) {
     put(header, static_cast<std::int32_t>(v));
   }
   for (const OutputSpec& out : tile.outputs) {
     put(header, static_cast<std::uint8_t>(out.format));
+    put(header, static_cast<std::uint8_t>(out.format_given ? 1 : 0));
     put(header, static_cast<std::uint32_t>(out.path.size()));
     header += out.path;
   }
+  for (const MapKind map : m.maps) put(header, static_cast<std::uint8_t>(map));
+  put(header, m.height_range);
+  put(header, m.curvature_range);
+  put(header, static_cast<std::int32_t>(m.occlusion.rays));
+  put(header, m.occlusion.distance);
+  put(header, static_cast<std::int32_t>(m.thickness.rays));
+  put(header, m.thickness.distance);
+  for (int a = 0; a < 3; ++a) put(header, m.position_bounds.min[a]);
+  for (int a = 0; a < 3; ++a) put(header, m.position_bounds.max[a]);
+  MapCounts counts = tile.counts;
+  for (const std::uint64_t* v : fields(counts.occlusion)) put(header, *v);
+  for (const std::uint64_t* v : fields(counts.thickness)) put(header, *v);
+  for (const auto& figures : counts.maps) {
+    NMBAKE_CHECK(figures.size() <= kMaxFigures, "a map's counters fit a tile file");
+    put(header, static_cast<std::uint32_t>(figures.size()));
+    for (const auto& [name, value] : figures) {
+      NMBAKE_CHECK(!name.empty() && name.size() <= kMaxFigureName, "a counter's name fits a tile file");
+      put(header, static_cast<std::uint8_t>(name.size()));
+      header += name;
+      put(header, value);
+    }
+  }
   const std::uint64_t check = tile_checksum(header, tile);
 
-  const std::string_view pixels(reinterpret_cast<const char*>(tile.pixels.data()), tile.pixels.size() * sizeof(float));
-  const std::string_view coverage(reinterpret_cast<const char*>(tile.coverage.data()), tile.coverage.size());
-  const std::string_view trailer(reinterpret_cast<const char*>(&check), sizeof check);
-  return write_file_atomically(path, {header, pixels, coverage, trailer}, "the tile file");
+  std::vector<std::string_view> pieces{header};
+  for (const std::vector<float>& t : tile.texels) {
+    pieces.emplace_back(reinterpret_cast<const char*>(t.data()), t.size() * sizeof(float));
+  }
+  pieces.emplace_back(reinterpret_cast<const char*>(tile.coverage.data()), tile.coverage.size());
+  pieces.emplace_back(reinterpret_cast<const char*>(&check), sizeof check);
+  return write_file_atomically(path, pieces, "the tile file");
 }
 
 Status read_tile(const std::string& path, TileData& tile) {
@@ -289,14 +398,19 @@ Status read_tile(const std::string& path, TileData& tile) {
   const auto file_size = static_cast<std::uint64_t>(in.tellg());
   in.seekg(0);
   const auto bad = [&](const std::string& why) { return Status::bad_input(path + ": not a complete nmbake tile file: " + why); };
-  std::string header(sizeof kMagic + 16 + 9 * 4, '\0');
-  if (!in.read(header.data(), static_cast<std::streamsize>(header.size()))) return bad("too short");
-  if (std::memcmp(header.data(), kMagic, sizeof kMagic) != 0) return bad("wrong magic bytes");
-  const char* p = header.data() + sizeof kMagic;
-  std::memcpy(&tile.key.high, p, 8);
-  std::memcpy(&tile.key.low, p + 8, 8);
-  std::int32_t v[9];
-  std::memcpy(v, p + 16, sizeof v);
+  HeaderReader r(in, file_size);
+  char magic[sizeof kMagic];
+  if (!r.bytes(magic, sizeof magic)) return bad("too short");
+  if (std::memcmp(magic, kMagic, sizeof kMagic - 1) != 0) return bad("wrong magic bytes");
+  if (magic[7] != kMagic[7]) {
+    const std::string version = printable_text(std::string(1, magic[7]));
+    return Status::bad_input(path + ": a tile file of format " + version + ", written by " +
+                             (magic[7] >= '0' && magic[7] < kMagic[7] ? "an older" : "another") +
+                             " nmbake; this nmbake reads format " + kMagic[7] +
+                             " (it carries every map of a map set): bake the tiles again with it");
+  }
+  std::int32_t v[10];
+  if (!r.get(tile.key.high) || !r.get(tile.key.low) || !r.get(v)) return bad("too short");
   tile.width = v[0];
   tile.height = v[1];
   tile.row_begin = v[2];
@@ -306,42 +420,121 @@ Status read_tile(const std::string& path, TileData& tile) {
   tile.padding = v[6];
   const std::int32_t dither = v[7];
   tile.dither = dither == 1;
-  const std::int32_t output_count = v[8];
-  if (tile.width <= 0 || tile.height <= 0 || tile.width > 65536 || tile.height > 65536 || tile.row_begin < 0 ||
-      tile.row_end < tile.row_begin || tile.row_end > tile.height || tile.count < 1 || tile.count > 4096 ||
-      tile.index < 0 || tile.index >= tile.count || tile.padding < 0 || (dither != 0 && dither != 1) ||
-      output_count < 0 || output_count > 64) {
+  const std::int32_t output_count = v[8], map_count = v[9];
+  if (tile.width <= 0 || tile.height <= 0 || tile.width > 65536 || tile.height > 65536 ||
+      tile.row_begin < 0 || tile.row_end < tile.row_begin || tile.row_end > tile.height || tile.count < 1 ||
+      tile.count > 4096 || tile.index < 0 || tile.index >= tile.count || tile.padding < 0 ||
+      tile.padding > 4096 || (dither != 0 && dither != 1) || output_count < 0 ||
+      output_count > static_cast<std::int32_t>(kMaxTileOutputs) || map_count < 1 ||
+      map_count > static_cast<std::int32_t>(kMapKindCount)) {
     return bad("header values out of range");
   }
   for (std::int32_t i = 0; i < output_count; ++i) {
-    std::uint8_t format = 0;
+    std::uint8_t format = 0, given = 0;
     std::uint32_t length = 0;
-    if (!in.read(reinterpret_cast<char*>(&format), 1) || !in.read(reinterpret_cast<char*>(&length), 4)) return bad("too short");
-    if (format > static_cast<std::uint8_t>(PixelFormat::tga8) || length > 65536) return bad("bad output entry");
+    if (!r.get(format) || !r.get(given) || !r.get(length)) return bad("too short");
+    if (format > static_cast<std::uint8_t>(PixelFormat::tga8) || given > 1 || length > kMaxPathBytes) {
+      return bad("bad output entry");
+    }
     OutputSpec out;
     out.format = static_cast<PixelFormat>(format);
-    out.path.resize(length);
-    if (!in.read(out.path.data(), length)) return bad("too short");
-    header.append(reinterpret_cast<const char*>(&format), 1);
-    header.append(reinterpret_cast<const char*>(&length), 4);
-    header += out.path;
+    out.format_given = given == 1;
+    if (!r.text(out.path, length)) return bad("too short");
+    if (out.path.find('\0') != std::string::npos) return bad("an output path holds a NUL byte");
     tile.outputs.push_back(std::move(out));
   }
-  const std::uint64_t texels = static_cast<std::uint64_t>(tile.row_end - tile.row_begin) * tile.width;
-  const std::uint64_t expected = header.size() + texels * 13 + 8;
-  if (expected != file_size) {
-    return bad(std::to_string(file_size) + " bytes where the header says " + std::to_string(expected));
+  MapSettings& m = tile.maps;
+  m.maps.clear();
+  for (std::int32_t i = 0; i < map_count; ++i) {
+    std::uint8_t kind = 0;
+    if (!r.get(kind)) return bad("too short");
+    const auto map = static_cast<MapKind>(kind);
+    if (kind >= kMapKindCount || !map_traits(map).implemented || m.has(map)) return bad("bad map list");
+    m.maps.push_back(map);
   }
-  tile.pixels.resize(texels * 3);
+  std::int32_t ao_rays = 0, thickness_rays = 0;
+  if (!r.get(m.height_range) || !r.get(m.curvature_range) || !r.get(ao_rays) ||
+      !r.get(m.occlusion.distance) || !r.get(thickness_rays) || !r.get(m.thickness.distance)) {
+    return bad("too short");
+  }
+  for (int a = 0; a < 3; ++a) {
+    if (!r.get(m.position_bounds.min[a])) return bad("too short");
+  }
+  for (int a = 0; a < 3; ++a) {
+    if (!r.get(m.position_bounds.max[a])) return bad("too short");
+  }
+  m.occlusion.rays = ao_rays;
+  m.occlusion.bent = m.has(MapKind::bent_normal);
+  m.thickness.rays = thickness_rays;
+  bool finite_box = true;
+  for (int a = 0; a < 3; ++a) {
+    finite_box =
+        finite_box && std::isfinite(m.position_bounds.min[a]) && std::isfinite(m.position_bounds.max[a]);
+  }
+  if (!finite_at_least_zero(m.height_range) || !finite_at_least_zero(m.curvature_range) ||
+      !finite_at_least_zero(m.occlusion.distance) || !finite_at_least_zero(m.thickness.distance) ||
+      ao_rays < 1 || ao_rays > kMaxOcclusionRays || thickness_rays < 1 ||
+      thickness_rays > kMaxOcclusionRays || !finite_box) {
+    return bad("map settings out of range");
+  }
+  for (std::uint64_t* f : fields(tile.counts.occlusion)) {
+    if (!r.get(*f)) return bad("too short");
+  }
+  for (std::uint64_t* f : fields(tile.counts.thickness)) {
+    if (!r.get(*f)) return bad("too short");
+  }
+  tile.counts.maps.resize(m.maps.size());
+  for (auto& figures : tile.counts.maps) {
+    std::uint32_t count = 0;
+    if (!r.get(count)) return bad("too short");
+    if (count > kMaxFigures) return bad("too many counters of a map");
+    for (std::uint32_t i = 0; i < count; ++i) {
+      std::uint8_t length = 0;
+      std::string name;
+      double value = 0.0;
+      if (!r.get(length) || !r.text(name, length) || !r.get(value)) return bad("too short");
+      const bool word =
+          !name.empty() && name.size() <= kMaxFigureName && std::all_of(name.begin(), name.end(), [](char c) {
+            return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_';
+          });
+      // Counts: whole numbers a double holds exactly, so sums do not depend on the order.
+      if (!word || !(value >= 0.0 && value <= 0x1p53) || value != std::floor(value))
+        return bad("bad counter");
+      figures.emplace_back(std::move(name), value);
+    }
+  }
+  const std::uint64_t texels = static_cast<std::uint64_t>(tile.row_end - tile.row_begin) * tile.width;
+  const std::uint64_t expected = texels * (map_channels(m.maps) * sizeof(float) + 1) + 8;
+  if (expected != r.left()) {
+    return bad(std::to_string(file_size) + " bytes where the header says " +
+               std::to_string(file_size - r.left() + expected));
+  }
+  for (const MapKind map : m.maps) {
+    std::vector<float>& t =
+        tile.texels.emplace_back(texels * static_cast<std::uint64_t>(map_traits(map).channels));
+    in.read(reinterpret_cast<char*>(t.data()), static_cast<std::streamsize>(t.size() * sizeof(float)));
+  }
   tile.coverage.resize(texels);
   std::uint64_t check = 0;
-  in.read(reinterpret_cast<char*>(tile.pixels.data()), static_cast<std::streamsize>(texels * 12));
   in.read(reinterpret_cast<char*>(tile.coverage.data()), static_cast<std::streamsize>(texels));
   in.read(reinterpret_cast<char*>(&check), sizeof check);
   if (!in) return bad("too short");
-  if (tile_checksum(header, tile) != check) return bad("its checksum does not match (a torn or altered file)");
+  if (tile_checksum(r.header, tile) != check)
+    return bad("its checksum does not match (a torn or altered file)");
   for (const std::uint8_t c : tile.coverage) {
     if (c > 1) return bad("coverage values other than 0 and 1");
+  }
+  // A bake writes finite texels; these bounds keep the finishing finite
+  // (a NaN would reach the integer conversion of the writers): a dilated
+  // texel sums 8 neighbours, and the normal-like maps' dilation squares
+  // them. Far beyond any bake's (heights and thicknesses are at most 1e12).
+  for (std::size_t i = 0; i < m.maps.size(); ++i) {
+    const float limit = map_traits(m.maps[i]).dilate == DilateMode::unit_vector ? 1e15f : 1e30f;
+    for (const float x : tile.texels[i]) {
+      if (!(std::fabs(x) <= limit)) {
+        return bad(std::string("texels of the ") + to_string(m.maps[i]) + " map out of range");
+      }
+    }
   }
   return Status::ok();
 }
@@ -353,6 +546,7 @@ std::string MergeReport::to_json() const {
   j["height"] = height;
   j["tiles"] = tiles;
   j["outputs"] = outputs;
+  j["maps"] = detail::map_reports_json(maps);
   j["dilate_filled_texels"] = dilate.filled_texels;
   j["dilate_fallback_texels"] = dilate.fallback_texels;
   j["seconds"] = {{"read", read_seconds}, {"dilate", dilate_seconds}, {"write", write_seconds}};
@@ -372,13 +566,25 @@ Status merge_tiles(const std::vector<std::string>& tile_paths, const std::vector
     return Status::bad_input(tile_paths.front() + ": the bake has " + std::to_string(count) + " tiles, " +
                              std::to_string(tile_paths.size()) + " tile files were given");
   }
-  Image image;
-  image.width = width;
-  image.height = height;
-  image.channels = 3;
-  image.pixels.resize(static_cast<std::size_t>(width) * height * 3);
+  const int padding = first.padding;
+  const bool dither = first.dither;
+  const MapSettings settings = first.maps;
+  const std::vector<OutputSpec> named = first.outputs;
+  const std::vector<OutputSpec>& targets = outputs.empty() ? named : outputs;
+  if (targets.empty()) return Status::bad_input("merge: no output map given (-o) and the tiles name none");
+  if (const Status tokens = check_map_tokens(targets, settings.maps); !tokens) {
+    return Status::bad_input("merge: " + tokens.message());
+  }
+  const std::vector<MapOutput> files = map_outputs(targets, settings.maps);
+  for (const MapOutput& out : files) {
+    if (const Status writer = check_image_writer(out.format); !writer)
+      return Status::internal(out.path + ": " + writer.message());
+  }
+  // The whole map's set: the tiles' texels go into its images.
+  MapSet maps(settings, width, 0, height);
   std::vector<std::uint8_t> coverage(static_cast<std::size_t>(width) * height, 0);
   std::vector<std::string> seen(static_cast<std::size_t>(count));
+  report.key = first.key;
   for (std::size_t i = 0; i < tile_paths.size(); ++i) {
     TileData tile;
     if (i == 0) {
@@ -387,13 +593,13 @@ Status merge_tiles(const std::vector<std::string>& tile_paths, const std::vector
       NMBAKE_TRY(read_tile(tile_paths[i], tile));
     }
     const std::string& path = tile_paths[i];
-    if (!(tile.key == report.key) && i > 0) {
+    if (!(tile.key == report.key)) {
       return Status::bad_input(path + ": a tile of another bake (key " + tile.key.hex() + ", not " + report.key.hex() + ")");
     }
-    report.key = tile.key;
-    if (tile.width != width || tile.height != height || tile.count != count || tile.padding != first.padding ||
-        tile.dither != first.dither) {
-      return Status::bad_input(path + ": a tile of another bake (size, tile count, padding or dithering differ)");
+    if (tile.width != width || tile.height != height || tile.count != count || tile.padding != padding ||
+        tile.dither != dither || !same_map_set(tile.maps, settings)) {
+      return Status::bad_input(
+          path + ": a tile of another bake (size, tile count, padding, dithering or maps differ)");
     }
     if (!seen[tile.index].empty()) {
       return Status::bad_input(path + ": tile " + std::to_string(tile.index + 1) + "/" + std::to_string(count) +
@@ -403,35 +609,27 @@ Status merge_tiles(const std::vector<std::string>& tile_paths, const std::vector
     int b = 0, e = 0;
     tile_rows(height, tile.index, count, b, e);
     if (tile.row_begin != b || tile.row_end != e) return Status::bad_input(path + ": its rows are not those of its tile");
-    std::copy(tile.pixels.begin(), tile.pixels.end(), image.pixels.begin() + static_cast<std::ptrdiff_t>(b) * width * 3);
-    std::copy(tile.coverage.begin(), tile.coverage.end(), coverage.begin() + static_cast<std::ptrdiff_t>(b) * width);
-    if (i == 0) {
-      first.padding = tile.padding;
-      first.dither = tile.dither;
-      first.outputs = tile.outputs;
+    for (std::size_t m = 0; m < settings.maps.size(); ++m) {
+      Image& image = maps.image(settings.maps[m]);
+      std::copy(tile.texels[m].begin(), tile.texels[m].end(),
+                image.pixels.begin() + static_cast<std::ptrdiff_t>(b) * width * image.channels);
     }
+    std::copy(tile.coverage.begin(), tile.coverage.end(),
+              coverage.begin() + static_cast<std::ptrdiff_t>(b) * width);
+    maps.add_counts(tile.counts);
   }
   report.read_seconds = std::chrono::duration<double>(Clock::now() - begin).count();
-  const std::vector<OutputSpec>& targets = outputs.empty() ? first.outputs : outputs;
-  if (targets.empty()) return Status::bad_input("merge: no output map given (-o) and the tiles name none");
-  for (const OutputSpec& out : targets) {
-    if (const Status writer = check_image_writer(out.format); !writer) return Status::internal(out.path + ": " + writer.message());
-  }
   report.width = width;
   report.height = height;
   report.tiles = count;
   begin = Clock::now();
-  dilate(image, coverage, first.padding, report.dilate);
+  maps.finish(coverage, padding, report.dilate);
   report.dilate_seconds = std::chrono::duration<double>(Clock::now() - begin).count();
   begin = Clock::now();
-  std::vector<Status> written(targets.size());
-  tbb::parallel_for(std::size_t{0}, targets.size(),
-                    [&](std::size_t i) {
-                      written[i] = write_image(image, targets[i].path, targets[i].format, WriteOptions{first.dither});
-                    });
-  for (const Status& s : written) NMBAKE_TRY(s);
+  NMBAKE_TRY(write_map_files(maps, files, dither));
   report.write_seconds = std::chrono::duration<double>(Clock::now() - begin).count();
-  for (const OutputSpec& out : targets) report.outputs.push_back(out.path);
+  for (const MapOutput& out : files) report.outputs.push_back(out.path);
+  report.maps = map_file_reports(maps, files, 1001);
   return Status::ok();
 }
 

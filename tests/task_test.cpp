@@ -1,6 +1,8 @@
 // Tasks, keys and tiles: bake keys, tiles that merge to the whole bake's
 // bytes, the cache, and plans run through Ninja.
+#include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -8,6 +10,10 @@
 #include <thread>
 
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
+// The tests write tile files with a hand-made checksum.
+#define XXH_INLINE_ALL
+#include <xxhash.h>
 
 #include "nmbake/bake.hpp"
 #include "nmbake/cache.hpp"
@@ -148,6 +154,287 @@ TEST(TaskTiles, MergeRefusesMixedMissingRepeatedAndDamagedTiles) {
   EXPECT_TRUE(fs::exists(dir.file("m.png")));
 }
 
+// The maps of a map set that cost little to trace (every map but
+// vertex-color, which needs a coloured mesh), with few AO and thickness rays.
+BakeOptions map_set_bake(const test::TempDir& dir, int width, int height) {
+  BakeOptions o = sphere_bake(dir, width, height);
+  o.maps = {MapKind::normal,    MapKind::height,   MapKind::ao,   MapKind::bent_normal,   MapKind::curvature,
+            MapKind::thickness, MapKind::position, MapKind::miss, MapKind::object_normal, MapKind::id};
+  o.ao_rays = 8;
+  o.thickness_rays = 4;
+  return o;
+}
+
+// Every file of a map set in every format: each map's own .png depth, PNG 8
+// (dithered) and 16 given, TIFF 16 and float EXR.
+std::vector<OutputSpec> map_set_outputs(const test::TempDir& dir, const std::string& prefix) {
+  return {{dir.file(prefix + "_<MAP>.png"), PixelFormat::png16, false},
+          {dir.file(prefix + "8_<MAP>.png"), PixelFormat::png8, true},
+          {dir.file(prefix + "16_<MAP>.png"), PixelFormat::png16, true},
+          {dir.file(prefix + "_<MAP>.tif"), PixelFormat::tiff16, true},
+          {dir.file(prefix + "_<MAP>.exr"), PixelFormat::exr_float, false}};
+}
+
+// A map set in 3 tiles of rows (a 200 x 150 map, padding wider than a tile)
+// merged: every map's file in every format has the whole bake's bytes (auto
+// height and curvature ranges from the whole map, not a tile's), and the
+// merge reports each map's figures as the whole bake does. Tiles baked with
+// one thread, merged with one and with two.
+TEST(TaskTiles, MapSetMergedTilesGiveTheWholeBakesBytes) {
+  test::TempDir dir;
+  BakeOptions whole = map_set_bake(dir, 200, 150);
+  whole.padding = 40;
+  whole.outputs = map_set_outputs(dir, "w");
+  BakeReport report;
+  const Status baked = bake(whole, report);
+  ASSERT_TRUE(baked.is_ok()) << baked.message();
+  const std::vector<MapReport> whole_maps = report.map_reports;
+  ASSERT_EQ(whole_maps.size(), whole.maps.size());
+  std::vector<std::string> tiles;
+  {
+    const tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+    for (const int i : {2, 0, 1}) {
+      BakeOptions tile = whole;
+      tile.tile_index = i;
+      tile.tile_count = 3;
+      tile.tile_path = dir.file(std::to_string(i) + ".tile");
+      const Status s = bake(tile, report);
+      ASSERT_TRUE(s.is_ok()) << s.message();
+      tiles.push_back(tile.tile_path);
+    }
+  }
+  const std::vector<MapOutput> whole_files = map_outputs(whole);
+  std::vector<std::string> whole_bytes;
+  for (const MapOutput& out : whole_files) whole_bytes.push_back(read_bytes(out.path));
+  for (const int threads : {1, 2}) {
+    const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    const std::string prefix = std::string("m").append(std::to_string(threads));
+    MergeReport merged;
+    const Status s = merge_tiles(tiles, map_set_outputs(dir, prefix), merged);
+    ASSERT_TRUE(s.is_ok()) << s.message();
+    ASSERT_EQ(merged.outputs.size(), whole_files.size());
+    for (std::size_t i = 0; i < whole_files.size(); ++i) {
+      ASSERT_FALSE(whole_bytes[i].empty()) << whole_files[i].path;
+      EXPECT_NE(merged.outputs[i], whole_files[i].path);
+      EXPECT_TRUE(read_bytes(merged.outputs[i]) == whole_bytes[i])
+          << merged.outputs[i] << " (" << threads << " threads)";
+    }
+    ASSERT_EQ(merged.maps.size(), whole_maps.size());
+    for (std::size_t m = 0; m < whole_maps.size(); ++m) {
+      EXPECT_EQ(merged.maps[m].map, whole_maps[m].map);
+      EXPECT_EQ(merged.maps[m].figures, whole_maps[m].figures) << to_string(whole_maps[m].map);
+    }
+  }
+  // The ranges came from the whole map, and the AO rays of every tile add up.
+  EXPECT_GT(whole_maps[1].figure("range"), 0.0);
+  EXPECT_GT(whole_maps[2].figure("rays"), 0.0);
+  // Without -o: the files the bake named, <MAP> replaced.
+  for (const MapOutput& out : whole_files) fs::remove(out.path);
+  MergeReport merged;
+  ASSERT_TRUE(merge_tiles(tiles, {}, merged).is_ok());
+  for (std::size_t i = 0; i < whole_files.size(); ++i) {
+    EXPECT_TRUE(read_bytes(whole_files[i].path) == whole_bytes[i]) << whole_files[i].path;
+  }
+  // Several maps need <MAP> in a path given to the merge.
+  const Status s = merge_tiles(tiles, {{dir.file("one.png"), PixelFormat::png16}}, merged);
+  ASSERT_FALSE(s.is_ok());
+  EXPECT_NE(s.message().find("needs the <MAP> token"), std::string::npos) << s.message();
+  EXPECT_FALSE(fs::exists(dir.file("one.png")));
+}
+
+// Tiles of two map sets are two bakes (the key holds the maps and their
+// options); a tile whose map settings were altered under the same key is
+// refused too; a tile file of the format before map sets says so.
+TEST(TaskTiles, TilesOfAnotherMapSetOrFormatAreRefused) {
+  test::TempDir dir;
+  BakeOptions o = sphere_bake(dir, 64, 96);
+  o.maps = {MapKind::normal, MapKind::height};
+  o.outputs = {{dir.file("m_<MAP>.png"), PixelFormat::png16}};
+  BakeReport report;
+  const auto tile = [&](const BakeOptions& base, int i, const std::string& name) {
+    BakeOptions t = base;
+    t.tile_index = i;
+    t.tile_count = 2;
+    t.tile_path = dir.file(name);
+    const Status s = bake(t, report);
+    EXPECT_TRUE(s.is_ok()) << s.message();
+    return t.tile_path;
+  };
+  const std::string a0 = tile(o, 0, "a0"), a1 = tile(o, 1, "a1");
+  BakeOptions ao = o;
+  ao.maps = {MapKind::normal, MapKind::ao};
+  BakeOptions range = o;
+  range.height_range = 0.5f;
+  BakeOptions normal = o;
+  normal.maps = {MapKind::normal};
+  MergeReport merged;
+  for (const BakeOptions* other : {&ao, &range, &normal}) {
+    const Status s = merge_tiles({a0, tile(*other, 1, "b1")}, {}, merged);
+    ASSERT_FALSE(s.is_ok());
+    EXPECT_NE(s.message().find("b1: a tile of another bake (key"), std::string::npos) << s.message();
+  }
+  // The same key, other settings: refused by the settings themselves.
+  TileData altered;
+  ASSERT_TRUE(read_tile(a1, altered).is_ok());
+  altered.maps.height_range = 2.0f;
+  ASSERT_TRUE(write_tile(dir.file("altered"), altered).is_ok());
+  Status s = merge_tiles({a0, dir.file("altered")}, {}, merged);
+  ASSERT_FALSE(s.is_ok());
+  EXPECT_NE(s.message().find(
+                "altered: a tile of another bake (size, tile count, padding, dithering or maps differ)"),
+            std::string::npos)
+      << s.message();
+  // Format 2 (before map sets) and an unknown one.
+  std::string bytes = read_bytes(a1);
+  bytes[7] = '2';
+  test::write_text(dir.file("old"), bytes);
+  s = merge_tiles({a0, dir.file("old")}, {}, merged);
+  ASSERT_FALSE(s.is_ok());
+  EXPECT_NE(s.message().find(
+                "old: a tile file of format 2, written by an older nmbake; this nmbake reads format 3"),
+            std::string::npos)
+      << s.message();
+  bytes[7] = '\x7f';
+  test::write_text(dir.file("odd"), bytes);
+  s = read_tile(dir.file("odd"), altered);
+  ASSERT_FALSE(s.is_ok());
+  EXPECT_NE(s.message().find("odd: a tile file of format \\x7f, written by another nmbake"),
+            std::string::npos)
+      << s.message();
+  EXPECT_FALSE(fs::exists(dir.file("m_normal.png")));
+  ASSERT_TRUE(merge_tiles({a1, a0}, {}, merged).is_ok());
+  EXPECT_TRUE(fs::exists(dir.file("m_height.png")));
+}
+
+// Every field of the map set's part of a tile file is checked, with the
+// checksum made right so that the field itself is what is refused: counts
+// beyond the file, unknown or repeated maps, settings out of range, counters
+// that are not whole numbers. Nothing is allocated for a count the file
+// cannot hold.
+TEST(TaskTiles, HostileMapSetFieldsAreRefused) {
+  test::TempDir dir;
+  TileData t;
+  t.key = {1, 2};
+  t.width = 4;
+  t.height = 32;
+  t.row_end = 32;
+  t.outputs = {{dir.file("o_<MAP>.exr"), PixelFormat::exr_float, true}};
+  t.maps.maps = {MapKind::normal, MapKind::height, MapKind::object_normal};
+  t.maps.occlusion.rays = 8;
+  t.maps.thickness.rays = 4;
+  t.counts.maps = {{}, {}, {{"zero_results", 2.0}}};
+  t.counts.occlusion.rays = 5;
+  for (const int channels : {3, 1, 3})
+    t.texels.emplace_back(static_cast<std::size_t>(4 * 32 * channels), 0.5f);
+  t.coverage.assign(4 * 32, 1);
+  ASSERT_TRUE(write_tile(dir.file("good"), t).is_ok());
+  const std::string good = read_bytes(dir.file("good"));
+  MergeReport merged;
+  ASSERT_TRUE(merge_tiles({dir.file("good")}, {}, merged).is_ok());
+  ASSERT_EQ(merged.maps.size(), 3u);
+  EXPECT_EQ(merged.maps[2].figure("zero_results"), 2.0);
+  EXPECT_TRUE(fs::exists(dir.file("o_object-normal.exr")));
+
+  // Offsets of the fields (task.cpp, the tile file).
+  const std::size_t map_count = 8 + 16 + 9 * 4;
+  const std::size_t output = map_count + 4, path_length = output + 2;
+  const std::size_t maps = path_length + 4 + t.outputs[0].path.size();
+  const std::size_t settings = maps + 3;
+  const std::size_t counters = settings + 48 + 13 * 8;
+  const std::size_t third_counter = counters + 4 + 4 + 4 + 1 + std::string("zero_results").size();
+  const auto patched = [&](std::size_t at, const void* value, std::size_t size, std::size_t cut = 0) {
+    std::string bytes = good;
+    std::memcpy(bytes.data() + at, value, size);
+    bytes.resize(bytes.size() - 8 - cut);
+    const std::uint64_t check = XXH3_64bits(bytes.data(), bytes.size());
+    bytes.append(reinterpret_cast<const char*>(&check), sizeof check);
+    test::write_text(dir.file("bad"), bytes);
+    TileData read;
+    const Status s = read_tile(dir.file("bad"), read);
+    EXPECT_TRUE(s.code() == StatusCode::bad_input && s.message().rfind(dir.file("bad") + ": ", 0) == 0)
+        << s.message();
+    return s.message();
+  };
+  const auto i32 = [&](std::size_t at, std::int32_t v) { return patched(at, &v, sizeof v); };
+  const auto u32 = [&](std::size_t at, std::uint32_t v) { return patched(at, &v, sizeof v); };
+  const auto u8 = [&](std::size_t at, std::uint8_t v) { return patched(at, &v, sizeof v); };
+  const auto f32 = [&](std::size_t at, float v) { return patched(at, &v, sizeof v); };
+  const auto says = [](const std::string& message, const char* what) {
+    return message.find(what) != std::string::npos;
+  };
+  EXPECT_TRUE(says(i32(map_count, 0), "header values out of range"));
+  EXPECT_TRUE(says(i32(map_count, 200), "header values out of range"));
+  EXPECT_TRUE(says(i32(map_count, 11), "bad map list"));  // reads the settings' bytes as maps
+  EXPECT_TRUE(says(u8(output, 250), "bad output entry"));
+  EXPECT_TRUE(says(u32(path_length, 0x7fffffff), "bad output entry"));
+  EXPECT_TRUE(says(u32(path_length, 60000), "too short"));
+  EXPECT_TRUE(says(u8(maps, 42), "bad map list"));
+  EXPECT_TRUE(says(u8(maps + 1, 0), "bad map list"));  // normal twice
+  EXPECT_TRUE(says(f32(settings, std::nanf("")), "map settings out of range"));
+  EXPECT_TRUE(says(f32(settings + 4, -1.0f), "map settings out of range"));
+  EXPECT_TRUE(says(i32(settings + 8, 0), "map settings out of range"));
+  EXPECT_TRUE(says(f32(settings + 20, INFINITY), "map settings out of range"));
+  EXPECT_TRUE(says(f32(settings + 24, INFINITY), "map settings out of range"));
+  EXPECT_TRUE(says(u32(counters, 0xffffffffu), "too many counters"));
+  EXPECT_TRUE(says(u32(counters, 40), "bad counter"));  // reads the next map's count as an empty name
+  EXPECT_TRUE(says(u8(third_counter - 12, 'Z'), "bad counter"));
+  const double half = 0.5, negative = -1.0;
+  EXPECT_TRUE(says(patched(third_counter, &half, sizeof half), "bad counter"));
+  EXPECT_TRUE(says(patched(third_counter, &negative, sizeof negative), "bad counter"));
+  const std::uint8_t nothing = 0;
+  EXPECT_TRUE(says(patched(0, &nothing, 0, 4), "bytes where the header says"));  // 4 bytes short
+  // Texels a bake never writes: NaN, or too large for the normal map's dilation.
+  const std::size_t texels = good.size() - 8 - 4 * 32 * (1 + 4 * 7);
+  EXPECT_TRUE(says(f32(texels + 4 * 5, std::nanf("")), "texels of the normal map out of range"));
+  EXPECT_TRUE(says(f32(texels + 4 * 5, 1e20f), "texels of the normal map out of range"));
+  EXPECT_TRUE(says(f32(texels + 4 * 4 * 32 * 3, INFINITY), "texels of the height map out of range"));
+  // The file itself is fine: its checksum is what a flipped field breaks.
+  std::string flipped = good;
+  flipped[settings] ^= 1;
+  test::write_text(dir.file("flipped"), flipped);
+  TileData read;
+  EXPECT_TRUE(says(read_tile(dir.file("flipped"), read).message(), "checksum does not match"));
+}
+
+// Through the CLI: a map set baked in 3 tiles (`--tile I/3 --tile-file`)
+// and `nmbake merge`d writes the whole bake's files; the merge report has
+// each map's figures.
+TEST(TaskTiles, MapSetTilesThroughTheCli) {
+  test::TempDir dir;
+  const BakeOptions o = sphere_bake(dir, 96, 96);
+  const std::string base = test::cli_path() + " bake -q --low " + o.low_path + " --high " + o.high_path +
+                           " --size 96 --map normal,height,ao,curvature --ao-rays 8 -o '" +
+                           dir.file("w_<MAP>.png") + "' -o '" + dir.file("w_<MAP>.exr") + "'";
+  test::CommandResult r = test::run_command(base + " 2>&1");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::string tiles;
+  for (int i = 1; i <= 3; ++i) {
+    const std::string tile = dir.file(std::string("t").append(std::to_string(i)).append(".nmt"));
+    r = test::run_command(base + " --tile " + std::to_string(i) + "/3 --tile-file " + tile + " 2>&1");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    tiles = std::string(" ").append(tile).append(tiles);  // any order
+  }
+  r = test::run_command(test::cli_path() + " merge" + tiles + " -o '" + dir.file("m_<MAP>.png") + "' -o '" +
+                        dir.file("m_<MAP>.exr") + "' --report " + dir.file("merge.json") + " 2>&1");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("m_curvature.exr"), std::string::npos) << r.output;
+  for (const char* map : {"normal", "height", "ao", "curvature"}) {
+    for (const char* ext : {".png", ".exr"}) {
+      const std::string whole = read_bytes(dir.file(std::string("w_") + map + ext));
+      EXPECT_FALSE(whole.empty());
+      EXPECT_TRUE(whole == read_bytes(dir.file(std::string("m_") + map + ext))) << map << ext;
+    }
+  }
+  const std::string json = read_bytes(dir.file("merge.json"));
+  EXPECT_NE(json.find("\"map\": \"ao\""), std::string::npos) << json;
+  EXPECT_NE(json.find("\"unoccluded_rays\""), std::string::npos) << json;
+  // One path for four maps: exit 2, naming it, nothing written.
+  r = test::run_command(test::cli_path() + " merge" + tiles + " -o " + dir.file("x.png") + " 2>&1");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("x.png: 4 maps are baked"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(dir.file("x.png")));
+}
+
 TEST(TaskKey, CoversBytesAndOptionsNotPathsOrThreads) {
   test::TempDir dir;
   BakeOptions o = sphere_bake(dir, 64, 64);
@@ -285,6 +572,43 @@ TEST(TaskPlan, NinjaRebakesOnlyWhatChanged) {
   const std::string json = read_bytes(dir.file("plan.json"));
   EXPECT_NE(json.find("\"dependencies\": [\n        \"tile:big:1\""), std::string::npos) << json.substr(0, 400);
   EXPECT_NE(json.find("\"key\""), std::string::npos);
+}
+
+// A map set in a plan's tiles (`maps` in the job file): tile tasks and a
+// merge whose outputs are every map's file; run by Ninja they are the
+// one-machine bake's bytes.
+TEST(TaskPlan, MapSetInTilesThroughNinja) {
+  if (test::run_command("command -v ninja >/dev/null 2>&1").exit_code != 0) {
+    GTEST_SKIP() << "ninja is not installed (tools/setup installs ninja-build)";
+  }
+  test::TempDir dir;
+  sphere_bake(dir, 96, 96);
+  test::write_text(dir.file("job.toml"),
+                   "[[bake]]\nname = \"set\"\nlow = \"low.obj\"\nhigh = \"high.ply\"\nsize = 96\n"
+                   "maps = [\"normal\", \"height\", \"ao\"]\nao_rays = 8\n"
+                   "outputs = [\"set_<MAP>.png\", \"set_<MAP>.exr\"]\n");
+  const std::string ninja = dir.file("plan.ninja");
+  test::CommandResult r = test::run_command(test::cli_path() + " plan " + dir.file("job.toml") +
+                                            " --tiles 3 --tiles-min-size 96 --ninja " + ninja + " 2>&1");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("4 tasks (0 bakes, 3 tiles, 1 merges)"), std::string::npos) << r.output;
+  r = test::run_command("ninja -f " + ninja + " 2>&1");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::vector<std::string> merged;
+  for (const char* name :
+       {"set_normal.png", "set_height.png", "set_ao.png", "set_normal.exr", "set_height.exr", "set_ao.exr"}) {
+    merged.push_back(read_bytes(dir.file(name)));
+    fs::remove(dir.file(name));
+  }
+  r = test::run_command(test::cli_path() + " bake " + dir.file("job.toml") + " -q 2>&1");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  int i = 0;
+  for (const char* name :
+       {"set_normal.png", "set_height.png", "set_ao.png", "set_normal.exr", "set_height.exr", "set_ao.exr"}) {
+    const std::string whole = read_bytes(dir.file(name));
+    EXPECT_FALSE(whole.empty()) << name;
+    EXPECT_TRUE(whole == merged[i++]) << name;
+  }
 }
 
 TEST(TaskPlan, DuplicateNamesAreRefused) {

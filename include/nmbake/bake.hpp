@@ -137,6 +137,16 @@ struct MapOutput {
 };
 // Every output once per map, in output order, the maps in the set's order.
 std::vector<MapOutput> map_outputs(const BakeOptions& options);
+std::vector<MapOutput> map_outputs(const std::vector<OutputSpec>& outputs, const std::vector<MapKind>& maps);
+// The write stage of a map set after MapSet::finish(): every file at once
+// (each writer is single-threaded), integer files of ranged maps through
+// MapSet::prepare_files()/stored(). 8-bit files dithered when `dither`.
+Status write_map_files(MapSet& maps, const std::vector<MapOutput>& files, bool dither);
+// The set's reports (MapSet::reports(tile)), each with the files of its map.
+std::vector<MapReport> map_file_reports(const MapSet& maps, const std::vector<MapOutput>& files, int tile);
+// With several maps every output path must name the map (<MAP>): bad_input
+// naming the first that does not.
+Status check_map_tokens(const std::vector<OutputSpec>& outputs, const std::vector<MapKind>& maps);
 
 // Checks options that need no file: sizes, sample count, outputs and formats,
 // distances against kMaxDistance (and percentages against

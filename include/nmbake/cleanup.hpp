@@ -8,6 +8,7 @@
 #include <initializer_list>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "nmbake/common.hpp"
 
@@ -45,6 +46,8 @@ class TempFileGuard {
 // messages: Status::io "PATH: cannot write WHAT: REASON". `mode` is the new
 // file's permission bits.
 Status write_file_atomically(const std::string& path, std::initializer_list<std::string_view> pieces,
+                             const char* what, unsigned mode = 0666);
+Status write_file_atomically(const std::string& path, const std::vector<std::string_view>& pieces,
                              const char* what, unsigned mode = 0666);
 
 }  // namespace nmbake

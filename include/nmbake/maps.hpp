@@ -110,9 +110,10 @@ struct MapSettings {
   OcclusionOptions occlusion;   // rays, distance (bent: set when bent-normal is baked)
   ThicknessOptions thickness;
   Bounds position_bounds;       // the high mesh's
-  // Per high vertex (curvature maps; empty otherwise): vertex_mean_curvature().
+  // Read by encode_band() only (a merge of tiles has none of them):
+  // per high vertex (curvature maps; empty otherwise): vertex_mean_curvature();
   const std::vector<float>* vertex_curvature = nullptr;
-  // The id map: per high triangle (in the scene's order) its part, and per
+  // the id map: per high triangle (in the scene's order) its part, and per
   // part its colour (part_color()).
   const std::vector<std::uint32_t>* triangle_part = nullptr;
   const std::vector<glm::vec3>* part_colors = nullptr;
@@ -165,9 +166,25 @@ struct MapMeshData {
 void prepare_map_mesh(const Mesh& high, const std::vector<MapKind>& maps, const BakeGroups& groups,
                       MapMeshData& out);
 
+// What the bands of a map set counted: per map (in the set's order) the
+// figures its module added up band by band (fallback counters), and the rays
+// cast from the hits. A tile of rows carries its share (task.hpp); a merge
+// adds the tiles' shares up, so its report has the whole bake's figures.
+// The values are whole numbers: their sums do not depend on the order.
+struct MapCounts {
+  std::vector<std::vector<std::pair<std::string, double>>> maps;
+  OcclusionStats occlusion;
+  ThicknessStats thickness;
+};
+
 // The maps of one map (a UDIM tile's, or a tile of rows), band by band:
 //   MapSet set(settings, ...); for each band: trace_rays(); encode_band();
 //   finish(coverage, padding); stored(map, format) for each output.
+// A merge of tiles of rows (task.hpp) builds the set for the whole map from
+// the settings the tiles carry, fills image() with their texels, adds their
+// counts() with add_counts(), and finishes and writes as a whole bake does.
+// Only encoding reads the high mesh's data (vertex curvature, parts): the
+// finishing and the files need none of it.
 class MapSet {
  public:
   // Rows [first_row, last_row) of a width-wide map.
@@ -200,6 +217,11 @@ class MapSet {
   Image& image(MapKind map);
   // Figures of every map, in the set's order.
   std::vector<MapReport> reports(int tile) const;
+  // What the bands counted so far (before finish()), and the counts of
+  // another part of the same map (a tile's, of a set of the same maps)
+  // added to this set's.
+  MapCounts counts() const;
+  void add_counts(const MapCounts& counts);
 
   struct Module;  // src/maps/modules.hpp
 

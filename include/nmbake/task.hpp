@@ -8,7 +8,9 @@
 //     report and debug-dump paths. `auto` distances enter as "auto": they
 //     are a function of the meshes, which are in the key;
 //   * any band of rows can be baked alone (a tile, bake_tile_rows) and the
-//     tiles merged before dilation give the bytes of the whole bake.
+//     tiles merged before dilation give the bytes of the whole bake, for
+//     every map of a map set (a tile holds each map's raw texels; the merge
+//     takes auto ranges from the whole map, as the whole bake does).
 // Scheduling is left to existing engines (plan.hpp writes Ninja files,
 // Slurm scripts and JSON task lists).
 #pragma once
@@ -19,6 +21,7 @@
 
 #include "nmbake/bake.hpp"
 #include "nmbake/common.hpp"
+#include "nmbake/maps.hpp"
 
 namespace nmbake {
 
@@ -43,9 +46,10 @@ void tile_rows(int height, int index, int count, int& begin, int& end);
 // "I/N" with 1 <= I <= N (1-based, as users count), into index = I - 1.
 bool parse_tile_spec(const std::string& text, int& index, int& count);
 
-// A baked tile: the map's rows [row_begin, row_end) before dilation, their
-// coverage, and what merging needs (the key, the map's size and padding,
-// the outputs the bake names).
+// A baked tile: every map's rows [row_begin, row_end) before dilation, their
+// coverage, and what merging needs to finish and write as the whole bake
+// does (the key, the map's size and padding, the outputs the bake names, the
+// map set's settings and what its bands counted).
 struct TileData {
   BakeKey key;
   int width = 0, height = 0;  // of the whole map
@@ -53,27 +57,38 @@ struct TileData {
   int index = 0, count = 1;
   int padding = 0;
   bool dither = true;  // the bake's BakeOptions::dither, for the 8-bit outputs merge writes
-  std::vector<OutputSpec> outputs;
-  std::vector<float> pixels;            // (row_end - row_begin) * width * 3
-  std::vector<std::uint8_t> coverage;   // (row_end - row_begin) * width
+  std::vector<OutputSpec> outputs;  // as the bake names them (<MAP> unreplaced; format_given kept)
+  // The maps and what finishing, the files and the report read of their
+  // settings: the given height and curvature ranges (0: auto, from the whole
+  // map), the resolved AO and thickness rays and distances (thickness: the
+  // white of integer files), the position map's box. Nothing else is
+  // written (the encode options, the mesh data: encoding only).
+  MapSettings maps;
+  MapCounts counts;                        // what the tile's bands counted, per map
+  std::vector<std::vector<float>> texels;  // per map: (row_end - row_begin) * width * channels
+  std::vector<std::uint8_t> coverage;      // (row_end - row_begin) * width
 };
 // Written to a temporary file and renamed (Status::io on failure).
 Status write_tile(const std::string& path, const TileData& tile);
-// bad_input naming the file on anything that is not a complete tile file.
+// bad_input naming the file on anything that is not a complete tile file of
+// this nmbake's format (one of an older format says so).
 Status read_tile(const std::string& path, TileData& tile);
 
 struct MergeReport {
   BakeKey key;
   int width = 0, height = 0, tiles = 0;
   std::vector<std::string> outputs;
+  std::vector<MapReport> maps;  // each map's figures, as the whole bake reports them
   DilateStats dilate;
   double read_seconds = 0.0, dilate_seconds = 0.0, write_seconds = 0.0;
   std::string to_json() const;
 };
 
-// Checks that the tiles are all of one bake (key, size, count, padding) and
-// together hold every tile exactly once, then dilates and writes `outputs`
-// (empty: the outputs the bake named). The bytes are those of the whole bake.
+// Checks that the tiles are all of one bake (key, size, count, padding, map
+// set) and together hold every tile exactly once, then finishes every map as
+// the whole bake does (auto ranges from the whole map, dilation: MapSet) and
+// writes `outputs` (empty: the outputs the bake named; with several maps
+// each path needs <MAP>). The bytes are those of the whole bake.
 // bad_input naming the tile file on a mixed, missing or repeated tile.
 Status merge_tiles(const std::vector<std::string>& tile_paths, const std::vector<OutputSpec>& outputs,
                    MergeReport& report);

@@ -1,6 +1,6 @@
 // `nmbake merge TILE... [-o map.png ...]`: the tiles of one bake (`nmbake
-// bake --tile I/N`) into its maps, dilated and written as the whole bake
-// would write them, byte for byte.
+// bake --tile I/N`) into its maps (every map of a map set), finished and
+// written as the whole bake would write them, byte for byte.
 #include <cstdio>
 
 #include "commands.hpp"
@@ -21,6 +21,7 @@ int run_merge(const MergeFlags& f, const GlobalOptions& global) {
   for (const std::string& path : f.outputs) {
     OutputSpec out;
     out.path = path;
+    out.format_given = !f.format.empty();  // else `.png` takes each map's own depth, as in the bake
     const bool ok = f.format.empty() ? pixel_format_from_path(path, out.format) : parse_pixel_format(f.format, out.format);
     if (!ok) {
       std::fprintf(stderr, "nmbake: error: %s: unknown image extension or --format\n", path.c_str());
@@ -58,7 +59,9 @@ Runner add_merge_command(CLI::App& app, const GlobalOptions& global) {
   auto flags = std::make_shared<MergeFlags>();
   CLI::App* cmd = app.add_subcommand("merge", "merge the tile files of one bake (bake --tile I/N) into its maps");
   cmd->add_option("tiles", flags->tiles, "every tile file of the bake, in any order")->required();
-  cmd->add_option("-o,--output", flags->outputs, "output map(s) (default: the maps the bake names)")->allow_extra_args(false);
+  cmd->add_option("-o,--output", flags->outputs,
+                  "output map(s), with <MAP> for a map set (default: the maps the bake names)")
+      ->allow_extra_args(false);
   cmd->add_option("--format", flags->format, "png8 | png16 | tiff16 | exr-half | exr-float | exr-float-piz");
   cmd->add_option("--report", flags->report, "write the merge report (JSON) here");
   return [flags, &global]() { return run_merge(*flags, global); };

@@ -373,6 +373,18 @@ std::vector<MapReport> MapSet::reports(int tile) const {
     r.tile = tile;
     r.figures = m->figures;
     const auto put = [&](const char* name, double value) { r.figures.emplace_back(name, value); };
+    if (m->kind == MapKind::position) {
+      // The box, for whoever turns the map back into positions, and its flat
+      // axes (a plane: 0.5 stored on them), a counted fallback.
+      const Bounds& box = settings_.position_bounds;
+      const char* names[2][3] = {{"box_min_x", "box_min_y", "box_min_z"},
+                                 {"box_max_x", "box_max_y", "box_max_z"}};
+      for (int a = 0; a < 3; ++a) put(names[0][a], box.min[a]);
+      for (int a = 0; a < 3; ++a) put(names[1][a], box.max[a]);
+      int flat = 0;
+      for (int a = 0; a < 3; ++a) flat += !(box.max[a] > box.min[a]);
+      put("flat_axes", flat);
+    }
     if (m->kind == MapKind::ao || m->kind == MapKind::bent_normal) {
       put("rays_per_sample", settings_.occlusion.rays);
       put("distance", settings_.occlusion.distance);
@@ -397,6 +409,36 @@ std::vector<MapReport> MapSet::reports(int tile) const {
     out.push_back(std::move(r));
   }
   return out;
+}
+
+MapCounts MapSet::counts() const {
+  MapCounts c;
+  for (const auto& m : modules_) c.maps.push_back(m->figures);
+  c.occlusion = occlusion_stats_;
+  c.thickness = thickness_stats_;
+  return c;
+}
+
+void MapSet::add_counts(const MapCounts& c) {
+  NMBAKE_CHECK(c.maps.size() == modules_.size(), "counts of a set of the same maps");
+  for (std::size_t i = 0; i < modules_.size(); ++i) {
+    for (const auto& [name, value] : c.maps[i]) modules_[i]->add(name.c_str(), value);
+  }
+  OcclusionStats& o = occlusion_stats_;
+  o.samples += c.occlusion.samples;
+  o.rays += c.occlusion.rays;
+  o.unoccluded += c.occlusion.unoccluded;
+  o.mirrored_rays += c.occlusion.mirrored_rays;
+  o.normal_fallbacks += c.occlusion.normal_fallbacks;
+  o.all_occluded += c.occlusion.all_occluded;
+  o.untraced_rays += c.occlusion.untraced_rays;
+  ThicknessStats& t = thickness_stats_;
+  t.samples += c.thickness.samples;
+  t.rays += c.thickness.rays;
+  t.exits += c.thickness.exits;
+  t.samples_no_exit += c.thickness.samples_no_exit;
+  t.normal_fallbacks += c.thickness.normal_fallbacks;
+  t.untraced_rays += c.thickness.untraced_rays;
 }
 
 }  // namespace nmbake

@@ -74,7 +74,12 @@ float covered_percentile_99(const Image& image, const std::vector<std::uint8_t>&
   if (e.texels == 0 || !(e.largest > 0.0f)) return 0.0f;
   constexpr int kBins = 4096;
   const float scale = static_cast<float>(kBins) / e.largest;
-  const auto bin_of = [&](float v) { return std::min(kBins - 1, static_cast<int>(std::fabs(v) * scale)); };
+  // A largest |v| below 4096 / FLT_MAX (subnormal) overflows the scale (0 * inf
+  // is NaN): then every value shares bin 0, and the rank is found among all.
+  const bool scaled = std::isfinite(scale);
+  const auto bin_of = [&](float v) {
+    return scaled ? std::min(kBins - 1, static_cast<int>(std::fabs(v) * scale)) : 0;
+  };
   constexpr std::size_t kChunk = std::size_t{1} << 18;
   const std::size_t chunks = (coverage.size() + kChunk - 1) / kChunk;
   std::vector<std::vector<std::uint32_t>> histograms(chunks, std::vector<std::uint32_t>(kBins, 0));
@@ -157,19 +162,7 @@ struct CurvatureModule final : MapSet::Module, SignedRange {
 };
 
 struct PositionModule final : MapSet::Module {
-  // The box, for whoever turns the map back into positions, and its flat
-  // axes (a plane: 0.5 stored on them), a counted fallback.
-  explicit PositionModule(const Bounds& box) : Module(MapKind::position) {
-    const char* names[2][3] = {{"box_min_x", "box_min_y", "box_min_z"},
-                               {"box_max_x", "box_max_y", "box_max_z"}};
-    int flat = 0;
-    for (int a = 0; a < 3; ++a) {
-      set(names[0][a], box.min[a]);
-      set(names[1][a], box.max[a]);
-      flat += !(box.max[a] > box.min[a]);
-    }
-    set("flat_axes", flat);
-  }
+  PositionModule() : Module(MapKind::position) {}  // its box is reported from the settings (reports())
   void encode_band(const BandInputs&, const MapSettings&, EncodeStats&) override {}
   bool from_hit_values() const override { return true; }
 };
@@ -187,6 +180,7 @@ void hit_values(const BandInputs& in, const MapSettings& settings, const HitValu
   const TexelSamples& samples = in.samples;
   const int width = samples.width, spp = samples.samples;
   const std::vector<float>* curvature = settings.vertex_curvature;
+  NMBAKE_CHECK(!kCurvature || curvature != nullptr, "vertex curvature computed for a curvature map");
   const Bounds& box = settings.position_bounds;
   const glm::vec3 extent = box.max - box.min;
   glm::vec3 inv_extent(0.0f), flat(0.0f);
@@ -296,6 +290,7 @@ struct VertexColorModule final : MapSet::Module {
 struct IdModule final : MapSet::Module {
   IdModule() : Module(MapKind::id) {}
   void encode_band(const BandInputs& in, const MapSettings& settings, EncodeStats&) override {
+    NMBAKE_CHECK(settings.triangle_part != nullptr && settings.part_colors != nullptr, "parts for an id map");
     const TexelSamples& samples = in.samples;
     const std::vector<std::uint32_t>& part = *settings.triangle_part;
     const std::vector<glm::vec3>& colors = *settings.part_colors;
@@ -347,20 +342,18 @@ std::unique_ptr<MapSet::Module> make_value_module(MapKind map, const MapSettings
       return m;
     }
     case MapKind::curvature: {
-      NMBAKE_CHECK(settings.vertex_curvature != nullptr, "vertex curvature computed for a curvature map");
       auto m = std::make_unique<CurvatureModule>();
       m->given = settings.curvature_range;
       return m;
     }
-    case MapKind::position: return std::make_unique<PositionModule>(settings.position_bounds);
+    case MapKind::position:
+      return std::make_unique<PositionModule>();
     case MapKind::miss: return std::make_unique<MissModule>();
     case MapKind::ao: return std::make_unique<OcclusionModule>();
     case MapKind::thickness: return std::make_unique<ThicknessModule>(settings.thickness.distance);
     case MapKind::vertex_color: return std::make_unique<VertexColorModule>();
-    case MapKind::id: {
-      NMBAKE_CHECK(settings.triangle_part != nullptr && settings.part_colors != nullptr, "parts for an id map");
+    case MapKind::id:
       return std::make_unique<IdModule>();
-    }
     default: return nullptr;
   }
 }

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The farm test (issue 16): a plan run through a real one-node Slurm cluster.
-# A job file of 4 bakes, one of them in 4 tiles, is planned with
+# A job file of 5 bakes, two of them in 4 tiles (one a map set), is planned with
 # `nmbake plan --slurm DIR --cache CACHE` and submitted with `submit.sh
 # --wait` (the bake array, then the merge array chained with
 # --dependency=afterok); every map must equal the one-machine bake byte for
@@ -20,7 +20,8 @@ cleanup() { "$cluster" stop "$slurm_dir" >/dev/null 2>&1 || true; rm -rf "$work"
 trap cleanup EXIT
 start_time=$(date +%s.%N)
 
-# Two small scenes, four bakes; "big" is the one a plan tiles.
+# Two small scenes, five bakes; "big" and "bigmaps" (normal, height, AO and
+# curvature) are the ones a plan tiles.
 "$gen" sphere --out-dir "$work/s" --high-cells 96 --low-cells 4 >/dev/null
 "$gen" torus --out-dir "$work/t" --high-cells 96 --low-cells 8 >/dev/null
 cat >"$work/job.toml" <<TOML
@@ -52,6 +53,14 @@ size = 300
 padding = 40
 outputs = ["out/big.png", "out/big.exr"]
 report = "out/big.json"
+[[bake]]
+name = "bigmaps"
+low = "t/torus_low.obj"
+high = "t/torus_high.ply"
+size = 300
+maps = ["normal", "height", "ao", "curvature"]
+ao_rays = 8
+outputs = ["out/bigmaps_<MAP>.png", "out/bigmaps_<MAP>.exr"]
 TOML
 mkdir -p "$work/out"
 # One machine, whole bakes: the reference.
@@ -76,7 +85,9 @@ for id in $(grep -o 'job [0-9]*' "$work/submit.log" | cut -d' ' -f2); do
   done
 done
 status=0
-for f in sphere.png torus.png torus.exr object.png big.png big.exr; do
+maps=()
+for m in normal height ao curvature; do maps+=("bigmaps_$m.png" "bigmaps_$m.exr"); done
+for f in sphere.png torus.png torus.exr object.png big.png big.exr "${maps[@]}"; do
   if cmp -s "$work/ref/$f" "$work/out/$f"; then
     echo "identical: $f ($(stat -c %s "$work/out/$f") bytes)"
   else
@@ -84,7 +95,8 @@ for f in sphere.png torus.png torus.exr object.png big.png big.exr; do
     status=1
   fi
 done
-ls "$work"/out/big.png.tile-*-of-4 >/dev/null || { echo "FAIL: no tile files"; status=1; }
+ls "$work"/out/big.png.tile-*-of-4 "$work"/out/bigmaps_normal.png.tile-*-of-4 >/dev/null ||
+  { echo "FAIL: no tile files"; status=1; }
 entries=$(find "$work/cache" -mindepth 1 -maxdepth 1 -type d | wc -l)
 echo "cache entries: $entries (3 whole bakes; tiles are not cached)"
 [ "$entries" -eq 3 ] || status=1

@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Writes the seed corpora of the fuzz harnesses (tests/fuzz/corpus/<harness>/):
 small files of every form each parser accepts, so the fuzzer starts from
-valid input. Images, .glb and .fbx come from nmbake and nmbake-gen (pass the
-build folder):
+valid input. Images, tile files, .glb and .fbx come from nmbake and
+nmbake-gen (pass the build folder):
     python3 tests/fuzz/make_corpus.py build
 tools/fuzz adds the small models of Debian's assimp-testmodels at run time.
 """
@@ -100,12 +100,7 @@ front = "auto"
 
 def image_seeds(nmbake):
     with tempfile.TemporaryDirectory() as d:
-        low, high = os.path.join(d, "low.obj"), os.path.join(d, "high.obj")
-        with open(low, "w") as f:
-            f.write("".join(f"v {x} {y} {z}\n" for x, y, z in QUAD) +
-                    "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n")
-        with open(high, "w") as f:
-            f.write("v -2 -2 0.1\nv 2 -2 0.2\nv 2 2 0.1\nv -2 2 0.0\nf 1 2 3\nf 1 3 4\n")
+        low, high = quad_meshes(d)
         outputs = [("png8", "a.png", 0), ("png16", "b.png", 0), ("exr-half", "c.exr", 1), ("exr-float", "d.exr", 1),
                    ("tiff16", "e.tif", 2)]
         for fmt, name, tag in outputs:
@@ -114,6 +109,33 @@ def image_seeds(nmbake):
                             "--samples", "1", "--format", fmt], check=True)
             with open(out, "rb") as f:
                 put("image", fmt + "_" + name, bytes([tag]) + f.read())
+
+
+def quad_meshes(d):
+    low, high = os.path.join(d, "low.obj"), os.path.join(d, "high.obj")
+    with open(low, "w") as f:
+        f.write("".join(f"v {x} {y} {z}\n" for x, y, z in QUAD) +
+                "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n")
+    with open(high, "w") as f:
+        f.write("v -2 -2 0.1\nv 2 -2 0.2\nv 2 2 0.1\nv -2 2 0.0\nf 1 2 3\nf 1 3 4\n")
+    return low, high
+
+
+def tile_seeds(nmbake):
+    # Tile files of the quad without their 8-byte trailer (fuzz_tile.cpp
+    # appends the checksum): a map set and the normal map alone as whole
+    # bakes (1/1, which the harness merges), and a tile of two.
+    with tempfile.TemporaryDirectory() as d:
+        low, high = quad_meshes(d)
+        cases = [("map_set_1of1", "normal,height,ao,curvature,position,miss,thickness,id", "1/1"),
+                 ("normal_1of1", "normal", "1/1"), ("height_ao_2of2", "height,ao", "2/2")]
+        for name, maps, tile in cases:
+            out = os.path.join(d, name + ".nmt")
+            subprocess.run([nmbake, "bake", "-q", "--low", low, "--high", high, "-o", "m_<MAP>.png", "--size", "8",
+                            "--samples", "1", "--padding", "2", "--map", maps, "--ao-rays", "2", "--thickness-rays",
+                            "2", "--tile", tile, "--tile-file", out], check=True, cwd=d)
+            with open(out, "rb") as f:
+                put("tile", name, f.read()[:-8])
 
 
 def bake_seeds():
@@ -200,4 +222,5 @@ if __name__ == "__main__":
         if os.path.isfile(build):  # the old form: the nmbake binary
             build = os.path.dirname(build)
         image_seeds(os.path.join(build, "nmbake"))
+        tile_seeds(os.path.join(build, "nmbake"))
         mesh_format_seeds(build)
