@@ -764,8 +764,11 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   high_options.keep_colors = wants(MapKind::vertex_color);
   NMBAKE_TRY(load_mesh(o.high_path, high_options, high, r.high_load));
   if (high_options.keep_colors && !high.has_colors()) {
-    return Status::bad_input(o.high_path + ": --map vertex-color, but the high mesh has no vertex colours (read from "
-                             "PLY red/green/blue properties and glTF COLOR_0; FBX, Collada and OBJ colours are not read)");
+    return Status::bad_input(
+        o.high_path +
+        ": --map vertex-color, but the high mesh has no vertex colours (read from "
+        "PLY red/green/blue properties, glTF COLOR_0, FBX and Collada vertex colours, and OBJ "
+        "\"v x y z r g b\" lines)");
   }
   const bool use_cage_mesh = !o.cage_path.empty();
   if (use_cage_mesh) {
@@ -844,7 +847,10 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
     // Normals come from the whole high mesh first; then each group's
     // triangles become one range of the index buffer (unused parts dropped).
     high.indices = group_high_indices(high, groups, scene_groups.first_triangle);
+    // The ranges no longer match the triangles (the map set took what it
+    // needs of them above).
     high.parts.clear();
+    high.materials.clear();
     scene_groups.groups_per_scene = o.groups_per_scene;
   }
   r.high_triangles_used = high.triangle_count();
