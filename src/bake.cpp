@@ -770,6 +770,11 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
         "PLY red/green/blue properties, glTF COLOR_0, FBX and Collada vertex colours, and OBJ "
         "\"v x y z r g b\" lines)");
   }
+  if (wants(MapKind::id) && o.id_source == IdSource::material && !high.has_named_materials()) {
+    return Status::bad_input(o.high_path +
+                             ": --map id with --id-source material, but the high mesh has no named "
+                             "materials (OBJ usemtl, glTF primitive materials, FBX and Collada materials)");
+  }
   const bool use_cage_mesh = !o.cage_path.empty();
   if (use_cage_mesh) {
     LoadStats cage_load;
@@ -836,12 +841,13 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   prepare_low_normals(low, r.low_mesh);
   if (smooth_high) prepare_high_normals(high, r.high_mesh);
   // The map set's data from the whole high mesh (bounds, vertex curvature,
-  // parts), before groups reorder its triangles.
+  // parts or materials), before groups reorder its triangles.
   MapMeshData map_mesh;
-  prepare_map_mesh(high, o.maps, groups, map_mesh);
+  prepare_map_mesh(high, o.maps, o.id_source, groups, map_mesh);
   r.curvature_degenerate_triangles = map_mesh.curvature.degenerate_triangles;
   r.curvature_isolated_vertices = map_mesh.curvature.isolated_vertices;
-  r.id_parts = map_mesh.parts;
+  r.id_source = map_mesh.id_source;
+  r.id_names = map_mesh.ids;
   SceneGroups scene_groups;
   if (groups.grouped()) {
     // Normals come from the whole high mesh first; then each group's
