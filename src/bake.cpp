@@ -777,8 +777,16 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   high_options.keep_colors = wants(MapKind::vertex_color);
   NMBAKE_TRY(load_mesh(o.high_path, high_options, high, r.high_load));
   if (high_options.keep_colors && !high.has_colors()) {
-    return Status::bad_input(o.high_path + ": --map vertex-color, but the high mesh has no vertex colours (read from "
-                             "PLY red/green/blue properties and glTF COLOR_0; FBX, Collada and OBJ colours are not read)");
+    return Status::bad_input(
+        o.high_path +
+        ": --map vertex-color, but the high mesh has no vertex colours (read from "
+        "PLY red/green/blue properties, glTF COLOR_0, FBX and Collada vertex colours, and OBJ "
+        "\"v x y z r g b\" lines)");
+  }
+  if (wants(MapKind::id) && o.id_source == IdSource::material && !high.has_named_materials()) {
+    return Status::bad_input(o.high_path +
+                             ": --map id with --id-source material, but the high mesh has no named "
+                             "materials (OBJ usemtl, glTF primitive materials, FBX and Collada materials)");
   }
   const bool use_cage_mesh = !o.cage_path.empty();
   if (use_cage_mesh) {
@@ -846,18 +854,22 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   prepare_low_normals(low, r.low_mesh);
   if (smooth_high) prepare_high_normals(high, r.high_mesh);
   // The map set's data from the whole high mesh (bounds, vertex curvature,
-  // parts), before groups reorder its triangles.
+  // parts or materials), before groups reorder its triangles.
   MapMeshData map_mesh;
-  prepare_map_mesh(high, o.maps, groups, map_mesh);
+  prepare_map_mesh(high, o.maps, o.id_source, groups, map_mesh);
   r.curvature_degenerate_triangles = map_mesh.curvature.degenerate_triangles;
   r.curvature_isolated_vertices = map_mesh.curvature.isolated_vertices;
-  r.id_parts = map_mesh.parts;
+  r.id_source = map_mesh.id_source;
+  r.id_names = map_mesh.ids;
   SceneGroups scene_groups;
   if (groups.grouped()) {
     // Normals come from the whole high mesh first; then each group's
     // triangles become one range of the index buffer (unused parts dropped).
     high.indices = group_high_indices(high, groups, scene_groups.first_triangle);
+    // The ranges no longer match the triangles (the map set took what it
+    // needs of them above).
     high.parts.clear();
+    high.materials.clear();
     scene_groups.groups_per_scene = o.groups_per_scene;
   }
   r.high_triangles_used = high.triangle_count();
@@ -966,8 +978,8 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
       rows.outputs = o.outputs;  // <MAP> kept: the merge names each map's file as the bake does
       rows.maps = map_settings;
       rows.maps.vertex_curvature = nullptr;  // the mesh data is encoding's alone
-      rows.maps.triangle_part = nullptr;
-      rows.maps.part_colors = nullptr;
+      rows.maps.triangle_id = nullptr;
+      rows.maps.id_colors = nullptr;
       NMBAKE_TRY(bake_tile(prepared, surface, outputs, debug_prefix, r, timer, progress, done.covered_texels,
                            rows.row_begin, rows.row_end, tile, &rows));
       timer.start("write");

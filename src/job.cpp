@@ -222,6 +222,9 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
     } else {
       return bad("expected a number > 0 or \"auto\"");
     }
+  } else if (key == "id_source") {
+    if (!get_string(text) || !parse_id_source(text, o.id_source))
+      return bad("expected \"auto\", \"part\" or \"material\"");
   } else if (key == "ao_rays" || key == "thickness_rays") {
     if (!get_int(key == "ao_rays" ? o.ao_rays : o.thickness_rays)) return bad("expected an integer");
   } else if (key == "ao_distance" || key == "thickness_distance") {

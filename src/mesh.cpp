@@ -155,6 +155,30 @@ Status check_coordinate_range(const Mesh& mesh, const std::string& name) {
   return Status::ok();
 }
 
+namespace {
+
+// Parts or materials: empty, or ranges that tile the triangles in order.
+Status check_ranges(const std::vector<MeshPart>& ranges, std::size_t triangle_count, const std::string& name,
+                    const char* what) {
+  std::uint64_t next_triangle = 0;
+  for (const MeshPart& range : ranges) {
+    if (range.first_triangle != next_triangle || range.triangle_count == 0) {
+      return Status::bad_input(name + ": " + what + " '" + printable_text(range.name) + "' (triangles " +
+                               std::to_string(range.first_triangle) + " + " +
+                               std::to_string(range.triangle_count) + ") does not follow the " + what +
+                               " before it");
+    }
+    next_triangle += range.triangle_count;
+  }
+  if (!ranges.empty() && next_triangle != triangle_count) {
+    return Status::bad_input(name + ": the " + what + "s cover " + std::to_string(next_triangle) + " of " +
+                             std::to_string(triangle_count) + " triangles");
+  }
+  return Status::ok();
+}
+
+}  // namespace
+
 Status validate_mesh(const Mesh& mesh, const std::string& name) {
   const std::size_t vertex_count = mesh.vertex_count();
   if (mesh.indices.size() % 3 != 0) {
@@ -222,19 +246,12 @@ Status validate_mesh(const Mesh& mesh, const std::string& name) {
     return Status::bad_input(name + ": vertex " + std::to_string(i) + " has a non-finite tangent " +
                              vec_text(&mesh.tangents[i].x, 4));
   }
-  std::uint64_t next_triangle = 0;
-  for (const MeshPart& part : mesh.parts) {
-    if (part.first_triangle != next_triangle || part.triangle_count == 0) {
-      return Status::bad_input(name + ": part '" + printable_text(part.name) + "' (triangles " + std::to_string(part.first_triangle) +
-                               " + " + std::to_string(part.triangle_count) + ") does not follow the part before it");
-    }
-    next_triangle += part.triangle_count;
-  }
-  if (!mesh.parts.empty() && next_triangle != mesh.triangle_count()) {
-    return Status::bad_input(name + ": the parts cover " + std::to_string(next_triangle) + " of " +
-                             std::to_string(mesh.triangle_count()) + " triangles");
-  }
-  return Status::ok();
+  NMBAKE_TRY(check_ranges(mesh.parts, mesh.triangle_count(), name, "part"));
+  return check_ranges(mesh.materials, mesh.triangle_count(), name, "material");
+}
+
+bool Mesh::has_named_materials() const {
+  return std::any_of(materials.begin(), materials.end(), [](const MeshPart& m) { return !m.name.empty(); });
 }
 
 void compute_vertex_normals(Mesh& mesh, MeshStats& stats) {

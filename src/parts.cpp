@@ -293,7 +293,9 @@ Status order_cage_by_parts(const Mesh& low, const MatchOptions& options, const s
     }
   }
   cage.indices = std::move(indices);
+  // Reordered: the ranges no longer match (and the cage needs none).
   cage.parts.clear();
+  cage.materials.clear();
   return Status::ok();
 }
 

@@ -154,13 +154,18 @@ std::string BakeReport::to_json() const {
   // The map set: each map of each UDIM tile, with the ranges it used and
   // its counters (maps.hpp).
   j["maps"] = detail::map_reports_json(map_reports);
-  if (!id_parts.empty()) {
-    ordered_json parts = ordered_json::array();
-    for (const auto& [name, color] : id_parts) {
-      parts.push_back({{"part", name},
-                       {"rgb8", {std::lround(255.0f * color.r), std::lround(255.0f * color.g), std::lround(255.0f * color.b)}}});
+  if (!id_names.empty()) {
+    // Each name under the key of what it names: "part" or "material".
+    const char* what = to_string(id_source);
+    ordered_json ids = ordered_json::array();
+    for (const auto& [name, color] : id_names) {
+      ids.push_back(
+          {{what, name},
+           {"rgb8",
+            {std::lround(255.0f * color.r), std::lround(255.0f * color.g), std::lround(255.0f * color.b)}}});
     }
-    j["id_colors"] = parts;
+    j["id_source"] = what;
+    j["id_colors"] = ids;
   }
   if (std::find(maps.begin(), maps.end(), MapKind::curvature) != maps.end()) {
     j["fallbacks"]["curvature_degenerate_triangles"] = curvature_degenerate_triangles;
@@ -237,6 +242,11 @@ std::string BakeReport::summary_line() const {
       std::snprintf(line, sizeof line, " (+%llu rays from the hits, %.1f Mrays/s)",
                     static_cast<unsigned long long>(extra_rays),
                     extra_seconds > 0.0 ? 1e-6 * static_cast<double>(extra_rays) / extra_seconds : 0.0);
+      text += line;
+    }
+    if (!id_names.empty()) {
+      std::snprintf(line, sizeof line, "; id map of %zu %s%s", id_names.size(), to_string(id_source),
+                    id_names.size() == 1 ? "" : "s");
       text += line;
     }
   }

@@ -148,6 +148,7 @@ std::string bake_key_text(const BakeOptions& o) {
     };
     if (has(MapKind::height)) line("height_range", o.height_range > 0.0f ? number(o.height_range) : "auto");
     if (has(MapKind::curvature)) line("curvature_range", o.curvature_range > 0.0f ? number(o.curvature_range) : "auto");
+    if (has(MapKind::id)) line("id_source", to_string(o.id_source));
     if (has(MapKind::ao) || has(MapKind::bent_normal)) {
       line("ao_rays", std::to_string(o.ao_rays));
       line("ao_distance", distance(o.ao_distance));

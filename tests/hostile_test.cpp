@@ -25,6 +25,7 @@
 #include "nmbake/budget.hpp"
 #include "nmbake/cleanup.hpp"
 #include "nmbake/trace.hpp"
+#include "load/isolated.hpp"
 #include "test_util.hpp"
 
 namespace nmbake {
@@ -298,6 +299,74 @@ TEST(Hostile, AssimpCrashesCountsAndLoopsAreErrors) {
     EXPECT_FALSE(fs::exists(out));
     for (const auto& entry : fs::directory_iterator(s.dir.path()))
       EXPECT_NE(entry.path().filename().string().rfind("core", 0), 0u) << c.input << " left " << entry.path();
+  }
+}
+
+// The child's reply (load/isolated.hpp) is read by the parent as untrusted
+// bytes: a reply cut anywhere, or one whose counts claim more parts,
+// materials or colours than its bytes hold, is malformed (false, and the
+// load an error naming the file), never an allocation of the claimed size.
+// A well-formed reply carries colours, parts and materials across.
+TEST(Hostile, MalformedChildReplyIsRefusedBeforeItAllocates) {
+  Mesh mesh;
+  mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  mesh.colors = {{1, 0, 0, 1}, {0, 1, 0, 0.5f}, {0, 0, 1, 1}};
+  mesh.indices = {0, 1, 2, 0, 2, 1};
+  mesh.parts = {{"body", 0, 2}};
+  mesh.materials = {{"steel", 0, 1}, {"rubber", 1, 1}};
+  LoadStats stats;
+  stats.bytes = 1234;
+  const std::string reply = load_detail::encode_child_reply(Status::ok(), mesh, stats);
+  {
+    Status status = Status::internal("unset");
+    Mesh back;
+    LoadStats back_stats;
+    ASSERT_TRUE(load_detail::decode_child_reply(reply, status, back, back_stats));
+    EXPECT_TRUE(status.is_ok());
+    EXPECT_EQ(back.colors, mesh.colors);
+    EXPECT_EQ(back.parts, mesh.parts);
+    EXPECT_EQ(back.materials, mesh.materials);
+    EXPECT_EQ(back_stats.bytes, 1234u);
+  }
+  for (std::size_t cut = 0; cut < reply.size(); ++cut) {
+    Status status;
+    Mesh back;
+    LoadStats back_stats;
+    EXPECT_FALSE(load_detail::decode_child_reply(reply.substr(0, cut), status, back, back_stats)) << cut;
+  }
+  // Counts at known places: the colour count after four arrays of a mesh
+  // with positions only ('R', 'S', code, empty message: 14 bytes; positions:
+  // 8 + 36; normals, uvs, tangents: 8 each); the materials' count before the
+  // stats (40 bytes) at the end of a reply without parts or materials.
+  const auto count_at = [](const std::string& bytes, std::size_t at) {
+    std::uint64_t n = 0;
+    std::memcpy(&n, bytes.data() + at, sizeof n);
+    return n;
+  };
+  Mesh bare = mesh;
+  bare.parts.clear();
+  bare.materials.clear();
+  const std::string bare_reply = load_detail::encode_child_reply(Status::ok(), bare, stats);
+  const std::size_t colors_at = 14 + 8 + 36 + 3 * 8;
+  const std::size_t parts_at = bare_reply.size() - 40 - 16;
+  const std::size_t materials_at = bare_reply.size() - 40 - 8;
+  ASSERT_EQ(count_at(bare_reply, colors_at), 3u);
+  ASSERT_EQ(count_at(bare_reply, parts_at), 0u);
+  ASSERT_EQ(count_at(bare_reply, materials_at), 0u);
+  for (const std::size_t at : {colors_at, parts_at, materials_at}) {
+    // One more than the bytes after the count could hold (a colour and the
+    // smallest range take 16 bytes each), and far more.
+    const std::uint64_t just_over = (bare_reply.size() - at - 8) / 16 + 1;
+    for (const std::uint64_t count :
+         {std::uint64_t{1} << 62, std::uint64_t{1} << 36, std::uint64_t{1} << 20, just_over}) {
+      SCOPED_TRACE("count " + std::to_string(count) + " at byte " + std::to_string(at));
+      std::string hostile = bare_reply;
+      std::memcpy(hostile.data() + at, &count, sizeof count);
+      Status status;
+      Mesh back;
+      LoadStats back_stats;
+      EXPECT_FALSE(load_detail::decode_child_reply(hostile, status, back, back_stats));
+    }
   }
 }
 

@@ -14,6 +14,7 @@
 #include <functional>
 #include <iterator>
 #include <numbers>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -484,6 +485,47 @@ TEST(LoadGltf, RejectsBrokenFilesNamingFilePartAndReason) {
   expect_bad_input(load(dir.file("one.obj"), second_set), dir.file("one.obj"), {"one UV set"});
 }
 
+// Each primitive's material names its triangles: the material's name,
+// "material N" when it has none, "" for a primitive without a material;
+// consecutive primitives of one material are one range, also across nodes.
+// A material index out of range is an error naming the file and part.
+TEST(LoadGltf, PrimitiveMaterialsNameMaterialRanges) {
+  TempDir dir;
+  GltfFile file;
+  const Triangle t = add_triangle(file);
+  const int mesh = file.mesh({{"POSITION", t.positions}}, t.indices, "body");
+  json& primitives = file.doc()["meshes"][static_cast<std::size_t>(mesh)]["primitives"];
+  const json primitive = primitives[0];
+  for (const int material : {0, 1, -1, 1, 1}) {
+    json p = primitive;
+    if (material >= 0) p["material"] = material;
+    primitives.push_back(p);
+  }
+  primitives.erase(0);
+  file.doc()["materials"] = json::array({{{"name", "brushed steel"}}, json::object()});
+  const int other = file.mesh({{"POSITION", t.positions}}, t.indices, "lid");
+  file.doc()["meshes"][static_cast<std::size_t>(other)]["primitives"][0]["material"] = 1;
+  file.node({{"name", "body"}, {"mesh", mesh}});
+  file.node({{"name", "lid"}, {"mesh", other}});
+  file.scene({0, 1});
+  file.write_gltf(dir, "materials.gltf");
+  const Loaded r = load(dir.file("materials.gltf"));
+  ASSERT_TRUE(r.status.is_ok()) << r.status.message();
+  const std::vector<MeshPart> expected{
+      {"brushed steel", 0, 1}, {"material 1", 1, 1}, {"", 2, 1}, {"material 1", 3, 3}};
+  EXPECT_EQ(r.mesh.materials, expected);
+  const std::vector<MeshPart> parts{{"body", 0, 5}, {"lid", 5, 1}};
+  EXPECT_EQ(r.mesh.parts, parts);
+  // save_mesh writes them as materials of primitives: the same ranges back.
+  ASSERT_TRUE(save_mesh(dir.file("again.glb"), r.mesh).is_ok());
+  EXPECT_EQ(load(dir.file("again.glb")).mesh.materials, expected);
+
+  file.doc()["meshes"][static_cast<std::size_t>(other)]["primitives"][0]["material"] = 7;
+  file.write_gltf(dir, "bad.gltf");
+  expect_bad_input(load(dir.file("bad.gltf")), dir.file("bad.gltf"),
+                   {"part 'lid'", "primitive 0: material 7 does not exist"});
+}
+
 // ---- files no one here wrote: Debian's assimp-testmodels ----
 
 fs::path test_models() {
@@ -771,6 +813,8 @@ TEST(LoadFbx, BinaryFbxInCentimetresAndMetresWithNodeTransform) {
     ASSERT_EQ(r.mesh.triangle_count(), 2u);
     ASSERT_EQ(r.mesh.parts.size(), 1u);
     EXPECT_EQ(r.mesh.parts[0].name, "crate");
+    // No material in the file: Assimp's "DefaultMaterial" is no material.
+    EXPECT_TRUE(r.mesh.materials.empty());
     // world = T(10,0,0) R(90 about z) S(2); the fan (0 1 2) (0 2 3).
     const std::vector<glm::vec3> expected{{10, 0, 0}, {10, 4, 0}, {9, 1, 0}, {6, 0, 0}};
     const std::size_t corners[2][3] = {{0, 1, 2}, {0, 2, 3}};
@@ -805,6 +849,103 @@ TEST(LoadFbx, BrokenFbxIsBadInputWithAssimpsReason) {
   EXPECT_EQ(run.exit_code, 2);
   EXPECT_EQ(std::count(run.output.begin(), run.output.end(), '\n'), 1) << run.output;
   EXPECT_TRUE(contains(run.output, path + ": Assimp: ")) << run.output;
+}
+
+// A Collada file written here: per-vertex RGBA colours (COLOR) and two
+// materials, one used twice. Each <triangles> element is an Assimp mesh: a
+// range named by its material; colours as stored, also through the child
+// process; a vertex whose colour differs is not welded with one at the
+// same position. A file without materials has none (Assimp's invented
+// "DefaultMaterial" is no material).
+TEST(LoadCollada, VertexColoursAndTwoMaterials) {
+  TempDir dir;
+  Mesh mesh;
+  mesh.positions = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 0}};
+  mesh.colors = {{1, 0, 0, 1}, {0, 1, 0, 1}, {0, 0, 1, 0.5f}, {0.25f, 0.5f, 0.75f, 1}, {0.1f, 0.2f, 0.3f, 1}};
+  mesh.indices = {0, 1, 2, 4, 2, 3, 0, 2, 3, 0, 1, 3};
+  mesh.materials = {{"paint red", 0, 2}, {"paint_blue", 2, 1}, {"paint red", 3, 1}};
+  const std::string path = dir.file("two.dae");
+  write_text(path, test::collada_text(mesh));
+  LoadOptions options;
+  options.keep_colors = true;
+  const Loaded r = load(path, options);
+  ASSERT_TRUE(r.status.is_ok()) << r.status.message();
+  ASSERT_EQ(r.mesh.triangle_count(), 4u);
+  EXPECT_EQ(r.mesh.materials, mesh.materials);
+  ASSERT_EQ(r.mesh.parts.size(), 1u);
+  EXPECT_EQ(r.mesh.parts[0].name, "mesh");
+  ASSERT_TRUE(r.mesh.has_colors());
+  for (std::size_t c = 0; c < r.mesh.indices.size(); ++c) {
+    const glm::vec4 expected = mesh.colors[mesh.indices[c]];
+    const glm::vec4 actual = r.mesh.colors[r.mesh.indices[c]];
+    for (int k = 0; k < 4; ++k)
+      EXPECT_NEAR(actual[k], expected[k], 1e-7f) << "corner " << c << " channel " << k;
+    expect_near(r.mesh.positions[r.mesh.indices[c]], mesh.positions[mesh.indices[c]], 0.0f);
+  }
+  // The first mesh's two triangles: (0, 0, 0) twice in two colours (5
+  // vertices), then 3 and 3 for the others; without colours they weld (4).
+  EXPECT_EQ(r.mesh.vertex_count(), 11u);
+  LoadOptions here = options;
+  here.isolate_libraries = false;
+  const Loaded direct = load(path, here);
+  ASSERT_TRUE(direct.status.is_ok()) << direct.status.message();
+  EXPECT_EQ(direct.mesh.positions, r.mesh.positions);
+  EXPECT_EQ(direct.mesh.colors, r.mesh.colors);
+  EXPECT_EQ(direct.mesh.indices, r.mesh.indices);
+  EXPECT_EQ(direct.mesh.materials, r.mesh.materials);
+  EXPECT_EQ(direct.mesh.parts, r.mesh.parts);
+  const Loaded plain = load(path);
+  ASSERT_TRUE(plain.status.is_ok()) << plain.status.message();
+  EXPECT_FALSE(plain.mesh.has_colors());
+  EXPECT_EQ(plain.mesh.vertex_count(), 10u);
+  EXPECT_EQ(plain.mesh.materials, mesh.materials);
+  mesh.materials.clear();
+  write_text(path, test::collada_text(mesh));
+  const Loaded none = load(path, options);
+  ASSERT_TRUE(none.status.is_ok()) << none.status.message();
+  EXPECT_TRUE(none.mesh.materials.empty());
+  EXPECT_TRUE(none.mesh.has_colors());
+}
+
+// Files no one here wrote: Collada and FBX from modellers' exporters
+// (kwxport from 3ds Max: three materials and vertex colours; Maya's FBX
+// cubes in two materials; an FBX with colours), and formats whose
+// importers invent a material name (STL, 3DS): none.
+TEST(LoadFormatsModels, MaterialsAndColoursOfExportedFiles) {
+  const fs::path models = test_models();
+  if (models.empty()) GTEST_SKIP() << "the assimp-testmodels package is not installed (tools/setup)";
+  LoadOptions options;
+  options.keep_colors = true;
+  const Loaded kwx = load((models / "Collada/kwxport_test_vcolors.dae").string(), options);
+  ASSERT_TRUE(kwx.status.is_ok()) << kwx.status.message();
+  std::vector<std::string> names;
+  for (const MeshPart& m : kwx.mesh.materials) names.push_back(m.name);
+  EXPECT_EQ(names, (std::vector<std::string>{"bottom", "top", "side"}));
+  ASSERT_TRUE(kwx.mesh.has_colors());
+  bool red = false;
+  for (const glm::vec4& c : kwx.mesh.colors) red = red || c == glm::vec4(1, 0, 0, 1);
+  EXPECT_TRUE(red);
+
+  const Loaded cubes = load((models / "FBX/cubes_nonames.fbx").string(), options);
+  ASSERT_TRUE(cubes.status.is_ok()) << cubes.status.message();
+  std::set<std::string> cube_materials;
+  for (const MeshPart& m : cubes.mesh.materials) cube_materials.insert(m.name);
+  EXPECT_EQ(cube_materials, (std::set<std::string>{"Mat_Green", "Mat_Red"}));
+  EXPECT_FALSE(cubes.mesh.has_colors());  // none in the file
+
+  const Loaded box = load((models / "FBX/box.fbx").string(), options);
+  ASSERT_TRUE(box.status.is_ok()) << box.status.message();
+  ASSERT_TRUE(box.mesh.has_colors());
+  EXPECT_NEAR(box.mesh.colors[0].r, 250.0f / 255.0f, 1e-6f);
+  EXPECT_EQ(
+      box.mesh.materials,
+      (std::vector<MeshPart>{{"Material_50", 0, static_cast<std::uint32_t>(box.mesh.triangle_count())}}));
+
+  for (const char* file : {"STL/Spider_ascii.stl", "3DS/CameraRollAnim.3ds"}) {
+    const Loaded r = load((models / file).string());
+    ASSERT_TRUE(r.status.is_ok()) << file << ": " << r.status.message();
+    EXPECT_TRUE(r.mesh.materials.empty()) << file << ": " << r.mesh.materials.front().name;
+  }
 }
 
 // ---- bakes: the same asset as OBJ and as glTF; file tangents ----

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstdint>
 #include <cstring>
+#include <filesystem>
 #include <limits>
 #include <string>
 #include <vector>
@@ -146,6 +147,9 @@ void expect_same(const Loaded& reference, const Loaded& other) {
   EXPECT_TRUE(same_bits(reference.mesh.normals, other.mesh.normals));
   EXPECT_TRUE(same_bits(reference.mesh.uvs, other.mesh.uvs));
   EXPECT_TRUE(same_bits(reference.mesh.indices, other.mesh.indices));
+  EXPECT_TRUE(same_bits(reference.mesh.colors, other.mesh.colors));
+  EXPECT_EQ(reference.mesh.parts, other.mesh.parts);
+  EXPECT_EQ(reference.mesh.materials, other.mesh.materials);
   EXPECT_EQ(reference.stats.polygons, other.stats.polygons);
   EXPECT_EQ(reference.stats.triangles, other.stats.triangles);
   EXPECT_EQ(reference.stats.degenerate_faces, other.stats.degenerate_faces);
@@ -240,24 +244,44 @@ TEST(LoadParallelPly, ErrorsInLateBlocksNameTheSameByte) {
 // vn. Rows of faces come right after the vertex row that closes them, odd
 // rows with relative indices reaching back two vertex rows (many slices when
 // the blocks are small). Every 7th cell is a quad.
+// With `materials`, faces before the first `usemtl` (the one of the header
+// is left out), then a `usemtl` every 4th row: moss, moss (one range),
+// stone, rust, moss again, ...; an `o` every 10th row (parts). With
+// `colors`, "v x y z r g b" except on every 13th vertex (white).
 struct GridObj {
   int side = 40;
   bool split = true;  // a corner's vn is its face row's first vertex: most vertices split
   bool crlf = false;
   bool final_newline = true;
+  bool materials = false;
+  bool colors = false;
   std::vector<std::pair<std::size_t, std::string>> replaced;  // line index, new text
 
+  static std::string material_of_row(int row) {
+    static const char* const kNames[] = {"moss", "moss", "stone", "rust"};
+    return kNames[(row / 4) % 4];
+  }
+
   std::vector<std::string> lines() const {
-    std::vector<std::string> out = {"# nmbake parallel OBJ test", "mtllib grid.mtl", "o grid", "g rows",
-                                    "usemtl stone", "s 1"};
+    std::vector<std::string> out = {"# nmbake parallel OBJ test",
+                                    "mtllib grid.mtl",
+                                    "o grid",
+                                    "g rows",
+                                    materials ? "# no material yet" : "usemtl stone",
+                                    "s 1"};
     char text[160];
     int defined = 0;  // v (= vt = vn) statements so far
     for (int row = 0; row < side; ++row) {
       for (int column = 0; column < side; ++column) {
         const int v = row * side + column;
         const double z = std::sin(static_cast<double>(v) * 0.37) * 1e-3;
-        std::snprintf(text, sizeof(text), "v %.9g %.9g %.9g%s", column + 0.001 * ((v * 7919) % 997), row * 1.5, z,
-                      v % 11 == 0 ? " # trailing comment" : "");
+        char color[64] = "";
+        if (colors && v % 13 != 0) {
+          std::snprintf(color, sizeof(color), " %.6g %.6g 0.5", column / static_cast<double>(side),
+                        row / static_cast<double>(side));
+        }
+        std::snprintf(text, sizeof(text), "v %.9g %.9g %.9g%s%s", column + 0.001 * ((v * 7919) % 997),
+                      row * 1.5, z, color, v % 11 == 0 ? " # trailing comment" : "");
         out.emplace_back(text);
         std::snprintf(text, sizeof(text), "vt %.7g %.7g", column / static_cast<double>(side), row * 0.25);
         out.emplace_back(text);
@@ -266,6 +290,8 @@ struct GridObj {
         ++defined;
       }
       if (row == 0) continue;
+      if (materials && row % 4 == 0) out.push_back("usemtl " + material_of_row(row));
+      if (materials && row % 10 == 0) out.push_back("o block" + std::to_string(row / 10));
       if (row % 5 == 0) {
         out.emplace_back("# row " + std::to_string(row));
         out.emplace_back("l 1 2");
@@ -354,6 +380,81 @@ TEST(LoadParallelObj, SlicesMatchTheReference) {
       }
     }
   }
+}
+
+// usemtl and vertex colours read by the slices exactly as by the serial
+// parser, whatever the block (names and colours across slice and block
+// boundaries), split or not.
+TEST(LoadParallelObj, MaterialsAndColoursMatchTheReference) {
+  TempDir dir;
+  const std::string path = dir.file("grid.obj");
+  for (const bool split : {false, true}) {
+    SCOPED_TRACE(split ? "split" : "identity");
+    GridObj grid;
+    grid.split = split;
+    grid.materials = true;
+    grid.colors = true;
+    write_text(path, grid.text());
+    LoadOptions options;
+    options.keep_uvs = false;
+    options.keep_colors = true;
+    const Loaded reference = expect_obj_slices_match_reference(path, options);
+    ASSERT_TRUE(reference.status.is_ok()) << reference.status.message();
+    // Rows 1-3 of faces have no material; then moss (rows 4-7), stone,
+    // rust, moss (rows 16-23: two statements, one range), stone, rust, moss.
+    const std::uint32_t row = 2 * 39;  // triangles of a row of cells
+    const std::vector<MeshPart> expected{{"", 0, 3 * row},
+                                         {"moss", 3 * row, 4 * row},
+                                         {"stone", 7 * row, 4 * row},
+                                         {"rust", 11 * row, 4 * row},
+                                         {"moss", 15 * row, 8 * row},
+                                         {"stone", 23 * row, 4 * row},
+                                         {"rust", 27 * row, 4 * row},
+                                         {"moss", 31 * row, 8 * row}};
+    const std::vector<MeshPart>& materials = reference.mesh.materials;
+    EXPECT_EQ(materials, expected);
+    EXPECT_EQ(reference.mesh.parts.size(), 4u);  // grid, block1, block2, block3
+    // Colours follow the positions; a v without one is white.
+    ASSERT_TRUE(reference.mesh.has_colors());
+    bool white = false, coloured = false;
+    for (std::size_t i = 0; i < reference.mesh.vertex_count(); ++i) {
+      const glm::vec4& c = reference.mesh.colors[i];
+      if (c == glm::vec4(1.0f)) {
+        white = true;
+        continue;
+      }
+      coloured = true;
+      EXPECT_FLOAT_EQ(c.g, std::round(reference.mesh.positions[i].y / 1.5f) / 40.0f) << i;
+      EXPECT_EQ(c.b, 0.5f);
+      EXPECT_EQ(c.a, 1.0f);
+    }
+    EXPECT_TRUE(white && coloured);
+    // Not asked for: none, and the rest of the mesh is the same.
+    options.keep_colors = false;
+    const Loaded plain = expect_obj_slices_match_reference(path, options);
+    EXPECT_FALSE(plain.mesh.has_colors());
+    EXPECT_EQ(plain.mesh.materials, materials);
+    EXPECT_TRUE(same_bits(plain.mesh.indices, reference.mesh.indices));
+  }
+}
+
+// A file of several default-sized blocks (4 MiB), each cut into slices on
+// two threads: the same mesh, names and colours as the serial parser.
+TEST(LoadParallelObj, LargeFileWithMaterialsMatchesTheReference) {
+  TempDir dir;
+  const std::string path = dir.file("large.obj");
+  GridObj grid;
+  grid.side = 330;
+  grid.materials = true;
+  grid.colors = true;
+  write_text(path, grid.text());
+  ASSERT_GT(std::filesystem::file_size(path), 3u * (std::uint64_t{4} << 20));
+  LoadOptions options;
+  options.keep_colors = true;
+  const Loaded reference = load(path, true, 1, 0, options);
+  ASSERT_TRUE(reference.status.is_ok()) << reference.status.message();
+  EXPECT_GT(reference.mesh.materials.size(), 50u);
+  expect_same(reference, load(path, false, 2, 0, options));
 }
 
 TEST(LoadParallelObj, ErrorsInLateSlicesNameTheSameLine) {

@@ -207,6 +207,59 @@ TEST(LoadObj, ObjectsGroupsAndOtherStatementsAreMerged) {
   EXPECT_EQ(r.mesh.uvs[3], glm::vec2(0.5f, 0.0f));
 }
 
+// Vertex colours from "v x y z r g b" (the extension MeshLab and Open3D
+// write), kept as written, only with keep_colors; a v without them (3
+// numbers, "x y z w", or arguments that are not three finite reals) is
+// white; they follow the positions through split vertices, and save_mesh
+// writes them back (alpha is lost: 1).
+TEST(LoadObj, VertexColoursAfterThePosition) {
+  TempDir dir;
+  const std::string text =
+      "v 0 0 0 1 0 0.25\n"
+      "v 1 0 0 0 0.5 1 7\n"    // a 7th number: ignored
+      "v 0 1 0 2\n"            // x y z w: no colour
+      "v 1 1 0 0.5 nan 0.5\n"  // not three finite reals: no colour
+      "v 2 2 0 0.5 0.5\n"      // two numbers: no colour
+      "vt 0 0\nvt 1 1\n"
+      "f 1/1 2/1 3/1\nf 2/2 4/2 3/2\nf 3/1 4/1 5/1\n";
+  LoadOptions options;
+  const Loaded plain = load_text(dir, "c.obj", text, options);
+  ASSERT_TRUE(plain.status.is_ok()) << plain.status.message();
+  EXPECT_FALSE(plain.mesh.has_colors());
+  options.keep_colors = true;
+  for (const bool serial : {true, false}) {
+    options.serial = serial;
+    const Loaded r = load_text(dir, "c.obj", text, options);
+    ASSERT_TRUE(r.status.is_ok()) << r.status.message();
+    ASSERT_EQ(r.mesh.colors.size(), r.mesh.vertex_count());
+    EXPECT_GT(r.mesh.vertex_count(), 5u);  // split at the UV seam
+    for (std::size_t i = 0; i < r.mesh.vertex_count(); ++i) {
+      const glm::vec3 p = r.mesh.positions[i];
+      const glm::vec4 expected = p == glm::vec3(0, 0, 0)   ? glm::vec4(1, 0, 0.25f, 1)
+                                 : p == glm::vec3(1, 0, 0) ? glm::vec4(0, 0.5f, 1, 1)
+                                                           : glm::vec4(1.0f);
+      EXPECT_EQ(r.mesh.colors[i], expected) << "vertex " << i << (serial ? " serial" : " slices");
+    }
+  }
+  // No vertex with a colour: none, even when asked.
+  const Loaded none = load_text(dir, "n.obj", "v 0 0 0\nv 1 0 0 1\nv 0 1 0\nf 1 2 3\n", options);
+  ASSERT_TRUE(none.status.is_ok());
+  EXPECT_FALSE(none.mesh.has_colors());
+  // Written back and read again: the same RGB, alpha 1.
+  Mesh mesh = plain.mesh;
+  mesh.uvs.clear();
+  mesh.colors.assign(mesh.vertex_count(), glm::vec4(0.1f, 0.2f, 0.3f, 0.5f));
+  mesh.colors[0] = glm::vec4(1e-8f, 1.0f / 3.0f, 0.0f, 1.0f);
+  ASSERT_TRUE(save_mesh(dir.file("back.obj"), mesh).is_ok());
+  const Loaded back = load(dir.file("back.obj"), options);
+  ASSERT_TRUE(back.status.is_ok()) << back.status.message();
+  ASSERT_EQ(back.mesh.colors.size(), mesh.colors.size());
+  for (std::size_t i = 0; i < mesh.colors.size(); ++i) {
+    EXPECT_EQ(glm::vec3(back.mesh.colors[i]), glm::vec3(mesh.colors[i]));
+    EXPECT_EQ(back.mesh.colors[i].a, 1.0f);
+  }
+}
+
 TEST(LoadObj, LastLineWithoutNewline) {
   TempDir dir;
   const Loaded r = load_text(dir, "nonl.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3");

@@ -6,10 +6,12 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
 
 #include <gtest/gtest.h>
 #include <glm/geometric.hpp>
+#include <nlohmann/json.hpp>
 #include <tbb/global_control.h>
 
 #include "lab_scenes.hpp"
@@ -703,8 +705,178 @@ TEST(Maps, IdColoursEachPartByName) {
       for (int x = 0; x < 16; ++x) other += glm::vec3(id.at(x, y)[0], id.at(x, y)[1], id.at(x, y)[2]) != floor;
     }
     EXPECT_EQ(other, 0u) << to_string(mode);
-    ASSERT_EQ(report.id_parts.size(), 2u);
-    EXPECT_EQ(report.id_parts[0].first, "floor_high");
+    EXPECT_EQ(report.id_source, IdSource::part);  // the file has no materials
+    ASSERT_EQ(report.id_names.size(), 2u);
+    EXPECT_EQ(report.id_names[0].first, "floor_high");
+  }
+}
+
+// Ranges named by a function of each triangle's centroid, merged where
+// consecutive triangles share a name (any triangle order gives valid ranges).
+std::vector<MeshPart> ranges_by_centroid(const Mesh& mesh,
+                                         const std::function<std::string(glm::vec3)>& name_of) {
+  std::vector<MeshPart> ranges;
+  for (std::uint32_t t = 0; t < mesh.triangle_count(); ++t) {
+    const glm::vec3 c = (mesh.positions[mesh.indices[3 * t]] + mesh.positions[mesh.indices[3 * t + 1]] +
+                         mesh.positions[mesh.indices[3 * t + 2]]) /
+                        3.0f;
+    const std::string name = name_of(c);
+    if (!ranges.empty() && ranges.back().name == name) {
+      ++ranges.back().triangle_count;
+    } else {
+      ranges.push_back({name, t, 1});
+    }
+  }
+  return ranges;
+}
+
+// The id map of a high mesh with two materials (OBJ usemtl: the left half
+// "paint_red", the right half "paint_blue") and two parts (bottom and top
+// halves): by default (auto) each half of the map has its material's hashed
+// colour; --id-source part gives the parts' colours; the report says which.
+TEST(Maps, IdColoursEachMaterialByName) {
+  test::TempDir dir;
+  scenes::HeightfieldParams params;
+  params.high_cells = 32;
+  scenes::ScenePair pair = scenes::make_heightfield(params);
+  pair.high.materials =
+      ranges_by_centroid(pair.high, [](glm::vec3 c) { return c.x < 0.5f ? "paint_red" : "paint_blue"; });
+  pair.high.parts = ranges_by_centroid(pair.high, [](glm::vec3 c) { return c.y < 0.5f ? "bottom" : "top"; });
+  ASSERT_GT(pair.high.materials.size(), 2u);  // the halves alternate along the triangle order
+  ASSERT_TRUE(save_mesh(dir.file("low.obj"), pair.low).is_ok());
+  ASSERT_TRUE(save_mesh(dir.file("high.obj"), pair.high).is_ok());
+  BakeOptions o;
+  o.low_path = dir.file("low.obj");
+  o.high_path = dir.file("high.obj");
+  o.width = o.height = 32;
+  o.padding = 0;
+  o.match.mode = MatchMode::off;
+  const glm::vec3 red = part_color("paint_red"), blue = part_color("paint_blue");
+  const glm::vec3 bottom = part_color("bottom"), top = part_color("top");
+  ASSERT_NE(red, blue);
+  ASSERT_NE(bottom, top);
+  // Texel (x, y): u = (x + 0.5) / 32 (left half x < 16), v = 1 - (y + 0.5) / 32
+  // (bottom half y >= 16).
+  const auto expect_halves = [&](const Image& id, bool by_material) {
+    std::size_t wrong = 0;
+    for (int y = 0; y < 32; ++y) {
+      for (int x = 0; x < 32; ++x) {
+        const glm::vec3 expected = by_material ? (x < 16 ? red : blue) : (y >= 16 ? bottom : top);
+        wrong += glm::vec3(id.at(x, y)[0], id.at(x, y)[1], id.at(x, y)[2]) != expected;
+      }
+    }
+    EXPECT_EQ(wrong, 0u) << (by_material ? "materials" : "parts");
+  };
+  const BakeReport by_material = bake_maps(dir, o, {MapKind::id});
+  expect_halves(read_map(dir, MapKind::id), true);
+  EXPECT_EQ(by_material.id_source, IdSource::material);
+  ASSERT_EQ(by_material.id_names.size(), 2u);
+  EXPECT_EQ(by_material.id_names[0].first, "paint_red");
+  EXPECT_EQ(by_material.id_names[0].second, red);
+  EXPECT_EQ(by_material.id_names[1].first, "paint_blue");
+  for (const MapReport& m : by_material.map_reports) {
+    EXPECT_EQ(m.figure("ids"), 2.0);
+    EXPECT_EQ(m.figure("from_materials"), 1.0);
+  }
+  o.id_source = IdSource::part;
+  const BakeReport by_part = bake_maps(dir, o, {MapKind::id});
+  expect_halves(read_map(dir, MapKind::id), false);
+  EXPECT_EQ(by_part.id_source, IdSource::part);
+  ASSERT_EQ(by_part.id_names.size(), 2u);
+  EXPECT_EQ(by_part.id_names[0].first, "bottom");
+  // Materials asked for explicitly, the same as auto; bake groups (each low
+  // half matched by name to its high half, the high triangles then in the
+  // groups' order in the scene) do not change the colours.
+  pair.low.parts =
+      ranges_by_centroid(pair.low, [](glm::vec3 c) { return c.y < 0.5f ? "bottom_low" : "top_low"; });
+  for (MeshPart& part : pair.high.parts) part.name += "_high";
+  ASSERT_TRUE(save_mesh(dir.file("low.obj"), pair.low).is_ok());
+  ASSERT_TRUE(save_mesh(dir.file("high.obj"), pair.high).is_ok());
+  o.id_source = IdSource::material;
+  o.match.mode = MatchMode::automatic;
+  const BakeReport grouped = bake_maps(dir, o, {MapKind::id});
+  EXPECT_EQ(grouped.groups.size(), 2u);
+  expect_halves(read_map(dir, MapKind::id), true);
+}
+
+// The CLI: --id-source and the report's id_source and id_colors (names under
+// "material" or "part"); material asked of a mesh without materials, or an
+// unknown word, is exit 2 naming it.
+TEST(Maps, IdSourceFlagAndReport) {
+  test::TempDir dir;
+  scenes::HeightfieldParams params;
+  params.high_cells = 16;
+  scenes::ScenePair pair = scenes::make_heightfield(params);
+  ASSERT_TRUE(save_mesh(dir.file("low.obj"), pair.low).is_ok());
+  ASSERT_TRUE(save_mesh(dir.file("plain.obj"), pair.high).is_ok());
+  pair.high.materials = ranges_by_centroid(pair.high, [](glm::vec3 c) { return c.x < 0.5f ? "a" : "b"; });
+  ASSERT_TRUE(save_mesh(dir.file("high.obj"), pair.high).is_ok());
+  const auto bake = [&](const std::string& high, const std::string& args) {
+    return test::run_command(test::cli_path() + " bake -q --low " + dir.file("low.obj") + " --high " +
+                             dir.file(high) + " --size 16 --map id -o " + dir.file("id.png") + " --report " +
+                             dir.file("r.json") + " " + args);
+  };
+  for (const auto& [args, what] : {std::pair{"", "material"}, std::pair{"--id-source material", "material"},
+                                   std::pair{"--id-source part", "part"}}) {
+    SCOPED_TRACE(args);
+    const test::CommandResult r = bake("high.obj", args);
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    const nlohmann::json report = nlohmann::json::parse(read_bytes(dir.file("r.json")));
+    EXPECT_EQ(report["id_source"], what);
+    const nlohmann::json& ids = report["id_colors"];
+    ASSERT_EQ(ids.size(), std::string(what) == "material" ? 2u : 1u) << ids.dump();
+    const std::string first = std::string(what) == "material" ? "a" : "";
+    EXPECT_EQ(ids[0][what], first) << ids.dump();
+    const glm::vec3 c = part_color(first);
+    EXPECT_EQ(ids[0]["rgb8"], nlohmann::json::array(
+                                  {std::lround(255 * c.r), std::lround(255 * c.g), std::lround(255 * c.b)}));
+  }
+  const test::CommandResult none = bake("plain.obj", "--id-source material");
+  EXPECT_EQ(none.exit_code, 2) << none.output;
+  EXPECT_NE(none.output.find(dir.file("plain.obj") +
+                             ": --map id with --id-source material, but the high mesh has no "
+                             "named materials"),
+            std::string::npos)
+      << none.output;
+  const test::CommandResult word = bake("high.obj", "--id-source texture");
+  EXPECT_EQ(word.exit_code, 2) << word.output;
+  EXPECT_NE(word.output.find("--id-source texture: expected auto, part or material"), std::string::npos)
+      << word.output;
+}
+
+// The vertex-color map from other files with the same colours: a Collada
+// file (COLOR, through Assimp in its child process; two materials, so two
+// Assimp meshes) and an OBJ ("v x y z r g b", as save_mesh writes it) give
+// the PLY's map.
+TEST(Maps, VertexColorFromColladaAndObjEqualsPly) {
+  test::TempDir dir;
+  scenes::HeightfieldParams params;
+  params.high_cells = 48;
+  scenes::ScenePair pair = scenes::make_heightfield(params);
+  for (const glm::vec3& p : pair.high.positions)
+    pair.high.colors.emplace_back(p.x, p.y, 0.25f + 0.5f * p.x * p.y, 1.0f);
+  pair.high.materials =
+      ranges_by_centroid(pair.high, [](glm::vec3 c) { return c.x < 0.5f ? "left" : "right"; });
+  BakeOptions o = scene_bake(dir, pair, 32, 4);
+  o.padding = 0;
+  bake_maps(dir, o, {MapKind::vertex_color});
+  const Image from_ply = read_map(dir, MapKind::vertex_color);
+  for (const char* name : {"high.dae", "high.obj"}) {
+    SCOPED_TRACE(name);
+    test::TempDir other;
+    if (std::string(name) == "high.dae") {
+      test::write_text(other.file(name), test::collada_text(pair.high));
+    } else {
+      ASSERT_TRUE(save_mesh(other.file(name), pair.high).is_ok());
+    }
+    o.high_path = other.file(name);
+    bake_maps(other, o, {MapKind::vertex_color});
+    const Image map = read_map(other, MapKind::vertex_color);
+    ASSERT_EQ(map.pixels.size(), from_ply.pixels.size());
+    float largest = 0.0f;
+    for (std::size_t i = 0; i < map.pixels.size(); ++i)
+      largest = std::max(largest, std::abs(map.pixels[i] - from_ply.pixels[i]));
+    EXPECT_LT(largest, 1e-5f);
   }
 }
 
@@ -733,6 +905,38 @@ TEST(MapsLoad, PlyVertexColours) {
   Mesh again;
   ASSERT_TRUE(load_mesh(dir.file("b.ply"), options, again, stats).is_ok());
   EXPECT_TRUE(again.colors == mesh.colors);
+}
+
+// Job files take id_source (auto, part, material); the key holds it when
+// the id map is baked, and only then.
+TEST(MapsJob, IdSourceInJobFilesAndTheKey) {
+  test::TempDir dir;
+  test::write_text(dir.file("job.toml"),
+                   "[defaults]\nid_source = \"material\"\n[[bake]]\nlow = \"low.obj\"\n"
+                   "high = \"high.obj\"\nmaps = \"normal,id\"\noutputs = [\"m_<MAP>.png\"]\n"
+                   "[[bake]]\nlow = \"low.obj\"\nhigh = \"high.obj\"\nid_source = \"part\"\n"
+                   "outputs = [\"n.png\"]\n");
+  std::vector<BakeJob> jobs;
+  const Status s = load_job_file(dir.file("job.toml"), jobs);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  ASSERT_EQ(jobs.size(), 2u);
+  EXPECT_EQ(jobs[0].options.id_source, IdSource::material);
+  EXPECT_EQ(jobs[1].options.id_source, IdSource::part);
+  const std::string text = bake_key_text(jobs[0].options);
+  EXPECT_NE(text.find("id_source material\n"), std::string::npos) << text;
+  BakeOptions automatic = jobs[0].options;
+  automatic.id_source = IdSource::automatic;
+  EXPECT_NE(bake_key_text(automatic).find("id_source auto\n"), std::string::npos);
+  EXPECT_EQ(bake_key_text(jobs[1].options).find("id_source"), std::string::npos)
+      << "no id map, no id_source in the key";
+
+  test::write_text(dir.file("bad.toml"),
+                   "[[bake]]\nlow = \"low.obj\"\nhigh = \"high.obj\"\nid_source = \"uv\"\n"
+                   "outputs = [\"m.png\"]\n");
+  const Status bad = load_job_file(dir.file("bad.toml"), jobs);
+  EXPECT_EQ(bad.code(), StatusCode::bad_input);
+  EXPECT_NE(bad.message().find("expected \"auto\", \"part\" or \"material\""), std::string::npos)
+      << bad.message();
 }
 
 // Job files name maps as a list; the key holds the maps and the options of
@@ -771,6 +975,7 @@ TEST(MapsJob, MapsInJobFilesAndTheKey) {
   const std::string plain = bake_key_text(normal_only);
   EXPECT_EQ(plain.find("maps"), std::string::npos) << plain;
   EXPECT_EQ(plain.find("ao_"), std::string::npos) << plain;
+  EXPECT_EQ(plain.find("id_source"), std::string::npos) << plain;
 
   test::write_text(dir.file("bad.toml"), "[[bake]]\nlow = \"low.obj\"\nhigh = \"high.ply\"\nmaps = [\"normal\", 3]\n"
                                          "outputs = [\"m.png\"]\n");

@@ -138,6 +138,91 @@ TEST(LoadParts, ValidateRejectsPartsThatDoNotTile) {
   EXPECT_TRUE(validate_mesh(mesh, "m").is_ok());
 }
 
+// -------------------------------------------------------------- materials
+
+// `usemtl` names materials by the rules of parts: triangles before the first
+// are the unnamed material, a material holds across `o` and `g` until the
+// next `usemtl`, consecutive runs of one name are one range, a name that
+// names no triangle makes none, and a name may come back later. The serial
+// and the slice parser read the same.
+TEST(LoadMaterials, ObjUsemtlNamesMaterialRanges) {
+  test::TempDir dir;
+  test::write_text(dir.file("m.obj"),
+                   "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
+                   "f 1 2 3\n"
+                   "usemtl steel\nf 1 2 3\no bolt\ng thread\nf 1 2 3\n"
+                   "usemtl unused\n"
+                   "usemtl  steel  \nf 1 2 3\n"
+                   "usemtl rubber grip\nf 1 2 3\nf 1 2 3\n"
+                   "o nut\nusemtl steel\nf 1 2 3\n");
+  for (const bool serial : {true, false}) {
+    SCOPED_TRACE(serial ? "serial" : "slices");
+    Mesh mesh;
+    LoadStats stats;
+    LoadOptions options;
+    options.serial = serial;
+    options.block_bytes = 16;  // many blocks: statements across block boundaries
+    ASSERT_TRUE(load_mesh(dir.file("m.obj"), options, mesh, stats).is_ok());
+    const std::vector<MeshPart> expected{{"", 0, 1}, {"steel", 1, 3}, {"rubber grip", 4, 2}, {"steel", 6, 1}};
+    EXPECT_EQ(mesh.materials, expected);
+    EXPECT_TRUE(mesh.has_named_materials());
+    // Parts are the objects, whatever the materials do.
+    const std::vector<MeshPart> parts{{"", 0, 2}, {"bolt", 2, 4}, {"nut", 6, 1}};
+    EXPECT_EQ(mesh.parts, parts);
+  }
+  // usemtl before the first face: every triangle has a name.
+  test::write_text(dir.file("first.obj"),
+                   "usemtl a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nusemtl b\nf 1 2 3\n");
+  const std::vector<MeshPart> first{{"a", 0, 1}, {"b", 1, 1}};
+  EXPECT_EQ(load(dir.file("first.obj")).materials, first);
+  // No usemtl, or only a bare one (the unnamed material): no materials.
+  test::write_text(dir.file("none.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  EXPECT_TRUE(load(dir.file("none.obj")).materials.empty());
+  test::write_text(dir.file("bare.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl\nf 1 2 3\n");
+  EXPECT_TRUE(load(dir.file("bare.obj")).materials.empty());
+}
+
+TEST(LoadMaterials, ValidateRejectsMaterialsThatDoNotTile) {
+  Mesh mesh;
+  mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  mesh.indices = {0, 1, 2, 0, 1, 2};
+  mesh.materials = {{"a", 0, 1}};
+  const Status short_of = validate_mesh(mesh, "m");
+  EXPECT_EQ(short_of.message(), "m: the materials cover 1 of 2 triangles");
+  mesh.materials = {{"a", 0, 1}, {"b", 1, 0}, {"c", 1, 1}};
+  const Status empty = validate_mesh(mesh, "m");
+  EXPECT_NE(empty.message().find("material 'b' (triangles 1 + 0) does not follow the material before it"),
+            std::string::npos)
+      << empty.message();
+  mesh.materials = {{"a", 0, 1}, {"a", 1, 1}};  // two ranges of one name may follow each other
+  EXPECT_TRUE(validate_mesh(mesh, "m").is_ok());
+}
+
+// save_mesh writes materials back (OBJ usemtl, glTF one primitive per
+// material range within each part's node) and they load back as they were,
+// with the parts, also where a material range crosses a part boundary and
+// where the unnamed material follows a named one.
+TEST(LoadMaterials, SavedMaterialsLoadBack) {
+  test::TempDir dir;
+  Mesh mesh;
+  mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  for (int t = 0; t < 7; ++t) mesh.indices.insert(mesh.indices.end(), {0, 1, 2});
+  mesh.parts = {{"body", 0, 3}, {"lid", 3, 4}};
+  mesh.materials = {{"paint", 0, 2}, {"chrome", 2, 3}, {"", 5, 1}, {"paint", 6, 1}};
+  for (const char* name : {"m.obj", "m.glb", "m.gltf"}) {
+    SCOPED_TRACE(name);
+    ASSERT_TRUE(save_mesh(dir.file(name), mesh).is_ok());
+    const Mesh back = load(dir.file(name), false);
+    EXPECT_EQ(back.parts, mesh.parts);
+    EXPECT_EQ(back.materials, mesh.materials);
+  }
+  // The OBJ text: usemtl where each range begins, a bare one for "".
+  std::ifstream in(dir.file("m.obj"));
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("o body\nusemtl paint\nf 1 2 3\nf 1 2 3\nusemtl chrome\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("usemtl\nf 1 2 3\nusemtl paint\n"), std::string::npos) << text;
+}
+
 // -------------------------------------------------------------- matching
 
 Mesh with_parts(const std::vector<std::pair<std::string, std::uint32_t>>& parts) {

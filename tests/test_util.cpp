@@ -1,7 +1,9 @@
 #include "test_util.hpp"
 
+#include <algorithm>
 #include <array>
 #include <atomic>
+#include <charconv>
 #include <cstdio>
 #include <fstream>
 #include <random>
@@ -59,6 +61,79 @@ CommandResult run_command(const std::string& command_line) {
   const int status = ::pclose(pipe);
   result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return result;
+}
+
+std::string collada_text(const Mesh& mesh) {
+  std::string out;
+  const auto reals = [&](const float* values, std::size_t count) {
+    char digits[32];
+    for (std::size_t i = 0; i < count; ++i) {
+      const auto end = std::to_chars(digits, digits + sizeof digits, values[i]).ptr;
+      if (i > 0) out += ' ';
+      out.append(digits, end);
+    }
+  };
+  const auto source = [&](const char* id, const float* values, std::size_t elements, const char* params) {
+    const std::size_t stride = std::string(params).size();
+    out += std::string("<source id=\"") + id + "\"><float_array id=\"" + id + "-a\" count=\"" +
+           std::to_string(elements * stride) + "\">";
+    reals(values, elements * stride);
+    out += std::string("</float_array><technique_common><accessor source=\"#") + id + "-a\" count=\"" +
+           std::to_string(elements) + "\" stride=\"" + std::to_string(stride) + "\">";
+    for (const char* p = params; *p != 0; ++p)
+      out += std::string("<param name=\"") + *p + "\" type=\"float\"/>";
+    out += "</accessor></technique_common></source>\n";
+  };
+  std::vector<MeshPart> ranges = mesh.materials;
+  if (ranges.empty()) ranges.push_back({"", 0, static_cast<std::uint32_t>(mesh.triangle_count())});
+  std::vector<std::string> names;
+  for (const MeshPart& r : ranges) {
+    if (!r.name.empty() && std::find(names.begin(), names.end(), r.name) == names.end())
+      names.push_back(r.name);
+  }
+  const auto index_of = [&](const std::string& name) {
+    return std::to_string(std::find(names.begin(), names.end(), name) - names.begin());
+  };
+  out +=
+      "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n"
+      "<COLLADA xmlns=\"http://www.collada.org/2005/11/COLLADASchema\" version=\"1.4.1\">\n"
+      "<asset><unit name=\"meter\" meter=\"1\"/><up_axis>Y_UP</up_axis></asset>\n"
+      "<library_effects><effect id=\"fx\"><profile_COMMON><technique sid=\"t\"><lambert/></technique>"
+      "</profile_COMMON></effect></library_effects>\n<library_materials>\n";
+  for (const std::string& name : names) {
+    out += "<material id=\"m" + index_of(name) + "\" name=\"" + name +
+           "\"><instance_effect url=\"#fx\"/></material>\n";
+  }
+  out += "</library_materials>\n<library_geometries><geometry id=\"g\" name=\"g\"><mesh>\n";
+  source("pos", &mesh.positions[0].x, mesh.vertex_count(), "XYZ");
+  if (mesh.has_normals()) source("nrm", &mesh.normals[0].x, mesh.vertex_count(), "XYZ");
+  if (mesh.has_colors()) source("col", &mesh.colors[0].x, mesh.vertex_count(), "RGBA");
+  out += "<vertices id=\"v\"><input semantic=\"POSITION\" source=\"#pos\"/></vertices>\n";
+  for (const MeshPart& r : ranges) {
+    out += "<triangles count=\"" + std::to_string(r.triangle_count) + "\"";
+    if (!r.name.empty()) out += " material=\"s" + index_of(r.name) + "\"";
+    out += "><input semantic=\"VERTEX\" source=\"#v\" offset=\"0\"/>";
+    if (mesh.has_normals()) out += "<input semantic=\"NORMAL\" source=\"#nrm\" offset=\"0\"/>";
+    if (mesh.has_colors()) out += "<input semantic=\"COLOR\" source=\"#col\" offset=\"0\"/>";
+    out += "<p>";
+    for (std::size_t i = 3 * std::size_t{r.first_triangle};
+         i < 3 * std::size_t{r.first_triangle + r.triangle_count}; ++i) {
+      out += std::to_string(mesh.indices[i]) + " ";
+    }
+    out += "</p></triangles>\n";
+  }
+  out +=
+      "</mesh></geometry></library_geometries>\n<library_visual_scenes><visual_scene id=\"s\"><node "
+      "id=\"mesh\" "
+      "name=\"mesh\"><instance_geometry url=\"#g\"><bind_material><technique_common>";
+  for (const std::string& name : names) {
+    out += "<instance_material symbol=\"s" + index_of(name) + "\" target=\"#m" + index_of(name) + "\"/>";
+  }
+  out +=
+      "</technique_common></bind_material></instance_geometry></node></visual_scene></"
+      "library_visual_scenes>\n"
+      "<scene><instance_visual_scene url=\"#s\"/></scene>\n</COLLADA>\n";
+  return out;
 }
 
 std::string cli_path() { return NMBAKE_CLI_PATH; }

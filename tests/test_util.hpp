@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <string>
 
+#include "nmbake/mesh.hpp"
 #include "nmbake/surface.hpp"
 
 namespace nmbake::test {
@@ -35,6 +36,15 @@ CommandResult run_command(const std::string& command_line);
 // A low quad [0,1]^2 at z = 0 (two triangles, normal +z, UV = xy, tangent
 // +x) as a LowSurface.
 LowSurface low_quad();
+
+// The mesh as a Collada 1.4.1 document written by hand, for the Assimp
+// loader (Y up, metres, one node "mesh"): positions, normals and RGBA vertex
+// colours (COLOR) when it has them, and one <triangles> element per material
+// range bound to a material of that name (a range named "" has none, and
+// Assimp then gives it the first bound material; no materials: one
+// element). Parts are not written. Reals in the shortest
+// form that reads back exactly.
+std::string collada_text(const Mesh& mesh);
 
 // Paths of the built programs and of the source tree.
 std::string cli_path();

@@ -127,6 +127,7 @@ struct BakeOptions {
   Distance ao_distance;          // auto: kAutoMapDistancePercent of the low diagonal
   int thickness_rays = 16;
   Distance thickness_distance;   // auto: as ao_distance
+  IdSource id_source = IdSource::automatic;  // what the id map colours (maps.hpp)
 };
 
 // One file a bake writes per UV tile: an output for one map.
@@ -233,7 +234,9 @@ struct BakeReport {
   std::vector<MapReport> map_reports;
   std::uint64_t curvature_degenerate_triangles = 0;  // vertex_mean_curvature(): no weight
   std::uint64_t curvature_isolated_vertices = 0;     // no weighted triangle: H = 0
-  std::vector<std::pair<std::string, glm::vec3>> id_parts;  // the id map's parts and colours
+  // The id map: what it coloured (part or material) and each name's colour.
+  IdSource id_source = IdSource::part;
+  std::vector<std::pair<std::string, glm::vec3>> id_names;
   std::vector<StageTime> stages;
   double total_seconds = 0.0;
   std::uint64_t peak_rss_bytes = 0;

@@ -17,7 +17,7 @@
 // low_suffix, high_suffix, cage_suffix, cache, and the map set's maps
 // (["normal", "ao"] or "normal,ao"), height_range, curvature_range ("auto" or
 // a number), ao_rays, ao_distance, thickness_rays, thickness_distance
-// (a number, "N%" or "auto"); [[bake]] alone: name, low,
+// (a number, "N%" or "auto"), id_source ("auto", "part" or "material"); [[bake]] alone: name, low,
 // high, outputs, report, debug_dump, and [[bake.group]] tables (name, low =
 // [part names], high = [part names]: explicit bake groups, parts.hpp).
 // Unknown keys are errors (a typo must not silently bake with a default).

@@ -2,8 +2,12 @@
 //
 // Formats (chosen by extension, case-insensitive):
 //   * OBJ: v, vt, vn; f with v, v/vt, v//vn, v/vt/vn; negative (relative)
-//     indices; polygons fan-triangulated; every o/g/s/usemtl ignored, so all
-//     objects and groups are merged into one mesh. Other statements ignored.
+//     indices; polygons fan-triangulated; all objects and groups are one
+//     mesh, `o` (else `g`) naming its parts and `usemtl` its materials
+//     (ranges of the triangles that follow; triangles before the first
+//     `usemtl` have the unnamed material ""). With keep_colors, "v x y z r
+//     g b" colours (see keep_colors). Other statements (s, mtllib, l, p,
+//     curves) are ignored.
 //   * PLY: ascii, binary_little_endian, binary_big_endian; element vertex with
 //     x y z, optional nx ny nz and u v | s t | texture_u texture_v |
 //     texture_s texture_t (any scalar type); element face with a list property
@@ -25,7 +29,9 @@
 //     v' = 1 - v gives nmbake's bottom-left. Vertices are the file's (split
 //     as the file splits them, also for a high mesh). One MeshPart per node:
 //     the node's name, else its mesh's name when no other node uses that
-//     mesh, else "node<N>". unit_meters = 1. Draco (KHR_draco_mesh_compression)
+//     mesh, else "node<N>". A material range per primitive: its material's
+//     name, "material <N>" when unnamed, "" without a material (an index
+//     out of range is an error). unit_meters = 1. Draco (KHR_draco_mesh_compression)
 //     and meshopt-compressed files are refused with a message that says so.
 //   * FBX (binary, ASCII), Collada .dae, .3ds, .stl (assimp.cpp, Assimp 5.2):
 //     the node tree with every node's matrix applied as for glTF; polygons
@@ -35,7 +41,9 @@
 //     bitwise equal (FBX stores them per polygon corner). UV channel uv_set; tangents from the file's
 //     tangents and bitangents (w = sign of dot(cross(N, T), B)). One
 //     MeshPart per node with meshes, named by the node ("node<N>" if
-//     unnamed). unit_meters = 0.01 * the FBX UnitScaleFactor; positions
+//     unnamed); a material range per Assimp mesh, named by its material
+//     (AI_MATKEY_NAME; Assimp's invented "DefaultMaterial" and "%%%DEFAULT"
+//     are ""); vertex colours from colour set 0. unit_meters = 0.01 * the FBX UnitScaleFactor; positions
 //     stay in file units. Collada: Assimp applies the file's up axis and
 //     unit to the root node.
 //   * glTF and Assimp files: two parts with the same name are an error; a
@@ -60,6 +68,8 @@
 //     kept vt / vn (else bad_input naming the line); an attribute that is not
 //     kept is neither range-checked nor required to be consistent. Indices
 //     must refer to data defined earlier in the file, as the OBJ spec says.
+//   * Materials (Mesh::materials) are empty when no triangle has a named
+//     material; consecutive ranges of one name are merged.
 //   * Normals are returned as stored in the file: not normalised, zero-length
 //     ones kept. The caller runs normalize_normals() or, when the file had
 //     none, compute_vertex_normals() (mesh.hpp), which count their fallbacks.
@@ -89,11 +99,17 @@ struct LoadOptions {
   bool keep_normals = true;  // false: file normals are dropped (e.g. --high-normals face)
   int uv_set = 0;            // glTF TEXCOORD_N / FBX UV channel N (OBJ and PLY have one: N must be 0)
   bool keep_tangents = false;  // glTF TANGENT / FBX tangents into Mesh::tangents (--tangents file)
-  // Vertex colours into Mesh::colors (the vertex-color map): PLY red, green,
-  // blue, optional alpha (unsigned char or short scaled to [0, 1], float as
-  // stored); glTF COLOR_0 (float or normalised unsigned byte/short, RGB or
-  // RGBA; linear in the file, stored sRGB-encoded like a PLY's bytes; white
-  // on primitives without it). FBX, Collada and OBJ: not read.
+  // Vertex colours into Mesh::colors (the vertex-color map), sRGB-encoded
+  // (display values, as a PLY's bytes) in [0, 1] as files store them: PLY
+  // red, green, blue, optional alpha (unsigned char or short scaled to
+  // [0, 1], float as stored); OBJ "v x y z r g b" (the MeshLab / Open3D
+  // extension; a v without three more finite numbers is white; as written,
+  // alpha 1); glTF COLOR_0 (float or normalised unsigned byte/short, RGB or
+  // RGBA; linear in the file, so RGB goes through the sRGB curve; white on
+  // primitives without it); FBX and Collada (Assimp's colour set 0, RGBA as
+  // stored: neither importer converts, and modellers store display values;
+  // white on meshes without one; vertices are welded only where their
+  // colours agree too). A file with no colour at all gives none.
   bool keep_colors = false;
   // Tuning of the parallel parsers, for tests and benchmarks; the loaded mesh
   // and every error are the same whatever they are set to.
@@ -128,12 +144,16 @@ Status load_mesh(const std::string& path, const LoadOptions& options, Mesh& out,
 bool mesh_extension_supported(const std::string& path);
 const char* supported_mesh_extensions();
 
-// Writes a mesh as OBJ (v, vt, vn, f, and `o NAME` where each part begins;
-// reals in the shortest form that reads back bit for bit), PLY (binary
-// little endian: float x y z [nx ny nz] [u v], face list uchar uint; no
-// parts), or glTF (.glb, or .gltf with NAME.bin beside it: float POSITION,
-// NORMAL, TEXCOORD_0 with v flipped back to glTF's top-left origin, TANGENT,
-// uint indices; one node per part), by extension. The mesh must pass
+// Writes a mesh as OBJ (v [r g b], vt, vn, f, `o NAME` where each part
+// begins, `usemtl NAME` where each material range begins (a bare `usemtl`
+// for "" after a named one; no .mtl); reals in the shortest form that reads
+// back bit for bit; colour alpha is not written), PLY (binary little endian:
+// float x y z [nx ny nz] [u v] [red green blue alpha], face list uchar uint;
+// no parts or materials), or glTF (.glb, or .gltf with NAME.bin beside it:
+// float POSITION, NORMAL, TEXCOORD_0 with v flipped back to glTF's top-left
+// origin, TANGENT, COLOR_0 (linear), uint indices; one node per part, one
+// primitive per material range within it, materials with only a name), by
+// extension. The mesh must pass
 // validate_mesh(). The file is written to a temporary file in the same folder
 // and renamed, so a failure never leaves a half-written mesh (Status::io).
 // Used by the generators and by `nmbake unwrap`.

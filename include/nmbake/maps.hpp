@@ -10,6 +10,7 @@
 // the normal map's anti-aliasing. The write stage does not know which map it
 // writes: it gets a float image and, for integer formats, the map's range.
 //
+// clang-format off
 // | map            | texel (float, EXR)                          | integer files (PNG, TIFF)             | miss value |
 // |----------------|---------------------------------------------|---------------------------------------|------------|
 // | normal         | 0.5 n + 0.5 (encode.hpp)                     | the same                              | low normal |
@@ -21,8 +22,9 @@
 // | position       | (hit - min) / (max - min) per axis, the high mesh's bounding box | the same | low point |
 // | object-normal  | 0.5 n + 0.5, world space (the normal map's object space) | the same | low normal |
 // | miss           | share of the texel's samples whose ray missed | the same | 1 |
-// | vertex-color   | the high mesh's vertex colour (RGB) at the hit (PLY colours) | the same | black |
-// | id             | the colour of the hit's part (part_color): the part most of the texel's samples hit | the same | black |
+// | vertex-color   | the high mesh's vertex colour (RGB, sRGB-encoded) at the hit (PLY, OBJ "v x y z r g b", glTF COLOR_0, FBX/Collada colours: load.hpp) | the same | black |
+// | id             | the colour (part_color) of the hit's material or part (IdSource): the one most of the texel's samples hit | the same | black |
+// clang-format on
 //
 // Single-channel maps (height, ao, curvature, thickness, miss) are written
 // as grey files. Default formats for `.png` outputs: 16-bit, except ao,
@@ -88,9 +90,19 @@ struct MapTraits {
   PixelFormat png_format = PixelFormat::png16;  // for a .png output without an explicit format
   bool occlusion_rays = false;  // needs trace_occlusion()
   bool thickness_rays = false;  // needs trace_thickness()
-  bool implemented = true;      // vertex-color and id: not yet
+  bool implemented = true;      // false: refused by validate_options() (every map is implemented)
 };
 MapTraits map_traits(MapKind map);
+
+// What the id map colours: the high mesh's parts (OBJ o/g, glTF nodes, FBX
+// models) or its materials (OBJ usemtl, glTF primitive materials, FBX and
+// Collada materials); automatic: materials when the high mesh has a named
+// material (Mesh::has_named_materials()), else parts.
+enum class IdSource : std::uint8_t { automatic, part, material };
+const char* to_string(IdSource source);  // "auto", "part", "material"
+bool parse_id_source(const std::string& text, IdSource& out);
+// `requested` for `high`: part or material, never automatic.
+IdSource resolve_id_source(IdSource requested, const Mesh& high);
 
 // Output paths name maps with a token: `-o asset_<MAP>.png`.
 inline constexpr const char* kMapToken = "<MAP>";
@@ -113,10 +125,12 @@ struct MapSettings {
   // Read by encode_band() only (a merge of tiles has none of them):
   // per high vertex (curvature maps; empty otherwise): vertex_mean_curvature();
   const std::vector<float>* vertex_curvature = nullptr;
-  // the id map: per high triangle (in the scene's order) its part, and per
-  // part its colour (part_color()).
-  const std::vector<std::uint32_t>* triangle_part = nullptr;
-  const std::vector<glm::vec3>* part_colors = nullptr;
+  // the id map: per high triangle (in the scene's order) the index of its
+  // part or material (id_source, resolved), and per index its colour
+  // (part_color() of the name).
+  IdSource id_source = IdSource::part;
+  const std::vector<std::uint32_t>* triangle_id = nullptr;
+  const std::vector<glm::vec3>* id_colors = nullptr;
 
   bool has(MapKind map) const;
 };
@@ -131,9 +145,9 @@ struct MapReport {
   double figure(const std::string& name) const;  // 0 when absent
 };
 
-// The id map's colour of a part: a hue from the FNV-1a hash of its name
-// (the same name, the same colour, in any file and bake), saturation 0.6,
-// value 0.9.
+// The id map's colour of a part or material: a hue from the FNV-1a hash of
+// its name (the same name, the same colour, in any file and bake, whether it
+// names a part or a material), saturation 0.6, value 0.9.
 glm::vec3 part_color(const std::string& name);
 
 struct CurvatureStats {
@@ -148,23 +162,27 @@ std::vector<float> vertex_mean_curvature(const Mesh& high, const std::vector<glm
 
 // What the map set reads from the whole high mesh, once per bake: its
 // bounds (position), vertex curvature (curvature), and each triangle's part
-// with the parts' names and colours (id), for the maps in `maps` only.
+// or material with their names and colours (id), for the maps in `maps`
+// only.
 struct MapMeshData {
   Bounds position_bounds;
   std::vector<float> vertex_curvature;
   CurvatureStats curvature;
-  std::vector<std::uint32_t> triangle_part;  // in the scene's triangle order (after groups)
-  std::vector<glm::vec3> part_colors;
-  std::vector<std::pair<std::string, glm::vec3>> parts;  // name, colour
+  IdSource id_source = IdSource::part;     // resolved
+  std::vector<std::uint32_t> triangle_id;  // in the scene's triangle order (after groups)
+  std::vector<glm::vec3> id_colors;
+  std::vector<std::pair<std::string, glm::vec3>> ids;  // name, colour; in order of first triangle
   // Points `settings` at this data (which must outlive it).
   void apply(MapSettings& settings) const;
 };
 // From `high` as loaded, normals prepared, before group_high_indices()
 // reorders its triangles; `groups` tells how they will be reordered. The
 // vertex curvature of a mesh without normals (--high-normals face) uses
-// area-weighted ones.
-void prepare_map_mesh(const Mesh& high, const std::vector<MapKind>& maps, const BakeGroups& groups,
-                      MapMeshData& out);
+// area-weighted ones. The id map's names are `id_source`'s
+// (resolve_id_source()); an explicit material source on a mesh without
+// named materials is the caller's error to report first (all "" then).
+void prepare_map_mesh(const Mesh& high, const std::vector<MapKind>& maps, IdSource id_source,
+                      const BakeGroups& groups, MapMeshData& out);
 
 // What the bands of a map set counted: per map (in the set's order) the
 // figures its module added up band by band (fallback counters), and the rays

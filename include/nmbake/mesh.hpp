@@ -22,13 +22,16 @@
 
 namespace nmbake {
 
-// A named piece of a mesh file (OBJ `o`/`g`, a glTF node's mesh, an FBX
-// model): a contiguous range of triangles. Bake groups are made of parts
-// (parts.hpp); the rest of the pipeline never looks at them.
+// A named, contiguous range of triangles: a part of a mesh file (OBJ
+// `o`/`g`, a glTF node's mesh, an FBX model) or a material range (OBJ
+// `usemtl`, a glTF primitive's material, an FBX/Collada mesh's material).
+// Bake groups are made of parts (parts.hpp); the id map colours parts or
+// materials (maps.hpp); the rest of the pipeline never looks at them.
 struct MeshPart {
   std::string name;  // as in the file; may be empty
   std::uint32_t first_triangle = 0;
   std::uint32_t triangle_count = 0;
+  friend bool operator==(const MeshPart&, const MeshPart&) = default;
 };
 
 struct Mesh {
@@ -46,6 +49,15 @@ struct Mesh {
   // that cover every triangle exactly once, without empty parts. A name may
   // appear in several ranges (an OBJ that returns to `g body` later).
   std::vector<MeshPart> parts;
+  // The material of every triangle, by the same rules as `parts`: empty (no
+  // material: every triangle has the unnamed material ""), or ranges in
+  // triangle order covering every triangle exactly once, none empty, a name
+  // in as many ranges as the file has runs of it. "" names triangles without
+  // a material (before an OBJ's first `usemtl`, a glTF primitive without
+  // one). Whatever reorders or drops triangles must update both or clear
+  // them (bake groups clear both on the high mesh after the id map took its
+  // per-triangle colours).
+  std::vector<MeshPart> materials;
 
   std::size_t vertex_count() const { return positions.size(); }
   std::size_t triangle_count() const { return indices.size() / 3; }
@@ -53,6 +65,8 @@ struct Mesh {
   bool has_uvs() const { return !uvs.empty(); }
   bool has_tangents() const { return !tangents.empty(); }
   bool has_colors() const { return !colors.empty(); }
+  // Some triangle has a material with a name (the id map's auto source).
+  bool has_named_materials() const;
 };
 
 // Counts of the numerical fallbacks taken while preparing a mesh.
@@ -63,8 +77,8 @@ struct MeshStats {
 };
 
 // Rejects a mesh no later stage can use: NaN/Inf in any attribute, an index
-// out of range, attribute arrays of the wrong size, no triangles, parts that
-// do not tile the triangles. `name` is used in the message (the file path).
+// out of range, attribute arrays of the wrong size, no triangles, parts or
+// materials that do not tile the triangles. `name` is used in the message (the file path).
 Status validate_mesh(const Mesh& mesh, const std::string& name);
 
 // The largest |coordinate| a baked or unwrapped mesh may hold (README,

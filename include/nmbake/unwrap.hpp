@@ -9,6 +9,8 @@
 //     corners as input triangle i (positions and normals copied bit for bit);
 //     vertices are the distinct (chart, input vertex) pairs, in order of first
 //     use by the triangles, so they are split only along chart boundaries.
+//     Parts and materials are copied (the triangle order is kept); tangents
+//     and colours are not.
 //     Every UV lies in [0, 1]^2 (v = 0 at the image bottom, DESIGN.md).
 //   * Chart boundaries always include hard edges (an edge whose two faces
 //     have different normals at a shared position, i.e. split vertices) and

@@ -56,6 +56,7 @@ struct BakeFlags {
   // The map set (maps.hpp).
   std::vector<std::string> maps;
   std::string height_range = "auto", curvature_range = "auto", ao_distance = "auto", thickness_distance = "auto";
+  std::string id_source = "auto";
   int ao_rays = 64, thickness_rays = 16;
 };
 
@@ -176,6 +177,8 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
   if (!parse_distance(f.thickness_distance, o.thickness_distance)) return Status::bad_input("--thickness-distance " + f.thickness_distance + ": expected a distance, N% or auto");
   o.ao_rays = f.ao_rays;
   o.thickness_rays = f.thickness_rays;
+  if (!parse_id_source(f.id_source, o.id_source))
+    return Status::bad_input("--id-source " + f.id_source + ": expected auto, part or material");
   for (const std::string& path : f.outputs) {
     OutputSpec out;
     out.path = path;
@@ -548,6 +551,10 @@ Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--thickness-rays", flags->thickness_rays, "thickness rays per sample, 1-4096")->default_val(16);
   cmd->add_option("--thickness-distance", flags->thickness_distance,
                   "thickness: search distance, also white in integer files: units, N%, auto (10%)")
+      ->default_val("auto");
+  cmd->add_option(
+         "--id-source", flags->id_source,
+         "id map colours: part | material | auto (materials when the high mesh has named ones, else parts)")
       ->default_val("auto");
   return [flags, &global, cmd]() { return run_bake(*flags, global, *cmd); };
 }

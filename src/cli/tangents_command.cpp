@@ -40,7 +40,8 @@ int fail(const Status& s) {
 // attribute is exact. Positions, normals and UVs are copied unchanged.
 Mesh with_vertex_tangents(const Mesh& low, const std::vector<glm::vec4>& corner_tangents) {
   Mesh out;
-  out.parts = low.parts;
+  out.parts = low.parts;  // the triangles keep their order
+  out.materials = low.materials;
   std::map<std::tuple<std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t>, std::uint32_t> ids;
   out.indices.resize(low.indices.size());
   for (std::size_t c = 0; c < low.indices.size(); ++c) {

@@ -14,6 +14,16 @@
 // a high mesh is not split at UV seams.
 // Assimp's default logger is a null logger and is never replaced, so it
 // prints nothing; its error string goes into the Status.
+//
+// Materials: each aiMesh has one (FBX and Collada meshes are split by
+// material on import), named by AI_MATKEY_NAME; the names Assimp invents
+// for meshes without one (AI_DEFAULT_MATERIAL_NAME "DefaultMaterial", the
+// 3DS importer's "%%%DEFAULT") read as "" (no material).
+// Vertex colours (keep_colors): aiMesh::mColors[0] as Assimp hands them
+// over, which is as the file stores them: neither the FBX nor the Collada
+// importer converts a colour space (FBX LayerElementColor and Collada COLOR
+// hold the display values modellers paint, as a PLY's bytes: sRGB-encoded,
+// nmbake's convention); white on meshes without colours.
 #include <array>
 #include <cmath>
 #include <cstring>
@@ -77,7 +87,7 @@ double unit_meters(const aiScene& scene) {
 // of each, in vertex order. Returns the new index of every vertex and puts
 // the old index of each new vertex into `representatives`.
 std::vector<std::uint32_t> weld(const aiMesh& mesh, bool normals, const aiVector3D* uv, bool tangents,
-                                std::vector<std::uint32_t>& representatives) {
+                                const aiColor4D* colors, std::vector<std::uint32_t>& representatives) {
   const unsigned n = mesh.mNumVertices;
   const auto key = [&](unsigned v, float* k) {
     int size = 0;
@@ -93,6 +103,12 @@ std::vector<std::uint32_t> weld(const aiMesh& mesh, bool normals, const aiVector
       put(mesh.mTangents[v], 3);
       put(mesh.mBitangents[v], 3);
     }
+    if (colors != nullptr) {
+      k[size++] = colors[v].r;
+      k[size++] = colors[v].g;
+      k[size++] = colors[v].b;
+      k[size++] = colors[v].a;
+    }
     return size;
   };
   std::size_t capacity = 16;
@@ -101,8 +117,8 @@ std::vector<std::uint32_t> weld(const aiMesh& mesh, bool normals, const aiVector
   std::vector<std::uint32_t> slots(capacity, kEmpty);  // new vertex index
   std::vector<std::uint32_t> remap(n);
   representatives.clear();
-  float k[14];
-  float other[14];
+  float k[18];
+  float other[18];
   for (unsigned v = 0; v < n; ++v) {
     const int size = key(v, k);
     std::uint64_t h = 0x9e3779b97f4a7c15ull;
@@ -158,6 +174,8 @@ class AssimpReader {
     if (!all_normals_) out_.normals.clear();
     if (!all_uvs_) out_.uvs.clear();
     if (!all_tangents_) out_.tangents.clear();
+    // White where a mesh had no colours, none at all when no mesh had them.
+    if (!any_colors_) out_.colors.clear();
     stats_.triangles = out_.triangle_count();
     return Status::ok();
   }
@@ -181,7 +199,11 @@ class AssimpReader {
       if (node.mMeshes[m] >= scene_.mNumMeshes || scene_.mMeshes[node.mMeshes[m]] == nullptr) {
         return error(name, "mesh " + std::to_string(node.mMeshes[m]) + " does not exist");
       }
-      NMBAKE_TRY(read_mesh(name, *scene_.mMeshes[node.mMeshes[m]], world, normal_matrix, mirrored));
+      const aiMesh& mesh = *scene_.mMeshes[node.mMeshes[m]];
+      const std::size_t mesh_first = out_.triangle_count();
+      NMBAKE_TRY(read_mesh(name, mesh, world, normal_matrix, mirrored));
+      append_range(out_.materials, material_name(mesh), static_cast<std::uint32_t>(mesh_first),
+                   static_cast<std::uint32_t>(out_.triangle_count() - mesh_first));
     }
     const std::size_t triangle_count = out_.triangle_count() - first_triangle;
     if (triangle_count > 0) {
@@ -189,6 +211,16 @@ class AssimpReader {
                                     static_cast<std::uint32_t>(triangle_count)});
     }
     return Status::ok();
+  }
+
+  // The mesh's material name; "" for none and for the names Assimp invents.
+  std::string material_name(const aiMesh& mesh) const {
+    if (mesh.mMaterialIndex >= scene_.mNumMaterials || scene_.mMaterials[mesh.mMaterialIndex] == nullptr)
+      return {};
+    aiString name;
+    if (scene_.mMaterials[mesh.mMaterialIndex]->Get(AI_MATKEY_NAME, name) != AI_SUCCESS) return {};
+    const std::string text(name.C_Str(), name.length);
+    return text == AI_DEFAULT_MATERIAL_NAME || text == "%%%DEFAULT" ? std::string() : text;
   }
 
   Status read_mesh(const std::string& part, const aiMesh& mesh, const glm::dmat4& world,
@@ -245,8 +277,10 @@ class AssimpReader {
 
     // One vertex per distinct combination of the kept attributes.
     const aiVector3D* uv = all_uvs_ ? mesh.mTextureCoords[options_.uv_set] : nullptr;
+    const aiColor4D* colors = options_.keep_colors ? mesh.mColors[0] : nullptr;
     std::vector<std::uint32_t> representatives;
-    const std::vector<std::uint32_t> remap = weld(mesh, all_normals_, uv, all_tangents_, representatives);
+    const std::vector<std::uint32_t> remap =
+        weld(mesh, all_normals_, uv, all_tangents_, colors, representatives);
     if (out_.positions.size() + representatives.size() > 0xffffffffu) return error(part, where + "more than 2^32 vertices in the file");
     const auto base = static_cast<std::uint32_t>(out_.positions.size());
     for (const std::uint32_t v : representatives) {
@@ -282,6 +316,15 @@ class AssimpReader {
     } else {
       out_.tangents.clear();
     }
+    if (options_.keep_colors) {
+      // As stored (see the top of the file); white without colours.
+      any_colors_ = any_colors_ || colors != nullptr;
+      for (const std::uint32_t v : representatives) {
+        out_.colors.push_back(colors != nullptr
+                                  ? glm::vec4(colors[v].r, colors[v].g, colors[v].b, colors[v].a)
+                                  : glm::vec4(1.0f));
+      }
+    }
 
     for (unsigned f = 0; f < mesh.mNumFaces; ++f) {
       const aiFace& face = mesh.mFaces[f];
@@ -316,6 +359,7 @@ class AssimpReader {
   bool any_uvs_ = false;
   bool all_tangents_ = true;
   bool tangents_seen_ = false;
+  bool any_colors_ = false;
 };
 
 // Reads in this process; `read_done` is called when Assimp has returned.
@@ -332,8 +376,9 @@ Status load_assimp_here(const std::string& path, const LoadOptions& options, Mes
   // carries its own name (not "$AssimpFbx$" helper nodes around it).
   importer.SetPropertyBool(AI_CONFIG_IMPORT_FBX_PRESERVE_PIVOTS, false);
   // What the bake does not keep is not even copied out of Assimp's scene.
-  int removed = aiComponent_COLORS | aiComponent_BONEWEIGHTS | aiComponent_ANIMATIONS | aiComponent_LIGHTS |
-                aiComponent_CAMERAS | aiComponent_TEXTURES;
+  int removed = aiComponent_BONEWEIGHTS | aiComponent_ANIMATIONS | aiComponent_LIGHTS | aiComponent_CAMERAS |
+                aiComponent_TEXTURES;
+  if (!options.keep_colors) removed |= aiComponent_COLORS;
   if (!options.keep_uvs) removed |= aiComponent_TEXCOORDS;
   if (!options.keep_normals) removed |= aiComponent_NORMALS;
   if (!options.keep_tangents) removed |= aiComponent_TANGENTS_AND_BITANGENTS;

@@ -9,7 +9,8 @@
 //
 // What is read (load.hpp has the contract): every node with a mesh in the
 // scene (the default scene, else scene 0, else every root node), in
-// depth-first order, with its world matrix applied; one MeshPart per node.
+// depth-first order, with its world matrix applied; one MeshPart per node,
+// and a material range per primitive (its material's name).
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -475,13 +476,33 @@ class GltfReader {
     const std::size_t first_triangle = out_.triangle_count();
     const tinygltf::Mesh& mesh = model_.meshes[static_cast<std::size_t>(node.mesh)];
     for (std::size_t p = 0; p < mesh.primitives.size(); ++p) {
+      const std::size_t primitive_first = out_.triangle_count();
+      std::string material;
+      NMBAKE_TRY(material_name(name, mesh.primitives[p], p, material));
       NMBAKE_TRY(read_primitive(name, mesh.primitives[p], p, transform));
+      append_range(out_.materials, material, static_cast<std::uint32_t>(primitive_first),
+                   static_cast<std::uint32_t>(out_.triangle_count() - primitive_first));
     }
     const std::size_t triangle_count = out_.triangle_count() - first_triangle;
     if (triangle_count > 0) {
       out_.parts.push_back(MeshPart{name, static_cast<std::uint32_t>(first_triangle),
                                     static_cast<std::uint32_t>(triangle_count)});
     }
+    return Status::ok();
+  }
+
+  // A primitive's material: its name, "material N" when it has none, "" when
+  // the primitive has no material.
+  Status material_name(const std::string& part, const tinygltf::Primitive& primitive, std::size_t index,
+                       std::string& name) const {
+    name.clear();
+    if (primitive.material < 0) return Status::ok();
+    const auto m = static_cast<std::size_t>(primitive.material);
+    if (m >= model_.materials.size()) {
+      return error(part, "primitive " + std::to_string(index) + ": material " +
+                             std::to_string(primitive.material) + " does not exist");
+    }
+    name = model_.materials[m].name.empty() ? "material " + std::to_string(m) : model_.materials[m].name;
     return Status::ok();
   }
 

@@ -1,9 +1,11 @@
 // glTF 2.0 writer (tinygltf): positions, normals, UVs (TEXCOORD_0), tangents
 // (TANGENT), vertex colours (COLOR_0, linear) and indices of a Mesh as .glb, or as .gltf JSON with its buffer
-// for a .bin beside it; save_mesh() writes each to a temporary name and
+// for a .bin beside it; a node per part, a primitive per material range
+// within it (materials carry only their names); save_mesh() writes each to a temporary name and
 // renames it.
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -96,21 +98,47 @@ Status encode_gltf(const Mesh& mesh, const std::string& bin_uri, std::string& by
 
   // One node per part (a mesh without parts is one unnamed node), each
   // drawing its range of the shared index buffer, so a reload gives back the
-  // same parts with the same names.
-  std::vector<MeshPart> parts = mesh.parts;
-  if (parts.empty()) parts.push_back(MeshPart{"", 0, static_cast<std::uint32_t>(mesh.triangle_count())});
+  // same parts with the same names; within a part one primitive per
+  // material range, with a material of that name (none for ""), so the
+  // materials come back too.
+  const auto whole = [&](const std::vector<MeshPart>& ranges) {
+    return ranges.empty()
+               ? std::vector<MeshPart>{MeshPart{"", 0, static_cast<std::uint32_t>(mesh.triangle_count())}}
+               : ranges;
+  };
+  const std::vector<MeshPart> parts = whole(mesh.parts);
+  const std::vector<MeshPart> materials = whole(mesh.materials);
+  std::map<std::string, int> material_index;
+  for (const MeshPart& range : materials) {
+    if (range.name.empty() || material_index.count(range.name) != 0) continue;
+    tinygltf::Material material;
+    material.name = range.name;
+    model.materials.push_back(material);
+    material_index[range.name] = static_cast<int>(model.materials.size()) - 1;
+  }
   tinygltf::Scene scene;
+  std::size_t next_material = 0;  // the material range holding the part's first triangle
   for (const MeshPart& part : parts) {
-    const int indices = add_accessor(model, index_view, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR,
-                                     std::size_t{part.triangle_count} * 3);
-    model.accessors[static_cast<std::size_t>(indices)].byteOffset = std::size_t{part.first_triangle} * 3 * sizeof(std::uint32_t);
-    tinygltf::Primitive primitive;
-    primitive.attributes = attributes;
-    primitive.indices = indices;
-    primitive.mode = TINYGLTF_MODE_TRIANGLES;
     tinygltf::Mesh gltf_mesh;
     gltf_mesh.name = part.name;
-    gltf_mesh.primitives.push_back(primitive);
+    const std::uint32_t part_end = part.first_triangle + part.triangle_count;
+    for (std::uint32_t first = part.first_triangle; first < part_end;) {
+      while (materials[next_material].first_triangle + materials[next_material].triangle_count <= first)
+        ++next_material;
+      const MeshPart& material = materials[next_material];
+      const std::uint32_t end = std::min(part_end, material.first_triangle + material.triangle_count);
+      const int indices = add_accessor(model, index_view, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT,
+                                       TINYGLTF_TYPE_SCALAR, std::size_t{end - first} * 3);
+      model.accessors[static_cast<std::size_t>(indices)].byteOffset =
+          std::size_t{first} * 3 * sizeof(std::uint32_t);
+      tinygltf::Primitive primitive;
+      primitive.attributes = attributes;
+      primitive.indices = indices;
+      primitive.mode = TINYGLTF_MODE_TRIANGLES;
+      primitive.material = material.name.empty() ? -1 : material_index[material.name];
+      gltf_mesh.primitives.push_back(primitive);
+      first = end;
+    }
     model.meshes.push_back(gltf_mesh);
     tinygltf::Node node;
     node.name = part.name;

@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <string>
 #include <type_traits>
 #include <vector>
 
@@ -24,11 +25,18 @@ namespace {
 
 // The child's answer, in order: a byte 'R' once the library has returned,
 // then 'S' and the status, then (when it is ok) the mesh and the stats.
+// Written to the pipe as it goes (a mesh is not copied whole), or to a
+// string (encode_child_reply, for tests).
 class Writer {
  public:
   explicit Writer(int fd) : fd_(fd) {}
+  explicit Writer(std::string& out) : out_(&out) {}
   bool bytes(const void* data, std::size_t size) {
     const char* p = static_cast<const char*>(data);
+    if (out_ != nullptr) {
+      out_->append(p, size);
+      return true;
+    }
     while (size > 0) {
       const ssize_t n = ::write(fd_, p, size);
       if (n < 0 && errno == EINTR) continue;
@@ -48,9 +56,17 @@ class Writer {
   bool array(const std::vector<T>& v) {
     return value(static_cast<std::uint64_t>(v.size())) && bytes(v.data(), v.size() * sizeof(T));
   }
+  bool ranges(const std::vector<MeshPart>& v) {
+    if (!value(static_cast<std::uint64_t>(v.size()))) return false;
+    for (const MeshPart& range : v) {
+      if (!text(range.name) || !value(range.first_triangle) || !value(range.triangle_count)) return false;
+    }
+    return true;
+  }
 
  private:
-  int fd_;
+  int fd_ = -1;
+  std::string* out_ = nullptr;
 };
 
 class Reader {
@@ -81,6 +97,20 @@ class Reader {
     v.resize(n);
     return bytes(v.data(), n * sizeof(T));
   }
+  // Parts or materials: a count no larger than the bytes left can hold
+  // (each range takes at least 16: name length, first, count) is checked
+  // before anything is allocated, so a hostile count is an error, not an
+  // allocation.
+  bool ranges(std::vector<MeshPart>& v) {
+    constexpr std::size_t kRangeBytes = sizeof(std::uint64_t) + 2 * sizeof(std::uint32_t);
+    std::uint64_t n = 0;
+    if (!value(n) || n > (data_.size() - at_) / kRangeBytes) return false;
+    v.resize(n);
+    for (MeshPart& range : v) {
+      if (!text(range.name) || !value(range.first_triangle) || !value(range.triangle_count)) return false;
+    }
+    return true;
+  }
 
  private:
   const std::string& data_;
@@ -90,18 +120,23 @@ class Reader {
 bool send_result(Writer& w, const Status& status, const Mesh& mesh, const LoadStats& stats) {
   if (!w.value('S') || !w.value(static_cast<int>(status.code())) || !w.text(status.message())) return false;
   if (!status.is_ok()) return true;
-  if (!w.array(mesh.positions) || !w.array(mesh.normals) || !w.array(mesh.uvs) || !w.array(mesh.tangents) ||
-      !w.array(mesh.indices) || !w.value(static_cast<std::uint64_t>(mesh.parts.size()))) {
-    return false;
-  }
-  for (const MeshPart& part : mesh.parts) {
-    if (!w.text(part.name) || !w.value(part.first_triangle) || !w.value(part.triangle_count)) return false;
-  }
-  return w.value(stats.bytes) && w.value(stats.polygons) && w.value(stats.triangles) &&
+  return w.array(mesh.positions) && w.array(mesh.normals) && w.array(mesh.uvs) && w.array(mesh.tangents) &&
+         w.array(mesh.colors) && w.array(mesh.indices) && w.ranges(mesh.parts) && w.ranges(mesh.materials) &&
+         w.value(stats.bytes) && w.value(stats.polygons) && w.value(stats.triangles) &&
          w.value(stats.degenerate_faces) && w.value(stats.unit_meters);
 }
 
-bool receive_result(const std::string& data, Status& status, Mesh& mesh, LoadStats& stats) {
+}  // namespace
+
+std::string encode_child_reply(const Status& status, const Mesh& mesh, const LoadStats& stats) {
+  std::string out;
+  Writer w(out);
+  (void)w.value('R');
+  (void)send_result(w, status, mesh, stats);
+  return out;
+}
+
+bool decode_child_reply(const std::string& data, Status& status, Mesh& mesh, LoadStats& stats) {
   Reader r(data);
   char tag = 0;
   if (!r.value(tag) || tag != 'R') return false;
@@ -114,24 +149,15 @@ bool receive_result(const std::string& data, Status& status, Mesh& mesh, LoadSta
                                                               : Status::internal(message);
     return true;
   }
-  std::uint64_t parts = 0;
-  if (!r.array(mesh.positions) || !r.array(mesh.normals) || !r.array(mesh.uvs) || !r.array(mesh.tangents) ||
-      !r.array(mesh.indices) || !r.value(parts) || parts > data.size()) {
-    return false;
-  }
-  mesh.parts.resize(parts);
-  for (MeshPart& part : mesh.parts) {
-    if (!r.text(part.name) || !r.value(part.first_triangle) || !r.value(part.triangle_count)) return false;
-  }
-  if (!(r.value(stats.bytes) && r.value(stats.polygons) && r.value(stats.triangles) &&
+  if (!(r.array(mesh.positions) && r.array(mesh.normals) && r.array(mesh.uvs) && r.array(mesh.tangents) &&
+        r.array(mesh.colors) && r.array(mesh.indices) && r.ranges(mesh.parts) && r.ranges(mesh.materials) &&
+        r.value(stats.bytes) && r.value(stats.polygons) && r.value(stats.triangles) &&
         r.value(stats.degenerate_faces) && r.value(stats.unit_meters))) {
     return false;
   }
   status = Status::ok();
   return true;
 }
-
-}  // namespace
 
 std::uint64_t child_cpu_seconds(std::uint64_t file_bytes) {
   return kChildCpuSeconds + file_bytes / kChildBytesPerCpuSecond;
@@ -218,7 +244,8 @@ Status load_in_child(const std::string& path, const char* library, const ChildLo
   Status status;
   Mesh mesh;
   LoadStats child_stats = stats;
-  if (WIFEXITED(wstatus) && WEXITSTATUS(wstatus) == 0 && receive_result(data, status, mesh, child_stats)) {
+  if (WIFEXITED(wstatus) && WEXITSTATUS(wstatus) == 0 &&
+      decode_child_reply(data, status, mesh, child_stats)) {
     if (status.is_ok()) {
       out = std::move(mesh);
       stats = child_stats;

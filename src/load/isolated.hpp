@@ -38,4 +38,14 @@ using ChildLoad = std::function<Status(Mesh& out, LoadStats& stats, const std::f
 Status load_in_child(const std::string& path, const char* library, const ChildLoad& load, Mesh& out,
                      LoadStats& stats);
 
+// The child's reply through the pipe (the child writes it piece by piece;
+// these are the same format as one string, for tests): 'R', 'S', the status
+// and, when it is ok, every mesh array (colours too), the parts and
+// materials, and the stats. decode_child_reply() returns false for a reply
+// that is cut short or malformed, and checks every count against the bytes
+// left before it allocates (a count that claims more is malformed); true
+// with `status` set otherwise (`mesh` and `stats` filled when it is ok).
+std::string encode_child_reply(const Status& status, const Mesh& mesh, const LoadStats& stats);
+bool decode_child_reply(const std::string& data, Status& status, Mesh& mesh, LoadStats& stats);
+
 }  // namespace nmbake::load_detail

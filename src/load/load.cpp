@@ -277,6 +277,17 @@ void drop_unreferenced_vertices(Mesh& mesh) {
   for (std::uint32_t& index : mesh.indices) index = remap[index];
 }
 
+void append_range(std::vector<MeshPart>& ranges, const std::string& name, std::uint32_t first,
+                  std::uint32_t count) {
+  if (count == 0) return;
+  if (!ranges.empty() && ranges.back().name == name &&
+      ranges.back().first_triangle + ranges.back().triangle_count == first) {
+    ranges.back().triangle_count += count;
+    return;
+  }
+  ranges.push_back(MeshPart{name, first, count});
+}
+
 }  // namespace load_detail
 
 bool mesh_extension_supported(const std::string& path) {
@@ -320,6 +331,8 @@ Status load_mesh(const std::string& path, const LoadOptions& options, Mesh& out,
     return status;
   }
   load_detail::drop_unreferenced_vertices(out);
+  // Materials none of which has a name are no materials (mesh.hpp).
+  if (!out.has_named_materials()) out.materials.clear();
   stats.triangles = out.triangle_count();
   status = validate_mesh(out, path);
   if (!status.is_ok()) out = Mesh{};

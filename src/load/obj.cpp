@@ -16,6 +16,12 @@
 // which lets every error name its line. Vertices no face uses are dropped by
 // load_mesh.
 //
+// Names: `o` and `g` make parts, `usemtl` materials (the manual's appendix
+// B1 "Grouping" and "Display/render attributes" statements), both as ranges
+// of the triangles that follow (finish_ranges()). Vertex colours, with
+// LoadOptions::keep_colors: the "v x y z r g b" extension that MeshLab,
+// Open3D and other tools write (not in the manual; read_vertex_color()).
+//
 // Parallel path: the file is read in blocks (LoadOptions::block_bytes), each
 // cut at line boundaries into a few slices per core. The slices are parsed on
 // all cores into raw records (reals, and face corners as the written, possibly
@@ -34,6 +40,7 @@
 
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
@@ -44,6 +51,7 @@ namespace nmbake::load_detail {
 namespace {
 
 constexpr std::uint32_t kNone = 0xffffffffu;
+constexpr std::size_t kNoColor = ~std::size_t{0};
 
 struct Corner {
   std::uint32_t v = kNone;
@@ -60,18 +68,56 @@ struct RawCorner {
   std::int64_t vn = 0;
 };
 
-// An `o` or `g` statement: where a named part begins (mesh.hpp MeshPart).
+// An `o`, `g` or `usemtl` statement: where a named part or material begins
+// (mesh.hpp MeshPart).
+enum class NameKind : std::uint8_t { object, group, material };
 struct NameStatement {
-  bool object = false;  // `o`; else `g`
+  NameKind kind = NameKind::object;
   std::string name;     // the rest of the line, blanks trimmed
   std::uint64_t faces_before = 0;  // slice records: faces of the slice before it
 };
 
-// The name of an `o`/`g` statement: all its arguments ("g a b" names "a b").
+// The name of an `o`/`g`/`usemtl` statement: all its arguments ("g a b"
+// names "a b").
 std::string statement_name(const char* p, const char* end) {
   p = skip_blanks(p, end);
   while (end > p && is_blank(end[-1])) --end;
   return std::string(p, end);
+}
+
+// The statements that name ranges of triangles; false for any other keyword.
+bool name_kind(std::string_view keyword, NameKind& kind) {
+  if (keyword == "o") {
+    kind = NameKind::object;
+  } else if (keyword == "g") {
+    kind = NameKind::group;
+  } else if (keyword == "usemtl") {
+    kind = NameKind::material;
+  } else {
+    return false;
+  }
+  return true;
+}
+
+// A vertex colour after the position: "v x y z r g b" (further numbers
+// ignored). Only when the 4th to 6th arguments are three finite reals; "v x
+// y z w" (a rational weight, 4 numbers) or anything else has none, and is
+// read as it is without keep_colors (extra arguments are ignored). The
+// values are kept as written: like a PLY's, they are display (sRGB-encoded)
+// values in [0, 1]. Shared by the serial and the slice parser.
+bool read_vertex_color(const char* p, const char* end, glm::vec4& color) {
+  for (int i = 0; i < 3; ++i) p = skip_token(skip_blanks(p, end), end);
+  color = glm::vec4(1.0f);
+  glm::vec3 rgb(1.0f);
+  for (int i = 0; i < 3; ++i) {
+    p = skip_blanks(p, end);
+    if (p == end) return false;
+    const char* token_end = skip_token(p, end);
+    if (parse_float(p, token_end, rgb[i]) != NumberError::none) return false;
+    p = token_end;
+  }
+  color = glm::vec4(rgb, 1.0f);
+  return true;
 }
 
 struct RawFace {
@@ -91,6 +137,8 @@ struct ObjSlice {
   const char* begin = nullptr;
   const char* end = nullptr;
   std::vector<glm::vec3> positions;
+  std::vector<glm::vec4> colors;       // one per position, only with keep_colors (white: none)
+  std::size_t first_color = kNoColor;  // index in positions of the first with a colour
   std::vector<glm::vec2> texcoords;  // only when kept
   std::vector<glm::vec3> normals;    // only when kept
   std::uint64_t texcoord_count = 0;  // vt statements, kept or not
@@ -104,6 +152,8 @@ struct ObjSlice {
 
   void clear() {
     positions.clear();
+    colors.clear();
+    first_color = kNoColor;
     texcoords.clear();
     normals.clear();
     texcoord_count = 0;
@@ -197,7 +247,7 @@ class ObjParser {
                                " faces with fewer than 3 corners skipped)");
     }
     finish();
-    finish_parts();
+    finish_names();
     return Status::ok();
   }
 
@@ -213,15 +263,14 @@ class ObjParser {
     if (keyword == "vt") return parse_texcoord(keyword_end, end);
     if (keyword == "vn") return parse_normal(keyword_end, end);
     if (keyword == "f") return parse_face(keyword_end, end);
-    if (keyword == "o" || keyword == "g") {
-      add_name(NameStatement{keyword == "o", statement_name(keyword_end, end), 0});
+    if (NameKind kind; name_kind(keyword, kind)) {
+      add_name(NameStatement{kind, statement_name(keyword_end, end), 0});
       return Status::ok();
     }
-    // Everything else (s, usemtl, mtllib, l, p, vp, curves) carries nothing a
-    // bake uses.
+    // Everything else (s, mtllib, l, p, vp, curves) carries nothing a bake
+    // uses.
     return Status::ok();
   }
-
 
   // A part name starts at the next triangle.
   void add_name(NameStatement statement) {
@@ -231,28 +280,34 @@ class ObjParser {
 
   // Parts from the `o`/`g` statements: by `o` when the file has any (Blender,
   // Maya and 3ds Max name objects with `o` and use `g` for materials or
-  // smoothing groups), else by `g`. Triangles before the first name are an
-  // unnamed part; a name that names no triangle makes no part; consecutive
-  // ranges of one name are one part. A file without names has no parts.
-  void finish_parts() {
-    const bool by_object =
-        std::any_of(names_.begin(), names_.end(), [](const NameStatement& n) { return n.object; });
-    std::vector<MeshPart>& parts = out_.parts;
+  // smoothing groups), else by `g`. Materials from `usemtl`, which holds
+  // across `o` and `g` until the next `usemtl`.
+  void finish_names() {
+    const bool by_object = std::any_of(names_.begin(), names_.end(),
+                                       [](const NameStatement& n) { return n.kind == NameKind::object; });
+    finish_ranges(by_object ? NameKind::object : NameKind::group, out_.parts);
+    finish_ranges(NameKind::material, out_.materials);
+  }
+
+  // Ranges from the statements of one kind: triangles before the first name
+  // are an unnamed range; a name that names no triangle makes no range;
+  // consecutive ranges of one name are one range. No such statement: none.
+  void finish_ranges(NameKind kind, std::vector<MeshPart>& ranges) const {
     const auto triangle_count = static_cast<std::uint32_t>(out_.indices.size() / 3);
     std::string current;
     std::uint32_t begin = 0;
     bool any = false;
     const auto close = [&](std::uint32_t end) {
       if (end == begin) return;
-      if (!parts.empty() && parts.back().name == current) {
-        parts.back().triangle_count += end - begin;
+      if (!ranges.empty() && ranges.back().name == current) {
+        ranges.back().triangle_count += end - begin;
       } else {
-        parts.push_back(MeshPart{current, begin, end - begin});
+        ranges.push_back(MeshPart{current, begin, end - begin});
       }
       begin = end;
     };
     for (const NameStatement& n : names_) {
-      if (n.object != by_object) continue;
+      if (n.kind != kind) continue;
       any = true;
       close(static_cast<std::uint32_t>(n.faces_before));
       current = n.name;
@@ -285,6 +340,11 @@ class ObjParser {
     NMBAKE_TRY(parse_reals(p, end, &position.x, 3, 3));
     if (positions_.size() >= kNone - 1) return error("too many vertices");
     positions_.push_back(position);
+    if (options_.keep_colors) {
+      glm::vec4 color;
+      any_color_ = read_vertex_color(p, end, color) || any_color_;
+      colors_.push_back(color);
+    }
     if (split_) first_vertex_.push_back(kNone);
     return Status::ok();
   }
@@ -493,6 +553,13 @@ class ObjParser {
     if (keyword == "v") {
       glm::vec3 position{0.0f};
       if (!read_reals(keyword_end, end, &position.x, 3, 3)) return false;
+      if (options_.keep_colors) {
+        glm::vec4 color;
+        if (read_vertex_color(keyword_end, end, color) && slice.first_color == kNoColor) {
+          slice.first_color = slice.positions.size();
+        }
+        slice.colors.push_back(color);
+      }
       slice.positions.push_back(position);
     } else if (keyword == "vt") {
       if (options_.keep_uvs) {
@@ -528,8 +595,8 @@ class ObjParser {
       }
       face.corner_count = static_cast<std::uint32_t>(slice.corners.size() - face.first_corner);
       slice.faces.push_back(face);
-    } else if (keyword == "o" || keyword == "g") {
-      slice.names.push_back(NameStatement{keyword == "o", statement_name(keyword_end, end), slice.faces.size()});
+    } else if (NameKind kind; name_kind(keyword, kind)) {
+      slice.names.push_back(NameStatement{kind, statement_name(keyword_end, end), slice.faces.size()});
     }
     return true;
   }
@@ -572,6 +639,9 @@ class ObjParser {
       return parse_lines_serially(slice.begin, slice.end, first_line);
     }
     positions_.insert(positions_.end(), slice.positions.begin(), slice.positions.end());
+    colors_.insert(colors_.end(), slice.colors.begin(), slice.colors.end());
+    const bool any_color = any_color_;
+    any_color_ = any_color_ || slice.first_color != kNoColor;
     texcoords_.insert(texcoords_.end(), slice.texcoords.begin(), slice.texcoords.end());
     normals_.insert(normals_.end(), slice.normals.begin(), slice.normals.end());
     texcoord_count_ += slice.texcoord_count;
@@ -618,6 +688,8 @@ class ObjParser {
         has_vt_ = has_vt;
         has_vn_ = has_vn;
         positions_.resize(v_count);
+        if (options_.keep_colors) colors_.resize(v_count);
+        any_color_ = any_color || (slice.first_color != kNoColor && slice.first_color < face.v_before);
         texcoord_count_ = vt_count;
         normal_count_ = vn_count;
         if (options_.keep_uvs) texcoords_.resize(vt_count);
@@ -678,6 +750,7 @@ class ObjParser {
       // missing and are padded here, then dropped with those vertices.
       const std::size_t vertex_count = positions_.size();
       out_.positions = std::move(positions_);
+      if (any_color_) out_.colors = std::move(colors_);
       if (has_vt_) {
         texcoords_.resize(vertex_count, glm::vec2(0.0f));
         out_.uvs = std::move(texcoords_);
@@ -699,6 +772,10 @@ class ObjParser {
       out_.normals.resize(vertex_count);
       for (std::size_t i = 0; i < vertex_count; ++i) out_.normals[i] = normals_[vertex_vn_[i]];
     }
+    if (any_color_) {
+      out_.colors.resize(vertex_count);
+      for (std::size_t i = 0; i < vertex_count; ++i) out_.colors[i] = colors_[vertex_v_[i]];
+    }
   }
 
   const std::string& path_;
@@ -708,6 +785,8 @@ class ObjParser {
   LoadStats& stats_;
 
   std::vector<glm::vec3> positions_;
+  std::vector<glm::vec4> colors_;     // one per position with keep_colors (white: none)
+  bool any_color_ = false;            // some position has a colour: the mesh has colours
   std::vector<glm::vec2> texcoords_;  // only when kept
   std::vector<glm::vec3> normals_;    // only when kept
   std::uint64_t texcoord_count_ = 0;  // vt statements, kept or not
@@ -724,7 +803,7 @@ class ObjParser {
   std::vector<std::uint32_t> vertex_vt_;
   std::vector<std::uint32_t> vertex_vn_;
 
-  std::vector<NameStatement> names_;  // o / g statements, faces_before = triangles before
+  std::vector<NameStatement> names_;  // o / g / usemtl statements, faces_before = triangles before
   std::vector<Corner> corners_;  // scratch of the current face
   std::uint64_t line_number_ = 0;  // of the line being parsed, for messages
   std::vector<ObjSlice> slices_;    // of the parallel path

@@ -148,6 +148,12 @@ std::size_t block_bytes(const LoadOptions& options);
 // others and remapping the indices. Indices must already be in range.
 void drop_unreferenced_vertices(Mesh& mesh);
 
+// Appends the range [first, first + count) named `name` to `ranges` (parts
+// or materials, mesh.hpp), merged into the last range when that has the
+// same name and ends at `first`; nothing when count is 0.
+void append_range(std::vector<MeshPart>& ranges, const std::string& name, std::uint32_t first,
+                  std::uint32_t count);
+
 // Fill `out` from the opened file; stats.bytes is set by the caller. They do
 // not call validate_mesh() or drop_unreferenced_vertices(): load_mesh does.
 Status load_obj(const std::string& path, FileReader& reader, const LoadOptions& options, Mesh& out,

@@ -1,5 +1,6 @@
-// Mesh writer: Wavefront OBJ (v, vt, vn, f) and PLY binary_little_endian
-// (Turk 1994). Reals are written so that they read back bit for bit: OBJ uses
+// Mesh writer: Wavefront OBJ (v with colours as "v x y z r g b", vt, vn, o
+// for parts, usemtl for materials, f) and PLY binary_little_endian (Turk
+// 1994; no parts or materials). Reals are written so that they read back bit for bit: OBJ uses
 // the shortest decimal form that round-trips (std::to_chars), PLY raw float32.
 // The file appears atomically: written to a temporary file in the same folder,
 // then renamed over the target.
@@ -79,13 +80,21 @@ void write_obj(Writer& out, const Mesh& mesh) {
   out.text(" vertices, ");
   out.integer(mesh.triangle_count());
   out.text(" triangles\n");
-  for (const glm::vec3& p : mesh.positions) {
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+    const glm::vec3& p = mesh.positions[v];
     out.text("v ");
     out.real(p.x);
     out.text(" ");
     out.real(p.y);
     out.text(" ");
     out.real(p.z);
+    if (mesh.has_colors()) {
+      // The "v x y z r g b" extension the loader reads; alpha is lost.
+      for (int c = 0; c < 3; ++c) {
+        out.text(" ");
+        out.real(mesh.colors[v][c]);
+      }
+    }
     out.text("\n");
   }
   for (const glm::vec2& uv : mesh.uvs) {
@@ -107,6 +116,7 @@ void write_obj(Writer& out, const Mesh& mesh) {
   // Every attribute is per vertex, so a corner uses the same number thrice.
   const std::string_view normal_separator = mesh.has_uvs() ? "/" : "//";
   std::size_t next_part = 0;
+  std::size_t next_material = 0;
   for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
     // Parts as `o` objects, so they load back as the same parts.
     if (next_part < mesh.parts.size() && mesh.parts[next_part].first_triangle == t) {
@@ -114,6 +124,20 @@ void write_obj(Writer& out, const Mesh& mesh) {
       out.text(mesh.parts[next_part].name);
       out.text("\n");
       ++next_part;
+    }
+    // Materials as `usemtl` (no mtllib: nmbake reads only the names). The
+    // unnamed material needs no statement at the start; later it is a bare
+    // `usemtl`, which the loader reads as "" (other readers may not).
+    if (next_material < mesh.materials.size() && mesh.materials[next_material].first_triangle == t) {
+      if (t > 0 || !mesh.materials[next_material].name.empty()) {
+        out.text("usemtl");
+        if (!mesh.materials[next_material].name.empty()) {
+          out.text(" ");
+          out.text(mesh.materials[next_material].name);
+        }
+        out.text("\n");
+      }
+      ++next_material;
     }
     out.text("f");
     for (int c = 0; c < 3; ++c) {

@@ -169,15 +169,43 @@ glm::vec3 part_color(const std::string& name) {
   }
 }
 
+const char* to_string(IdSource source) {
+  switch (source) {
+    case IdSource::automatic:
+      return "auto";
+    case IdSource::part:
+      return "part";
+    case IdSource::material:
+      return "material";
+  }
+  return "?";
+}
+
+bool parse_id_source(const std::string& text, IdSource& out) {
+  for (const IdSource source : {IdSource::automatic, IdSource::part, IdSource::material}) {
+    if (text == to_string(source)) {
+      out = source;
+      return true;
+    }
+  }
+  return false;
+}
+
+IdSource resolve_id_source(IdSource requested, const Mesh& high) {
+  if (requested != IdSource::automatic) return requested;
+  return high.has_named_materials() ? IdSource::material : IdSource::part;
+}
+
 void MapMeshData::apply(MapSettings& settings) const {
   settings.position_bounds = position_bounds;
   settings.vertex_curvature = vertex_curvature.empty() ? nullptr : &vertex_curvature;
-  settings.triangle_part = part_colors.empty() ? nullptr : &triangle_part;
-  settings.part_colors = part_colors.empty() ? nullptr : &part_colors;
+  settings.id_source = id_source;
+  settings.triangle_id = id_colors.empty() ? nullptr : &triangle_id;
+  settings.id_colors = id_colors.empty() ? nullptr : &id_colors;
 }
 
-void prepare_map_mesh(const Mesh& high, const std::vector<MapKind>& maps, const BakeGroups& groups,
-                      MapMeshData& out) {
+void prepare_map_mesh(const Mesh& high, const std::vector<MapKind>& maps, IdSource id_source,
+                      const BakeGroups& groups, MapMeshData& out) {
   const auto wants = [&](MapKind map) { return std::find(maps.begin(), maps.end(), map) != maps.end(); };
   out = MapMeshData{};
   if (wants(MapKind::position)) out.position_bounds = compute_bounds(high);
@@ -194,29 +222,31 @@ void prepare_map_mesh(const Mesh& high, const std::vector<MapKind>& maps, const 
     }
   }
   if (wants(MapKind::id)) {
-    // One unnamed part when the file has none; a name in several ranges is
-    // one part.
+    out.id_source = resolve_id_source(id_source, high);
+    const std::vector<MeshPart>& ranges = out.id_source == IdSource::material ? high.materials : high.parts;
+    // One unnamed id when the file has none; a name in several ranges is
+    // one id.
     std::vector<std::string> names;
-    std::vector<std::uint32_t> part(high.triangle_count(), 0);
-    for (const MeshPart& range : high.parts) {
+    std::vector<std::uint32_t> id(high.triangle_count(), 0);
+    for (const MeshPart& range : ranges) {
       const auto at = std::find(names.begin(), names.end(), range.name);
       const auto index = static_cast<std::uint32_t>(at - names.begin());
       if (at == names.end()) names.push_back(range.name);
-      std::fill_n(part.begin() + range.first_triangle, range.triangle_count, index);
+      std::fill_n(id.begin() + range.first_triangle, range.triangle_count, index);
     }
     if (names.empty()) names.emplace_back();
     for (const std::string& name : names) {
-      out.part_colors.push_back(part_color(name));
-      out.parts.emplace_back(name, out.part_colors.back());
+      out.id_colors.push_back(part_color(name));
+      out.ids.emplace_back(name, out.id_colors.back());
     }
     if (groups.grouped()) {
       // The grouped index buffer holds each group's triangles in turn
       // (group_high_indices); a triangle in two groups is there twice.
       for (const auto& triangles : groups.high_triangles) {
-        for (const std::uint32_t t : triangles) out.triangle_part.push_back(part[t]);
+        for (const std::uint32_t t : triangles) out.triangle_id.push_back(id[t]);
       }
     } else {
-      out.triangle_part = std::move(part);
+      out.triangle_id = std::move(id);
     }
   }
 }
@@ -395,6 +425,11 @@ std::vector<MapReport> MapSet::reports(int tile) const {
       put("normal_fallbacks", static_cast<double>(occlusion_stats_.normal_fallbacks));
       put("untraced_rays", static_cast<double>(occlusion_stats_.untraced_rays));
       if (m->kind == MapKind::bent_normal) put("all_occluded_samples", static_cast<double>(occlusion_stats_.all_occluded));
+    }
+    if (m->kind == MapKind::id && settings_.id_colors != nullptr) {
+      // From the bake's mesh data (a merge of tiles has none: not counters).
+      put("ids", static_cast<double>(settings_.id_colors->size()));
+      put("from_materials", settings_.id_source == IdSource::material ? 1.0 : 0.0);
     }
     if (m->kind == MapKind::thickness) {
       put("rays_per_sample", settings_.thickness.rays);

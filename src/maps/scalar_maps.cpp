@@ -284,16 +284,17 @@ struct VertexColorModule final : MapSet::Module {
   }
 };
 
-// The colour of the part most of a texel's samples hit (ties: the first in
-// the sample pattern's order); black where every sample missed. Never a
-// blend of two parts' colours, so the map is a mask.
+// The colour of the part or material most of a texel's samples hit (ties:
+// the first in the sample pattern's order); black where every sample
+// missed. Never a blend of two colours, so the map is a mask. Figures: how
+// many names have a colour, and whether they are materials (1) or parts (0).
 struct IdModule final : MapSet::Module {
   IdModule() : Module(MapKind::id) {}
   void encode_band(const BandInputs& in, const MapSettings& settings, EncodeStats&) override {
-    NMBAKE_CHECK(settings.triangle_part != nullptr && settings.part_colors != nullptr, "parts for an id map");
+    NMBAKE_CHECK(settings.triangle_id != nullptr && settings.id_colors != nullptr, "ids for an id map");
     const TexelSamples& samples = in.samples;
-    const std::vector<std::uint32_t>& part = *settings.triangle_part;
-    const std::vector<glm::vec3>& colors = *settings.part_colors;
+    const std::vector<std::uint32_t>& part = *settings.triangle_id;
+    const std::vector<glm::vec3>& colors = *settings.id_colors;
     const int width = samples.width, spp = samples.samples;
     tbb::parallel_for(tbb::blocked_range<int>(0, samples.height), [&](const tbb::blocked_range<int>& rows) {
       std::vector<std::uint32_t> seen;

@@ -239,6 +239,9 @@ Status unwrap_mesh(const Mesh& in, const UnwrapOptions& o, Mesh& out, UnwrapRepo
     }
   }
   out = Mesh{};
+  // Triangle i is input triangle i: the parts and materials still hold.
+  out.parts = in.parts;
+  out.materials = in.materials;
   out.indices.resize(in.indices.size());
   std::unordered_map<std::uint64_t, std::uint32_t> vertex_of;
   vertex_of.reserve(in.vertex_count() * 2);

@@ -49,19 +49,24 @@ class InputFile {
 // A mesh file through load_mesh(), as `nmbake bake --low` reads it: the
 // parallel block parser with small blocks (so lines straddle blocks) and
 // the serial reference, which must agree (load.hpp: the same mesh and error
-// whatever the tuning); then the bake's coordinate check.
+// whatever the tuning), parts, materials and (for inputs of odd length,
+// read as for a vertex-color bake) colours included; then the bake's
+// coordinate check.
 inline int load_mesh_both_ways(const std::uint8_t* data, std::size_t size, const std::string& name) {
   const InputFile file(data, size, name);
   LoadOptions parallel;
   parallel.block_bytes = 64;
+  parallel.keep_colors = size % 2 == 1;
   LoadOptions serial;
   serial.serial = true;
+  serial.keep_colors = parallel.keep_colors;
   Mesh a, b;
   LoadStats stats;
   const Status sa = load_mesh(file.path(), parallel, a, stats);
   const Status sb = load_mesh(file.path(), serial, b, stats);
   if (sa.is_ok() != sb.is_ok() || sa.message() != sb.message() || a.positions != b.positions ||
-      a.indices != b.indices || a.uvs != b.uvs || a.normals != b.normals) {
+      a.indices != b.indices || a.uvs != b.uvs || a.normals != b.normals || a.colors != b.colors ||
+      a.parts != b.parts || a.materials != b.materials) {
     std::abort();
   }
   if (sa.is_ok()) (void)check_coordinate_range(a, file.path());
