@@ -25,7 +25,6 @@
 #include "nmbake/job.hpp"
 
 #include <algorithm>
-#include <array>
 #include <bit>
 #include <chrono>
 #include <cmath>
@@ -261,15 +260,6 @@ void put(std::string& out, const T& value) {
   out.append(reinterpret_cast<const char*>(&value), sizeof value);
 }
 
-// The two stats structs field by field, in the file's order.
-std::array<std::uint64_t*, 7> fields(OcclusionStats& s) {
-  return {&s.samples,          &s.rays,         &s.unoccluded,   &s.mirrored_rays,
-          &s.normal_fallbacks, &s.all_occluded, &s.untraced_rays};
-}
-std::array<std::uint64_t*, 6> fields(ThicknessStats& s) {
-  return {&s.samples, &s.rays, &s.exits, &s.samples_no_exit, &s.normal_fallbacks, &s.untraced_rays};
-}
-
 std::size_t map_channels(const std::vector<MapKind>& maps) {
   std::size_t channels = 0;
   for (const MapKind m : maps) channels += static_cast<std::size_t>(map_traits(m).channels);
@@ -368,8 +358,8 @@ Status write_tile(const std::string& path, const TileData& tile) {
   for (int a = 0; a < 3; ++a) put(header, m.position_bounds.min[a]);
   for (int a = 0; a < 3; ++a) put(header, m.position_bounds.max[a]);
   MapCounts counts = tile.counts;
-  for (const std::uint64_t* v : fields(counts.occlusion)) put(header, *v);
-  for (const std::uint64_t* v : fields(counts.thickness)) put(header, *v);
+  for (const std::uint64_t* v : counters(counts.occlusion)) put(header, *v);
+  for (const std::uint64_t* v : counters(counts.thickness)) put(header, *v);
   for (const auto& figures : counts.maps) {
     NMBAKE_CHECK(figures.size() <= kMaxFigures, "a map's counters fit a tile file");
     put(header, static_cast<std::uint32_t>(figures.size()));
@@ -478,10 +468,10 @@ Status read_tile(const std::string& path, TileData& tile) {
       thickness_rays > kMaxOcclusionRays || !finite_box) {
     return bad("map settings out of range");
   }
-  for (std::uint64_t* f : fields(tile.counts.occlusion)) {
+  for (std::uint64_t* f : counters(tile.counts.occlusion)) {
     if (!r.get(*f)) return bad("too short");
   }
-  for (std::uint64_t* f : fields(tile.counts.thickness)) {
+  for (std::uint64_t* f : counters(tile.counts.thickness)) {
     if (!r.get(*f)) return bad("too short");
   }
   tile.counts.maps.resize(m.maps.size());

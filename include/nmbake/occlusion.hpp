@@ -36,6 +36,7 @@
 // shadow it, as Toolbag's "ignore groups".
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -64,6 +65,12 @@ struct OcclusionStats {
   std::uint64_t all_occluded = 0;       // bent normal: no ray escaped, N_s used
   std::uint64_t untraced_rays = 0;      // a ray Embree would not take: counted as unoccluded
 };
+// Its counters one by one, in this order (a tile file stores them so; a
+// merge adds them up).
+inline std::array<std::uint64_t*, 7> counters(OcclusionStats& s) {
+  return {&s.samples,          &s.rays,         &s.unoccluded,   &s.mirrored_rays,
+          &s.normal_fallbacks, &s.all_occluded, &s.untraced_rays};
+}
 
 // Per sample (TexelSamples indexing; vectors resized): the share of
 // unoccluded rays, in [0, 1], for a sample whose bake ray hit, 1 for any
@@ -104,6 +111,9 @@ struct ThicknessStats {
   std::uint64_t normal_fallbacks = 0;
   std::uint64_t untraced_rays = 0;
 };
+inline std::array<std::uint64_t*, 6> counters(ThicknessStats& s) {
+  return {&s.samples, &s.rays, &s.exits, &s.samples_no_exit, &s.normal_fallbacks, &s.untraced_rays};
+}
 // Per sample: the thickness (scene units) of hit samples, 0 for any other.
 void trace_thickness(const HighScene& scene, const Mesh& high, const LowSurface& surface,
                      const TexelSamples& samples, const Hits& hits, const ThicknessOptions& options,

@@ -298,12 +298,7 @@ class ObjParser {
     std::uint32_t begin = 0;
     bool any = false;
     const auto close = [&](std::uint32_t end) {
-      if (end == begin) return;
-      if (!ranges.empty() && ranges.back().name == current) {
-        ranges.back().triangle_count += end - begin;
-      } else {
-        ranges.push_back(MeshPart{current, begin, end - begin});
-      }
+      append_range(ranges, current, begin, end - begin);
       begin = end;
     };
     for (const NameStatement& n : names_) {

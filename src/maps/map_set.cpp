@@ -459,21 +459,12 @@ void MapSet::add_counts(const MapCounts& c) {
   for (std::size_t i = 0; i < modules_.size(); ++i) {
     for (const auto& [name, value] : c.maps[i]) modules_[i]->add(name.c_str(), value);
   }
-  OcclusionStats& o = occlusion_stats_;
-  o.samples += c.occlusion.samples;
-  o.rays += c.occlusion.rays;
-  o.unoccluded += c.occlusion.unoccluded;
-  o.mirrored_rays += c.occlusion.mirrored_rays;
-  o.normal_fallbacks += c.occlusion.normal_fallbacks;
-  o.all_occluded += c.occlusion.all_occluded;
-  o.untraced_rays += c.occlusion.untraced_rays;
-  ThicknessStats& t = thickness_stats_;
-  t.samples += c.thickness.samples;
-  t.rays += c.thickness.rays;
-  t.exits += c.thickness.exits;
-  t.samples_no_exit += c.thickness.samples_no_exit;
-  t.normal_fallbacks += c.thickness.normal_fallbacks;
-  t.untraced_rays += c.thickness.untraced_rays;
+  MapCounts from = c;
+  const auto add = [](const auto& to, const auto& more) {
+    for (std::size_t i = 0; i < to.size(); ++i) *to[i] += *more[i];
+  };
+  add(counters(occlusion_stats_), counters(from.occlusion));
+  add(counters(thickness_stats_), counters(from.thickness));
 }
 
 }  // namespace nmbake
