@@ -125,15 +125,13 @@ Status validate_map_set(const BakeOptions& o) {
 }  // namespace
 
 Status write_map_files(MapSet& maps, const std::vector<MapOutput>& files, bool dither) {
-  std::vector<std::pair<MapKind, PixelFormat>> kinds;
-  for (const MapOutput& out : files) kinds.emplace_back(out.map, out.format);
-  maps.prepare_files(kinds);
   std::vector<Status> written(files.size());
-  std::vector<Image> scratch(files.size());
   tbb::parallel_for(std::size_t{0}, files.size(), [&](std::size_t i) {
     const MapOutput& out = files[i];
-    written[i] =
-        write_image(maps.stored(out.map, out.format, scratch[i]), out.path, out.format, WriteOptions{dither});
+    WriteOptions options;
+    options.dither = dither;
+    maps.integer_mapping(out.map, options.scale, options.offset);
+    written[i] = write_image(maps.image(out.map), out.path, out.format, options);
   });
   for (const Status& s : written) NMBAKE_TRY(s);
   return Status::ok();

@@ -24,6 +24,12 @@ constexpr std::size_t kHuffmanBlockBytes = std::size_t{1} << 16;
 // (what zlib's Z_SYNC_FLUSH does). The output depends only on the input.
 void deflate_huffman(const std::uint8_t* data, std::size_t size, bool final, std::vector<std::uint8_t>& out);
 
+// The same stream written at `out`, which has room for
+// deflate_huffman_bound(size) bytes (none of them need be initialised);
+// returns how many were written.
+std::size_t deflate_huffman_bound(std::size_t size);
+std::size_t deflate_huffman(const std::uint8_t* data, std::size_t size, bool final, std::uint8_t* out);
+
 // Code lengths (at most `max_bits`) of a prefix code for `freq`; 0 for
 // symbols of frequency 0. At least two symbols of non-zero frequency.
 // Exposed for tests.

@@ -26,6 +26,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -446,6 +447,39 @@ bool format_matches_extension(PixelFormat format, const std::string& path) {
   return false;
 }
 
+namespace {
+
+// The index of the first NaN or infinity in `values`, or values.size(). A
+// block's test has no early exit, so it vectorises; only a block with one
+// is searched value by value.
+std::size_t first_non_finite(const std::vector<float>& values) {
+  constexpr std::size_t kBlock = 4096;
+  for (std::size_t begin = 0; begin < values.size(); begin += kBlock) {
+    const std::size_t end = std::min(values.size(), begin + kBlock);
+    int bad = 0;
+    for (std::size_t i = begin; i < end; ++i) bad |= !(std::fabs(values[i]) <= std::numeric_limits<float>::max());
+    if (bad == 0) continue;
+    for (std::size_t i = begin; i < end; ++i) {
+      if (!std::isfinite(values[i])) return i;
+    }
+  }
+  return values.size();
+}
+
+// v * scale + offset for every value, for the writers that quantise on
+// their own (the OpenImageIO module's TIFF and TGA).
+Image mapped_copy(const Image& image, float scale, float offset) {
+  Image out;
+  out.width = image.width;
+  out.height = image.height;
+  out.channels = image.channels;
+  out.pixels.resize(image.pixels.size());
+  for (std::size_t i = 0; i < out.pixels.size(); ++i) out.pixels[i] = image.pixels[i] * scale + offset;
+  return out;
+}
+
+}  // namespace
+
 Status write_image(const Image& image, const std::string& path, PixelFormat format, const WriteOptions& options) {
   // Caller bugs first: they are internal errors, not the user's.
   if (image.width <= 0 || image.height <= 0 || image.channels <= 0) {
@@ -460,14 +494,11 @@ Status write_image(const Image& image, const std::string& path, PixelFormat form
                             std::to_string(image.pixels.size()) + " values, " + std::to_string(expected) +
                             " expected");
   }
-  for (std::size_t i = 0; i < image.pixels.size(); ++i) {
-    if (!std::isfinite(image.pixels[i])) {
-      const std::size_t texel = i / image.channels;
-      return Status::internal(
-          "cannot write '" + path + "': " + (std::isnan(image.pixels[i]) ? "NaN" : "infinity") +
-          " at pixel (" + std::to_string(texel % image.width) + ", " + std::to_string(texel / image.width) +
-          ") channel " + std::to_string(i % image.channels));
-    }
+  if (const std::size_t i = first_non_finite(image.pixels); i < image.pixels.size()) {
+    const std::size_t texel = i / image.channels;
+    return Status::internal("cannot write '" + path + "': " + (std::isnan(image.pixels[i]) ? "NaN" : "infinity") +
+                            " at pixel (" + std::to_string(texel % image.width) + ", " +
+                            std::to_string(texel / image.width) + ") channel " + std::to_string(i % image.channels));
   }
 
   if (!format_matches_extension(format, path)) {
@@ -494,16 +525,23 @@ Status write_image(const Image& image, const std::string& path, PixelFormat form
     case PixelFormat::png8:
     case PixelFormat::png16:
       status = image_detail::write_png(image, format == PixelFormat::png8 ? 8 : 16, temp.string(), path,
-                                       options.dither);
+                                       options.dither, options.scale, options.offset);
       break;
     case PixelFormat::exr_half:
     case PixelFormat::exr_float:
       status = image_detail::write_exr(image, format == PixelFormat::exr_half, temp.string(), path);
       break;
-    case PixelFormat::tiff16:
     case PixelFormat::exr_float_piz:
-    case PixelFormat::tga8:
       status = write_with_oiio(image, path, temp, format, options.dither);
+      break;
+    case PixelFormat::tiff16:
+    case PixelFormat::tga8:
+      if (options.scale == 1.0f && options.offset == 0.0f) {
+        status = write_with_oiio(image, path, temp, format, options.dither);
+      } else {
+        status = write_with_oiio(mapped_copy(image, options.scale, options.offset), path, temp, format,
+                                 options.dither);
+      }
       break;
   }
   if (status.is_ok()) {

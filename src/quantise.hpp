@@ -11,11 +11,15 @@
 
 namespace nmbake::detail {
 
-// round(p) for p >= 0 without a libm call: p + 0.5 is exact in double and
-// truncation is floor, so this is lround(p) bit for bit.
+// round(p), halves up, for 0 <= p <= max_value < 2^31 without a libm call:
+// the whole part by truncation and the fraction p - whole, which is exact
+// in float, against 0.5 (the same as floor(p + 0.5) in double; p + 0.5f in
+// float is not: the float below 0.5 plus 0.5 rounds to 1). All in float and
+// through a signed conversion, so a row's loop vectorises.
 inline std::uint32_t quantise(float v, float max_value) {
   const float p = std::clamp(v, 0.0f, 1.0f) * max_value;
-  return static_cast<std::uint32_t>(static_cast<double>(p) + 0.5);
+  const auto whole = static_cast<std::int32_t>(p);
+  return static_cast<std::uint32_t>(whole + (p - static_cast<float>(whole) >= 0.5f ? 1 : 0));
 }
 
 // Ordered dithering with a quasirandom threshold (Roberts 2018, "The
@@ -33,7 +37,8 @@ inline std::uint32_t quantise(float v, float max_value) {
 inline float dither_threshold(std::uint32_t x, std::uint32_t y, std::uint32_t c) {
   constexpr double a1 = 0.75487766624669276, a2 = 0.56984029099805327, channel = 0.41421356237309515;
   double v = a1 * static_cast<double>(x) + a2 * static_cast<double>(y) + channel * static_cast<double>(c);
-  v -= std::floor(v);
+  // v >= 0 and far below 2^63: truncation is floor (inline, no libm call).
+  v -= static_cast<double>(static_cast<std::int64_t>(v));
   return static_cast<float>((v * 126.0 + 1.0) / 128.0);
 }
 
@@ -41,7 +46,8 @@ inline float dither_threshold(std::uint32_t x, std::uint32_t y, std::uint32_t c)
 // pattern is v * max (no bias), the error of one texel below one step.
 inline std::uint32_t quantise_dithered(float v, float max_value, std::uint32_t x, std::uint32_t y, std::uint32_t c) {
   const float p = std::clamp(v, 0.0f, 1.0f) * max_value;
-  const auto q = static_cast<std::uint32_t>(static_cast<double>(p) + static_cast<double>(dither_threshold(x, y, c)));
+  const auto q = static_cast<std::uint32_t>(
+      static_cast<std::int64_t>(static_cast<double>(p) + static_cast<double>(dither_threshold(x, y, c))));
   return std::min(q, static_cast<std::uint32_t>(max_value));
 }
 

@@ -22,6 +22,7 @@
 #include "deflate_huffman.hpp"
 #include "image_exr.hpp"
 #include "image_png.hpp"
+#include "quantise.hpp"
 
 #include <zlib.h>
 // Imath's half is the reference for ours; its computed conversions, so
@@ -775,6 +776,66 @@ TEST(ImageExr, SameBytesWithOneThreadOrAll) {
     }
     EXPECT_EQ(all, one);
   }
+}
+
+// The quantiser rounds in float (vectorised) what it rounded in double:
+// round(p) of the float p = clamp(v) * max, for every 8- and 16-bit step's
+// neighbourhood and a sweep of random values.
+TEST(ImageWrite, QuantiseIsRoundOfTheFloatProduct) {
+  const auto reference = [](float v, float max_value) {
+    const float p = std::clamp(v, 0.0f, 1.0f) * max_value;
+    return static_cast<std::uint32_t>(std::floor(static_cast<double>(p) + 0.5));
+  };
+  for (const float max_value : {255.0f, 65535.0f}) {
+    for (int k = 0; k <= static_cast<int>(max_value); ++k) {
+      // Values whose product lies around k + 0.5 and k, a few ulps either way.
+      for (const float target : {static_cast<float>(k) + 0.5f, static_cast<float>(k)}) {
+        float v = target / max_value;
+        for (int step = 0; step < 4; ++step) v = std::nextafter(v, 0.0f);
+        for (int step = 0; step < 9; ++step, v = std::nextafter(v, 2.0f)) {
+          ASSERT_EQ(detail::quantise(v, max_value), reference(v, max_value)) << v << " " << max_value;
+        }
+      }
+    }
+    std::uint32_t seed = 3;
+    for (int i = 0; i < 1000000; ++i) {
+      seed = seed * 1664525u + 1013904223u;
+      const float v = static_cast<float>(seed >> 8) * 0x1p-24f * 1.2f - 0.1f;
+      ASSERT_EQ(detail::quantise(v, max_value), reference(v, max_value)) << v;
+    }
+  }
+}
+
+// WriteOptions::scale and offset: integer files store v * scale + offset,
+// the same bytes as the mapped image written plainly; float files store v.
+TEST(ImageWrite, IntegerFilesStoreTheMappedValues) {
+  TempDir dir;
+  Image raw = make_image(67, 43, 1);
+  for (std::size_t i = 0; i < raw.pixels.size(); ++i) raw.pixels[i] = 3.0f * std::sin(0.37f * static_cast<float>(i));
+  const float scale = 0.5f / 3.5f, offset = 0.5f;  // some values clamp: range 3.5 < |v| never, 3 < 3.5
+  Image mapped = raw;
+  for (float& v : mapped.pixels) v = v * scale + offset;
+  for (const PixelFormat format : {PixelFormat::png8, PixelFormat::png16, PixelFormat::tiff16, PixelFormat::tga8}) {
+    for (const bool dither : {false, true}) {
+      SCOPED_TRACE(std::string(to_string(format)) + (dither ? " dithered" : ""));
+      WriteOptions options;
+      options.dither = dither;
+      const std::string plain = dir.file(std::string("plain") + extension_of(format));
+      ASSERT_TRUE(write_image(mapped, plain, format, options).is_ok());
+      options.scale = scale;
+      options.offset = offset;
+      const std::string through = dir.file(std::string("mapped") + extension_of(format));
+      ASSERT_TRUE(write_image(raw, through, format, options).is_ok());
+      EXPECT_TRUE(read_bytes(plain) == read_bytes(through));
+    }
+  }
+  WriteOptions options;
+  options.scale = scale;
+  options.offset = offset;
+  ASSERT_TRUE(write_image(raw, dir.file("mapped.exr"), PixelFormat::exr_float, options).is_ok());
+  Image back;
+  ASSERT_TRUE(read_image(dir.file("mapped.exr"), back).is_ok());
+  EXPECT_EQ(back.pixels, raw.pixels);
 }
 
 }  // namespace

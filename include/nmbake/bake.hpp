@@ -140,8 +140,8 @@ struct MapOutput {
 std::vector<MapOutput> map_outputs(const BakeOptions& options);
 std::vector<MapOutput> map_outputs(const std::vector<OutputSpec>& outputs, const std::vector<MapKind>& maps);
 // The write stage of a map set after MapSet::finish(): every file at once
-// (each writer is single-threaded), integer files of ranged maps through
-// MapSet::prepare_files()/stored(). 8-bit files dithered when `dither`.
+// (files side by side, each writer parallel inside), integer files of ranged maps stored
+// through MapSet::integer_mapping(). 8-bit files dithered when `dither`.
 Status write_map_files(MapSet& maps, const std::vector<MapOutput>& files, bool dither);
 // The set's reports (MapSet::reports(tile)), each with the files of its map.
 std::vector<MapReport> map_file_reports(const MapSet& maps, const std::vector<MapOutput>& files, int tile);

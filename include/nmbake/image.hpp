@@ -62,8 +62,14 @@ bool format_matches_extension(PixelFormat format, const std::string& path);
 // never random) instead of rounding; other formats ignore it. Off by default here:
 // bake() turns it on for maps (BakeOptions::dither), previews and debug
 // images stay rounded.
+// WriteOptions::scale, offset: integer formats (PNG, TIFF, TGA) store
+// v * scale + offset (then clamped to [0, 1] and quantised); float formats
+// store v. The map set's height, curvature and thickness are stored this way
+// (MapSet::integer_mapping), with no mapped copy of the image.
 struct WriteOptions {
   bool dither = false;
+  float scale = 1.0f;
+  float offset = 0.0f;
 };
 Status write_image(const Image& image, const std::string& path, PixelFormat format,
                    const WriteOptions& options = {});

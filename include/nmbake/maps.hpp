@@ -197,7 +197,7 @@ struct MapCounts {
 
 // The maps of one map (a UDIM tile's, or a tile of rows), band by band:
 //   MapSet set(settings, ...); for each band: trace_rays(); encode_band();
-//   finish(coverage, padding); stored(map, format) for each output.
+//   finish(coverage, padding); image(map) and integer_mapping(map) for each output.
 // A merge of tiles of rows (task.hpp) builds the set for the whole map from
 // the settings the tiles carry, fills image() with their texels, adds their
 // counts() with add_counts(), and finishes and writes as a whole bake does.
@@ -224,13 +224,11 @@ class MapSet {
   // covered texels, then every map dilated by `padding` (`coverage` grows
   // with it, as dilate() does). Adds to `dilate`.
   void finish(std::vector<std::uint8_t>& coverage, int padding, DilateStats& dilate);
-  // The files about to be written (map, format): a map with a range whose
-  // files are all integer is mapped in place, so stored() needs no copy.
-  void prepare_files(const std::vector<std::pair<MapKind, PixelFormat>>& files);
-  // The image a file of `format` stores for `map`: the map's own image, or,
-  // for an integer format and a map with a range, `scratch` filled with the
-  // mapped values.
-  const Image& stored(MapKind map, PixelFormat format, Image& scratch) const;
+  // How integer files (PNG, TIFF, TGA) of `map` store its texels: as
+  // v * scale + offset (height and curvature 0.5 + v / 2R, thickness
+  // v / distance; others v), mapped by the writer while it quantises
+  // (WriteOptions), so no mapped copy of the image is made. Float files store v.
+  void integer_mapping(MapKind map, float& scale, float& offset) const;
   // The map's image (its raw texels; dilated after finish()).
   Image& image(MapKind map);
   // Figures of every map, in the set's order.

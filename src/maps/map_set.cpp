@@ -339,60 +339,11 @@ Image& MapSet::image(MapKind map) {
   return modules_.front()->image;
 }
 
-namespace {
-
-bool integer_format(PixelFormat format) {
-  return format == PixelFormat::png8 || format == PixelFormat::png16 || format == PixelFormat::tiff16;
-}
-
-// out[i] = in[i] * scale + offset (in and out may be the same buffer).
-void map_values(const std::vector<float>& in, std::vector<float>& out, float scale, float offset) {
-  const std::size_t n = in.size();
-  constexpr std::size_t kChunk = std::size_t{1} << 16;
-  tbb::parallel_for(std::size_t{0}, n, kChunk, [&](std::size_t begin) {
-    const std::size_t end = std::min(n, begin + kChunk);
-    for (std::size_t i = begin; i < end; ++i) out[i] = in[i] * scale + offset;
-  });
-}
-
-}  // namespace
-
-void MapSet::prepare_files(const std::vector<std::pair<MapKind, PixelFormat>>& files) {
+void MapSet::integer_mapping(MapKind map, float& scale, float& offset) const {
   for (const auto& m : modules_) {
-    float scale = 1.0f, offset = 0.0f;
-    m->integer_mapping(scale, offset);
-    if (scale == 1.0f && offset == 0.0f) continue;
-    bool all_integer = true, any = false;
-    for (const auto& [map, format] : files) {
-      if (map != m->kind) continue;
-      any = true;
-      all_integer = all_integer && integer_format(format);
-    }
-    // Only integer files of this map: no copy, the image itself is mapped.
-    if (any && all_integer) {
-      map_values(m->image.pixels, m->image.pixels, scale, offset);
-      m->mapped = true;
-    }
+    if (m->kind == map) return m->integer_mapping(scale, offset);
   }
-}
-
-const Image& MapSet::stored(MapKind map, PixelFormat format, Image& scratch) const {
-  const Module* module = nullptr;
-  for (const auto& m : modules_) {
-    if (m->kind == map) module = m.get();
-  }
-  NMBAKE_CHECK(module != nullptr, "the map is in the set");
-  const bool integer = integer_format(format);
-  NMBAKE_CHECK(!module->mapped || integer, "a mapped image is only for integer files");
-  float scale = 1.0f, offset = 0.0f;
-  module->integer_mapping(scale, offset);
-  if (!integer || module->mapped || (scale == 1.0f && offset == 0.0f)) return module->image;
-  scratch.width = module->image.width;
-  scratch.height = module->image.height;
-  scratch.channels = module->image.channels;
-  detail::size_output(scratch.pixels, module->image.pixels.size());
-  map_values(module->image.pixels, scratch.pixels, scale, offset);
-  return scratch;
+  NMBAKE_CHECK(false, "the map is in the set");
 }
 
 std::vector<MapReport> MapSet::reports(int tile) const {

@@ -29,7 +29,6 @@ struct BandInputs {
 struct MapSet::Module {
   MapKind kind;
   Image image;  // raw texels: the rows [first_row, last_row) of the map
-  bool mapped = false;  // prepare_files(): `image` holds what integer files store
   std::vector<std::pair<std::string, double>> figures;
 
   explicit Module(MapKind map) : kind(map) {}
