@@ -83,63 +83,79 @@ void scan_rows(const Grid& grid, int row_begin, int row_end, std::vector<std::ui
   }
 }
 
-// The value of one frontier texel from its neighbours covered before this
-// pass, for DilateMode::mean and ::nearest. Never a fallback.
-bool fill_plain(const Image& image, const Grid& grid, std::uint32_t index, float* out, DilateMode mode) {
-  const int channels = image.channels;
+// The neighbours of one frontier texel covered before this pass, in the
+// fixed neighbour order (found once for every layer).
+struct Neighbours {
+  std::uint32_t index[neighbour_count];
+  int count;
+};
+
+Neighbours covered_neighbours(const Grid& grid, std::uint32_t index) {
+  Neighbours n;
+  n.count = 0;
   const int x = static_cast<int>(index % static_cast<std::uint32_t>(grid.width));
   const int y = static_cast<int>(index / static_cast<std::uint32_t>(grid.width));
-  for (int c = 0; c < channels; ++c) out[c] = 0.0f;
-  int used_count = 0;
   for (int k = 0; k < neighbour_count; ++k) {
     const int nx = x + neighbour_dx[k];
     const int ny = y + neighbour_dy[k];
     if (!grid.inside(nx, ny)) continue;
-    if (grid.state[static_cast<std::size_t>(ny) * grid.width + nx] != state_covered) continue;
-    const float* p = image.at(nx, ny);
-    if (mode == DilateMode::nearest) {
-      std::copy(p, p + channels, out);
-      return false;
-    }
-    for (int c = 0; c < channels; ++c) out[c] += p[c];
-    ++used_count;
+    const std::size_t at = static_cast<std::size_t>(ny) * grid.width + nx;
+    if (grid.state[at] != state_covered) continue;
+    n.index[n.count++] = static_cast<std::uint32_t>(at);
   }
-  NMBAKE_DCHECK(used_count > 0, "a frontier texel has no covered neighbour");
-  for (int c = 0; c < channels; ++c) out[c] /= static_cast<float>(used_count);
+  return n;
+}
+
+// The value of one frontier texel from its covered neighbours, for
+// DilateMode::mean and ::nearest. Never a fallback.
+bool fill_plain(const Image& image, const Neighbours& n, float* out, DilateMode mode) {
+  const int channels = image.channels;
+  NMBAKE_DCHECK(n.count > 0, "a frontier texel has no covered neighbour");
+  if (n.count == 0) {
+    std::fill(out, out + channels, 0.0f);
+    return false;
+  }
+  if (mode == DilateMode::nearest) {
+    const float* p = image.pixels.data() + std::size_t{n.index[0]} * channels;
+    std::copy(p, p + channels, out);
+    return false;
+  }
+  for (int c = 0; c < channels; ++c) out[c] = 0.0f;
+  for (int k = 0; k < n.count; ++k) {
+    const float* p = image.pixels.data() + std::size_t{n.index[k]} * channels;
+    for (int c = 0; c < channels; ++c) out[c] += p[c];
+  }
+  for (int c = 0; c < channels; ++c) out[c] /= static_cast<float>(n.count);
   return false;
 }
 
-// The value of one frontier texel from its neighbours covered before this
-// pass. Returns whether the cancelled-vectors fallback was taken.
-bool fill_value(const Image& image, const Grid& grid, std::uint32_t index, float* out) {
+// The value of one frontier texel from its covered neighbours, for
+// DilateMode::unit_vector. Returns whether the cancelled-vectors fallback
+// was taken.
+bool fill_value(const Image& image, const Neighbours& n, float* out) {
   const int channels = image.channels;
-  const int x = static_cast<int>(index % static_cast<std::uint32_t>(grid.width));
-  const int y = static_cast<int>(index / static_cast<std::uint32_t>(grid.width));
+  NMBAKE_DCHECK(n.count > 0, "a frontier texel has no covered neighbour");
+  if (n.count == 0) {
+    std::fill(out, out + channels, 0.0f);
+    return false;
+  }
   float sum[3] = {0.0f, 0.0f, 0.0f};
-  const float* first = nullptr;
-  int used_count = 0;
   for (int c = 3; c < channels; ++c) out[c] = 0.0f;
-  for (int k = 0; k < neighbour_count; ++k) {
-    const int nx = x + neighbour_dx[k];
-    const int ny = y + neighbour_dy[k];
-    if (!grid.inside(nx, ny)) continue;
-    if (grid.state[static_cast<std::size_t>(ny) * grid.width + nx] != state_covered) continue;
-    const float* p = image.at(nx, ny);
-    if (!first) first = p;
+  for (int k = 0; k < n.count; ++k) {
+    const float* p = image.pixels.data() + std::size_t{n.index[k]} * channels;
     for (int c = 0; c < 3; ++c) sum[c] += 2.0f * p[c] - 1.0f;
     for (int c = 3; c < channels; ++c) out[c] += p[c];
-    ++used_count;
   }
-  NMBAKE_DCHECK(first != nullptr, "a frontier texel has no covered neighbour");
   const float length_squared = sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2];
   if (!(length_squared >= min_sum_length_squared)) {
+    const float* first = image.pixels.data() + std::size_t{n.index[0]} * channels;
     std::copy(first, first + channels, out);
     return true;
   }
   // Division (not multiplication by 1/length) keeps k equal unit vectors exact.
   const float length = std::sqrt(length_squared);
   for (int c = 0; c < 3; ++c) out[c] = 0.5f * (sum[c] / length) + 0.5f;
-  for (int c = 3; c < channels; ++c) out[c] /= static_cast<float>(used_count);
+  for (int c = 3; c < channels; ++c) out[c] /= static_cast<float>(n.count);
   return false;
 }
 
@@ -227,13 +243,16 @@ void dilate(const std::vector<DilateLayer>& layers, std::vector<std::uint8_t>& c
     // 1. Values from texels covered before the pass; the images are not written.
     for_each_chunk([&](std::size_t chunk, std::size_t begin, std::size_t end) {
       std::uint64_t fallback_count = 0;
+      std::vector<Neighbours> neighbours(end - begin);
+      for (std::size_t j = begin; j < end; ++j) neighbours[j - begin] = covered_neighbours(grid, frontier[j]);
       for (std::size_t l = 0; l < layers.size(); ++l) {
         const Image& layer = *layers[l].image;
         const DilateMode mode = layers[l].mode;
         for (std::size_t j = begin; j < end; ++j) {
           float* value = values[l].data() + j * layer.channels;
-          const bool fallback = mode == DilateMode::unit_vector ? fill_value(layer, grid, frontier[j], value)
-                                                                : fill_plain(layer, grid, frontier[j], value, mode);
+          const Neighbours& n = neighbours[j - begin];
+          const bool fallback =
+              mode == DilateMode::unit_vector ? fill_value(layer, n, value) : fill_plain(layer, n, value, mode);
           if (fallback) ++fallback_count;
         }
       }

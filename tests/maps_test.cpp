@@ -13,6 +13,7 @@
 #include <glm/geometric.hpp>
 #include <nlohmann/json.hpp>
 #include <tbb/global_control.h>
+#include <tbb/task_arena.h>
 
 #include "lab_scenes.hpp"
 #include "map_lab.hpp"
@@ -1033,6 +1034,73 @@ TEST(Maps, OtherBakeGroupsDoNotShadow) {
       EXPECT_NEAR(foot, scenes::wall_visibility(0.5 / 64, 1.0), 0.03);
     }
   }
+}
+
+// The vertex curvature pass splits the vertices among tasks, each walking
+// every triangle in order: the same values and counts for any number of
+// tasks, and for any vertex order (a shuffled mesh puts most triangles in
+// several tasks' ranges).
+TEST(MapsCurvature, VertexCurvatureIsTheSameForAnyTaskCountAndVertexOrder) {
+  Mesh sphere;
+  const int rings = 60, segments = 90;
+  for (int i = 0; i <= rings; ++i) {
+    for (int j = 0; j < segments; ++j) {
+      const float theta = 3.14159265f * static_cast<float>(i) / rings, phi = 6.2831853f * static_cast<float>(j) / segments;
+      const float r = 1.0f + 0.1f * std::sin(3.0f * phi) * std::sin(2.0f * theta);  // bumps: curvature varies
+      sphere.positions.emplace_back(r * std::sin(theta) * std::cos(phi), r * std::sin(theta) * std::sin(phi),
+                                    r * std::cos(theta));
+    }
+  }
+  for (int i = 0; i < rings; ++i) {
+    for (int j = 0; j < segments; ++j) {
+      const auto at = [&](int a, int b) { return static_cast<std::uint32_t>(a * segments + (b % segments)); };
+      sphere.indices.insert(sphere.indices.end(), {at(i, j), at(i + 1, j), at(i + 1, j + 1)});
+      sphere.indices.insert(sphere.indices.end(), {at(i, j), at(i + 1, j + 1), at(i, j + 1)});
+    }
+  }
+  // A degenerate triangle, counted once.
+  sphere.indices.insert(sphere.indices.end(), {5, 5, 6});
+  MeshStats mesh_stats;
+  compute_vertex_normals(sphere, mesh_stats);
+  const auto curvature_with = [](const Mesh& mesh, int tasks, CurvatureStats& stats) {
+    std::vector<float> out;
+    tbb::task_arena arena(tasks);
+    arena.execute([&] { out = vertex_mean_curvature(mesh, mesh.normals, stats); });
+    return out;
+  };
+  CurvatureStats one_stats;
+  const std::vector<float> one = curvature_with(sphere, 1, one_stats);
+  EXPECT_GT(one_stats.degenerate_triangles, 0u);  // ours, and the poles' slivers
+  for (const int tasks : {2, 3, 4}) {
+    CurvatureStats stats;
+    EXPECT_EQ(curvature_with(sphere, tasks, stats), one) << tasks;
+    EXPECT_EQ(stats.degenerate_triangles, one_stats.degenerate_triangles);
+    EXPECT_EQ(stats.isolated_vertices, one_stats.isolated_vertices);
+  }
+  // Vertices shuffled (triangle order kept): each vertex's value unchanged.
+  std::vector<std::uint32_t> to(sphere.vertex_count());
+  for (std::uint32_t v = 0; v < to.size(); ++v) to[v] = v;
+  std::uint32_t seed = 7;
+  for (std::size_t v = to.size(); v > 1; --v) {
+    seed = seed * 1664525u + 1013904223u;
+    std::swap(to[v - 1], to[(seed >> 8) % v]);
+  }
+  Mesh shuffled;
+  shuffled.positions.resize(sphere.vertex_count());
+  shuffled.normals.resize(sphere.vertex_count());
+  for (std::uint32_t v = 0; v < to.size(); ++v) {
+    shuffled.positions[to[v]] = sphere.positions[v];
+    shuffled.normals[to[v]] = sphere.normals[v];
+  }
+  for (const std::uint32_t i : sphere.indices) shuffled.indices.push_back(to[i]);
+  for (const int tasks : {1, 4}) {
+    CurvatureStats stats;
+    const std::vector<float> values = curvature_with(shuffled, tasks, stats);
+    for (std::uint32_t v = 0; v < to.size(); ++v) ASSERT_EQ(values[to[v]], one[v]) << v;
+    EXPECT_EQ(stats.degenerate_triangles, one_stats.degenerate_triangles);
+  }
+  // And it is a curvature: near 1 / r on the bumpy sphere's equator.
+  EXPECT_GT(one[static_cast<std::size_t>(rings / 2) * segments], 0.5f);
 }
 
 }  // namespace
