@@ -1103,5 +1103,46 @@ TEST(MapsCurvature, VertexCurvatureIsTheSameForAnyTaskCountAndVertexOrder) {
   EXPECT_GT(one[static_cast<std::size_t>(rings / 2) * segments], 0.5f);
 }
 
+// The curvature map's auto range is the exact 99th percentile of |H| over
+// the covered texels and clamped_texels counts the |H| above it, whatever
+// the values: against a sort, with ties at the percentile, both signs,
+// zeros, subnormals and uncovered texels holding larger values.
+TEST(MapsFinish, CurvatureRangeAndClampedCountMatchASort) {
+  for (int trial = 0; trial < 6; ++trial) {
+    SCOPED_TRACE(trial);
+    MapSettings settings;
+    settings.maps = {MapKind::curvature};
+    const int width = 300, rows = 700 + 97 * trial;  // several histogram chunks, a partial last one
+    MapSet set(settings, width, 0, rows);
+    Image& image = set.image(MapKind::curvature);
+    std::vector<std::uint8_t> coverage(image.pixels.size());
+    std::uint32_t seed = 11u + static_cast<std::uint32_t>(trial);
+    const auto next = [&]() {
+      seed = seed * 1664525u + 1013904223u;
+      return seed >> 8;
+    };
+    std::vector<float> covered;
+    for (std::size_t i = 0; i < image.pixels.size(); ++i) {
+      const std::uint32_t r = next();
+      float v = (static_cast<float>(r % 100000) / 1000.0f - 50.0f) * std::pow(10.0f, static_cast<float>(trial % 3) - 1.0f);
+      if (r % 7 == 0) v = 0.0f;
+      if (r % 11 == 0) v = trial == 4 ? 3e-40f : 2.5f;  // many equal values (ties)
+      if (trial == 5) v = (r % 2 ? 1.0f : -1.0f) * static_cast<float>(r % 5);  // five values only
+      coverage[i] = r % 5 != 0;
+      image.pixels[i] = coverage[i] ? v : 1e6f;
+      if (coverage[i]) covered.push_back(std::fabs(v));
+    }
+    std::sort(covered.begin(), covered.end());
+    const std::size_t rank = std::min(covered.size() - 1, covered.size() * 99 / 100);
+    const float want = covered[rank];
+    const auto above = static_cast<double>(covered.end() - std::upper_bound(covered.begin(), covered.end(), want));
+    DilateStats stats;
+    set.finish(coverage, 0, stats);
+    const MapReport report = set.reports(1001).front();
+    EXPECT_EQ(static_cast<float>(report.figure("range")), want);
+    EXPECT_EQ(report.figure("clamped_texels"), above);
+  }
+}
+
 }  // namespace
 }  // namespace nmbake

@@ -4,6 +4,7 @@
 // the map's miss value (maps.hpp's table).
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include <glm/geometric.hpp>
 #include <tbb/parallel_reduce.h>
@@ -67,50 +68,89 @@ std::uint64_t count_beyond(const Image& image, const std::vector<std::uint8_t>& 
 }
 
 // The value at rank floor(0.99 n) of the sorted |v| of the covered texels
-// (the 99th percentile), exactly, without sorting them all: a histogram of
-// 4096 bins over [0, largest] (integer counts per chunk, summed) finds the
-// bin, and only that bin's values are ordered.
-float covered_percentile_99(const Image& image, const std::vector<std::uint8_t>& coverage, const Extent& e) {
-  if (e.texels == 0 || !(e.largest > 0.0f)) return 0.0f;
-  constexpr int kBins = 4096;
-  const float scale = static_cast<float>(kBins) / e.largest;
-  // A largest |v| below 4096 / FLT_MAX (subnormal) overflows the scale (0 * inf
-  // is NaN): then every value shares bin 0, and the rank is found among all.
-  const bool scaled = std::isfinite(scale);
-  const auto bin_of = [&](float v) {
-    return scaled ? std::min(kBins - 1, static_cast<int>(std::fabs(v) * scale)) : 0;
+// (the 99th percentile), exactly, without sorting them all, and how many
+// |v| lie above it; with the extent of the same pass. A histogram of |v|'s
+// float bits (for finite v >= 0 the bits order as the values: the top 15
+// bits hold the exponent and 7 bits of mantissa, so a bin spans under 1%
+// of its values' magnitude, subnormals included), integer counts per fixed
+// chunk, finds the bin; only that bin's values are ordered.
+struct Percentile {
+  Extent extent;
+  float value = 0.0f;
+  std::uint64_t above = 0;
+};
+Percentile covered_percentile_99(const Image& image, const std::vector<std::uint8_t>& coverage) {
+  constexpr int kShift = 16;
+  constexpr std::size_t kBins = std::size_t{1} << (31 - kShift);
+  const auto bin_of = [](float v) {
+    std::uint32_t bits;
+    const float a = std::fabs(v);
+    std::memcpy(&bits, &a, 4);
+    return static_cast<std::size_t>(bits >> kShift);
   };
   constexpr std::size_t kChunk = std::size_t{1} << 18;
   const std::size_t chunks = (coverage.size() + kChunk - 1) / kChunk;
-  std::vector<std::vector<std::uint32_t>> histograms(chunks, std::vector<std::uint32_t>(kBins, 0));
+  struct Part {
+    float min = INFINITY, max = -INFINITY;
+    std::uint64_t texels = 0;
+    std::vector<std::uint32_t> histogram;
+  };
+  std::vector<Part> parts(chunks);
   tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
+    Part& part = parts[c];
+    part.histogram.assign(kBins, 0);
     const std::size_t end = std::min(coverage.size(), (c + 1) * kChunk);
     for (std::size_t t = c * kChunk; t < end; ++t) {
-      if (coverage[t]) ++histograms[c][static_cast<std::size_t>(bin_of(image.pixels[t]))];
+      if (!coverage[t]) continue;
+      const float v = image.pixels[t];
+      part.min = std::min(part.min, v);
+      part.max = std::max(part.max, v);
+      ++part.texels;
+      ++part.histogram[bin_of(v)];
     }
   });
-  const std::uint64_t rank = std::min(e.texels - 1, e.texels * 99 / 100);
-  std::uint64_t below = 0;
-  int bin = 0;
+  Percentile out;
+  float min = INFINITY, max = -INFINITY;
+  std::uint64_t texels = 0;
+  for (const Part& part : parts) {
+    min = std::min(min, part.min);
+    max = std::max(max, part.max);
+    texels += part.texels;
+  }
+  if (texels == 0) return out;
+  out.extent.min = min;
+  out.extent.max = max;
+  out.extent.largest = std::max(std::fabs(min), std::fabs(max));
+  out.extent.texels = texels;
+  const std::uint64_t rank = std::min(texels - 1, texels * 99 / 100);
+  std::uint64_t below = 0, in_bin = 0;
+  std::size_t bin = 0;
   for (; bin < kBins; ++bin) {
     std::uint64_t count = 0;
-    for (const auto& h : histograms) count += h[static_cast<std::size_t>(bin)];
-    if (below + count > rank) break;
+    for (const Part& part : parts) count += part.histogram[bin];
+    if (below + count > rank) {
+      in_bin = count;
+      break;
+    }
     below += count;
   }
   // The bin's values, chunk by chunk in parallel, joined in chunk order.
-  std::vector<std::vector<float>> parts(chunks);
+  std::vector<std::vector<float>> values(chunks);
   tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
+    if (parts[c].texels == 0) return;
     const std::size_t end = std::min(coverage.size(), (c + 1) * kChunk);
     for (std::size_t t = c * kChunk; t < end; ++t) {
-      if (coverage[t] && bin_of(image.pixels[t]) == bin) parts[c].push_back(std::fabs(image.pixels[t]));
+      if (coverage[t] && bin_of(image.pixels[t]) == bin) values[c].push_back(std::fabs(image.pixels[t]));
     }
   });
-  std::vector<float> in_bin;
-  for (const auto& part : parts) in_bin.insert(in_bin.end(), part.begin(), part.end());
-  const auto at = in_bin.begin() + static_cast<std::ptrdiff_t>(rank - below);
-  std::nth_element(in_bin.begin(), at, in_bin.end());
-  return *at;
+  std::vector<float> bin_values;
+  for (const auto& part : values) bin_values.insert(bin_values.end(), part.begin(), part.end());
+  const auto at = bin_values.begin() + static_cast<std::ptrdiff_t>(rank - below);
+  std::nth_element(bin_values.begin(), at, bin_values.end());
+  out.value = *at;
+  out.above = texels - below - in_bin +
+              static_cast<std::uint64_t>(std::count_if(at, bin_values.end(), [&](float v) { return v > out.value; }));
+  return out;
 }
 
 // A signed quantity stored as 0.5 + v / (2 R) in integer files: R given, or
@@ -146,15 +186,25 @@ struct CurvatureModule final : MapSet::Module, SignedRange {
   void encode_band(const BandInputs&, const MapSettings&, EncodeStats&) override {}
   bool from_hit_values() const override { return true; }
   void finish(const std::vector<std::uint8_t>& coverage) override {
-    const Extent e = covered_extent(image, coverage);
     // Auto: the 99th percentile of |H|, so a few sharp creases do not flatten
     // the rest of the map to grey.
-    range = given > 0.0f ? given : covered_percentile_99(image, coverage, e);
+    Extent e;
+    std::uint64_t clamped = 0;
+    if (given > 0.0f) {
+      e = covered_extent(image, coverage);
+      range = given;
+      clamped = count_beyond(image, coverage, range);
+    } else {
+      const Percentile p = covered_percentile_99(image, coverage);
+      e = p.extent;
+      range = p.value;
+      clamped = p.above;
+    }
     set("min", e.min);
     set("max", e.max);
     set("range", range);
     set("range_given", given > 0.0f ? 1.0 : 0.0);
-    set("clamped_texels", static_cast<double>(count_beyond(image, coverage, range)));
+    set("clamped_texels", static_cast<double>(clamped));
     set("flat_range_fallback", range > 0.0f ? 0.0 : 1.0);
   }
   void integer_mapping(float& scale, float& offset) const override { SignedRange::integer_mapping(scale, offset); }
