@@ -25,6 +25,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
 
+#include "huge_pages.hpp"
 #include "load/parsers.hpp"
 
 namespace nmbake::load_detail {
@@ -419,9 +420,19 @@ class PlyParser {
     const auto count = static_cast<std::size_t>(element.count);
     // One spare position: Embree reads 16 bytes at the last vertex
     // (pad_for_embree), and growing later would copy the whole array.
-    out_.positions.reserve(count + 1);
+    // Advised before the first touch (huge_pages.hpp): 2 MB pages are faulted
+    // in 512 times less often than 4 KB ones (BENCHMARKS.md, "Loading"), and
+    // the bake's scattered reads of the hits' corners miss the TLB less.
+    const auto huge = [&](auto& v, std::size_t n) {
+      v.reserve(n);
+      detail::advise_huge_pages(v.data(), n * sizeof(v[0]));
+    };
+    huge(out_.positions, count + 1);
     out_.positions.resize(count);
-    if (has_normals_) out_.normals.resize(count);
+    if (has_normals_) {
+      huge(out_.normals, count);
+      out_.normals.resize(count);
+    }
     if (has_uvs_) out_.uvs.resize(count);
     if (has_colors_) out_.colors.resize(count);
   }
@@ -621,7 +632,10 @@ class PlyParser {
     const std::size_t records_per_block = std::max<std::size_t>(1, block_bytes(options_) / kStride);
     const auto vertex_count = static_cast<std::uint32_t>(out_.positions.size());
     const bool swap = swap_;
-    if (out_.indices.capacity() == 0) out_.indices.reserve(static_cast<std::size_t>(element.count) * 3);
+    if (out_.indices.capacity() == 0) {
+      out_.indices.reserve(static_cast<std::size_t>(element.count) * 3);
+      detail::advise_huge_pages(out_.indices.data(), out_.indices.capacity() * sizeof(std::uint32_t));
+    }
     std::uint64_t f = first;
     while (f < element.count) {
       const auto want = static_cast<std::size_t>(std::min<std::uint64_t>(records_per_block, element.count - f));
