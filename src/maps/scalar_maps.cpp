@@ -10,6 +10,7 @@
 #include <tbb/parallel_reduce.h>
 
 #include "modules.hpp"
+#include "simd4.hpp"
 
 namespace nmbake {
 
@@ -254,7 +255,9 @@ void hit_values(const BandInputs& in, const MapSettings& settings, const HitValu
       for (int x = 0; x < width; ++x) {
         const std::size_t texel = static_cast<std::size_t>(y) * width + x;
         float h = 0.0f, m = 0.0f, k = 0.0f;
-        glm::vec3 p(0.0f);
+        // The position sum in SIMD lanes (x, y, z, unused): per lane the
+        // scalar expression's operations in its order, so the same bits.
+        detail::f4 p = {0.0f, 0.0f, 0.0f, 0.0f};
         int used = 0;
         if (samples.coverage[texel]) {
           for (int j = 0; j < spp; ++j) {
@@ -266,7 +269,10 @@ void hit_values(const BandInputs& in, const MapSettings& settings, const HitValu
             if (hit < 0) {
               // A miss: height and curvature 0, the low surface point.
               m += 1.0f;
-              if (kPosition) p += interpolate(in.surface.position, 3 * static_cast<std::size_t>(tri), samples.bary[s]);
+              if (kPosition) {
+                const glm::vec3 low = interpolate(in.surface.position, 3 * static_cast<std::size_t>(tri), samples.bary[s]);
+                p += detail::f4{low.x, low.y, low.z, 0.0f};
+              }
               continue;
             }
             h += in.hits.distance[s];
@@ -275,7 +281,15 @@ void hit_values(const BandInputs& in, const MapSettings& settings, const HitValu
               const glm::vec2 b = in.hits.bary[s];
               const float w = 1.0f - b.x - b.y;
               if (kPosition) {
-                p += in.high.positions[c[0]] * w + in.high.positions[c[1]] * b.x + in.high.positions[c[2]] * b.y;
+                // Four floats from each corner: the fourth is the next
+                // vertex's x (or pad_for_embree()'s spare one), never used.
+                const auto corner = [&](std::uint32_t v) {
+                  detail::f4 q;
+                  std::memcpy(&q, &in.high.positions[v], sizeof(q));
+                  return q;
+                };
+                p += corner(c[0]) * detail::splat4(w) + corner(c[1]) * detail::splat4(b.x) +
+                     corner(c[2]) * detail::splat4(b.y);
               }
               if (kCurvature) k += (*curvature)[c[0]] * w + (*curvature)[c[1]] * b.x + (*curvature)[c[2]] * b.y;
             }
