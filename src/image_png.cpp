@@ -28,6 +28,7 @@
 #include "deflate_huffman.hpp"
 #include "stream_file.hpp"
 #include "quantise.hpp"
+#include "simd4.hpp"
 
 #include <zlib.h>
 
@@ -85,15 +86,31 @@ void quantise_row_as(const float* values, std::size_t width, std::size_t channel
     }
     return;
   }
-  if (bits == 8) {
-    for (std::size_t i = 0; i < count; ++i) out[i] = static_cast<std::uint8_t>(detail::quantise(value(i), 255.0f));
-    return;
+  const float max_value = bits == 8 ? 255.0f : 65535.0f;
+  const auto put = [&](std::size_t i, std::uint32_t q) {
+    if (bits == 8) {
+      out[i] = static_cast<std::uint8_t>(q);
+    } else {
+      out[2 * i] = static_cast<std::uint8_t>(q >> 8);
+      out[2 * i + 1] = static_cast<std::uint8_t>(q);
+    }
+  };
+  // Four values at a time in SIMD lanes: per lane detail::quantise()'s
+  // operations (max and min are its clamp for finite values, the truncating
+  // conversion and the fraction's test the same), so the same integers. (GCC
+  // keeps the scalar loop's float selects as branches: trapping math.)
+  std::size_t i = 0;
+  for (; i + 4 <= count; i += 4) {
+    detail::f4 v;
+    std::memcpy(&v, values + i, sizeof(v));
+    if (kMapped) v = v * detail::splat4(m.scale) + detail::splat4(m.offset);
+    v = detail::min4(detail::max4(v, detail::splat4(0.0f)), detail::splat4(1.0f));
+    const detail::f4 p = v * detail::splat4(max_value);
+    const detail::i4 whole = __builtin_convertvector(p, detail::i4);
+    const detail::i4 q = whole - ((p - __builtin_convertvector(whole, detail::f4)) >= detail::splat4(0.5f));
+    for (int k = 0; k < 4; ++k) put(i + static_cast<std::size_t>(k), static_cast<std::uint32_t>(q[k]));
   }
-  for (std::size_t i = 0; i < count; ++i) {
-    const auto q = static_cast<std::uint16_t>(detail::quantise(value(i), 65535.0f));
-    out[2 * i] = static_cast<std::uint8_t>(q >> 8);
-    out[2 * i + 1] = static_cast<std::uint8_t>(q);
-  }
+  for (; i < count; ++i) put(i, detail::quantise(value(i), max_value));
 }
 
 void quantise_row(const float* values, std::size_t width, std::size_t channels, int bits, std::uint8_t* out,

@@ -38,6 +38,27 @@ inline f4 sqrt4(f4 v) {
 #endif
 }
 
+// a > b ? a : b and a < b ? a : b per lane (SSE's maxps and minps).
+inline f4 max4(f4 a, f4 b) {
+#if defined(__SSE__)
+  return reinterpret_cast<f4>(__builtin_ia32_maxps(reinterpret_cast<__v4sf>(a), reinterpret_cast<__v4sf>(b)));
+#else
+  f4 r;
+  for (int i = 0; i < 4; ++i) r[i] = a[i] > b[i] ? a[i] : b[i];
+  return r;
+#endif
+}
+
+inline f4 min4(f4 a, f4 b) {
+#if defined(__SSE__)
+  return reinterpret_cast<f4>(__builtin_ia32_minps(reinterpret_cast<__v4sf>(a), reinterpret_cast<__v4sf>(b)));
+#else
+  f4 r;
+  for (int i = 0; i < 4; ++i) r[i] = a[i] < b[i] ? a[i] : b[i];
+  return r;
+#endif
+}
+
 // Whether every lane of a comparison mask is set.
 inline bool all4(i4 mask) {
 #if defined(__SSE__)
