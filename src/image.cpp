@@ -494,6 +494,10 @@ Status write_image(const Image& image, const std::string& path, PixelFormat form
                             std::to_string(image.pixels.size()) + " values, " + std::to_string(expected) +
                             " expected");
   }
+  if (!std::isfinite(options.scale) || !std::isfinite(options.offset)) {
+    return Status::internal("cannot write '" + path + "': the integer mapping v * " + std::to_string(options.scale) +
+                            " + " + std::to_string(options.offset) + " is not finite");
+  }
   if (const std::size_t i = first_non_finite(image.pixels); i < image.pixels.size()) {
     const std::size_t texel = i / image.channels;
     return Status::internal("cannot write '" + path + "': " + (std::isnan(image.pixels[i]) ? "NaN" : "infinity") +

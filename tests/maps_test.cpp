@@ -1144,5 +1144,42 @@ TEST(MapsFinish, CurvatureRangeAndClampedCountMatchASort) {
   }
 }
 
+// A range too small for its scale 1 / 2R to be a float (below 1.5e-39:
+// given in a tile file, or the auto range of a map of rounding noise) is
+// the flat fallback: 0.5 in integer files, counted, never a NaN in the
+// writer (fuzz_tile found 0 times an infinite scale).
+TEST(MapsFinish, RangeTooSmallForItsScaleIsFlat) {
+  test::TempDir dir;
+  for (const float tiny : {1e-40f, 0x1p-149f}) {
+    for (const bool given : {false, true}) {
+      SCOPED_TRACE(std::to_string(tiny) + (given ? " given" : " auto"));
+      MapSettings settings;
+      settings.maps = {MapKind::height, MapKind::curvature};
+      if (given) {
+        settings.height_range = tiny;
+        settings.curvature_range = tiny;
+      }
+      MapSet set(settings, 8, 0, 8);
+      for (const MapKind map : settings.maps) {
+        Image& image = set.image(map);
+        for (std::size_t i = 0; i < image.pixels.size(); ++i) image.pixels[i] = i % 3 == 0 ? 0.0f : (i % 2 ? tiny : -tiny);
+      }
+      std::vector<std::uint8_t> coverage(64, 1);
+      DilateStats stats;
+      set.finish(coverage, 0, stats);
+      for (const MapReport& report : set.reports(1001)) EXPECT_EQ(report.figure("flat_range_fallback"), 1.0);
+      const std::vector<MapOutput> files = {{dir.file("h.png"), PixelFormat::png16, MapKind::height},
+                                            {dir.file("c.png"), PixelFormat::png8, MapKind::curvature},
+                                            {dir.file("c.tif"), PixelFormat::tiff16, MapKind::curvature}};
+      ASSERT_TRUE(write_map_files(set, files, true).is_ok());
+      for (const char* name : {"h.png", "c.png", "c.tif"}) {
+        Image back;
+        ASSERT_TRUE(read_image(dir.file(name), back).is_ok()) << name;
+        for (const float v : back.pixels) ASSERT_NEAR(v, 0.5f, 1.0f / 255.0f) << name;  // 127.5 dithered
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace nmbake

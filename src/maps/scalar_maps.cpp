@@ -155,11 +155,14 @@ Percentile covered_percentile_99(const Image& image, const std::vector<std::uint
 }
 
 // A signed quantity stored as 0.5 + v / (2 R) in integer files: R given, or
-// from the map (auto). R = 0 (a flat map) stores 0.5 everywhere, counted.
+// from the map (auto). R = 0 (a flat map) stores 0.5 everywhere, counted;
+// so does an R below 0.5 / FLT_MAX (1.5e-39), whose scale 1 / 2R is no
+// float (0 times it would be NaN).
 struct SignedRange {
   float range = 0.0f;
+  bool flat() const { return !(range > 0.0f && std::isfinite(0.5f / range)); }
   void integer_mapping(float& scale, float& offset) const {
-    scale = range > 0.0f ? 0.5f / range : 0.0f;
+    scale = flat() ? 0.0f : 0.5f / range;
     offset = 0.5f;
   }
 };
@@ -176,7 +179,7 @@ struct HeightModule final : MapSet::Module, SignedRange {
     set("range", range);
     set("range_given", given > 0.0f ? 1.0 : 0.0);
     set("clamped_texels", static_cast<double>(given > 0.0f ? count_beyond(image, coverage, range) : 0));
-    set("flat_range_fallback", range > 0.0f ? 0.0 : 1.0);
+    set("flat_range_fallback", flat() ? 1.0 : 0.0);
   }
   void integer_mapping(float& scale, float& offset) const override { SignedRange::integer_mapping(scale, offset); }
   float given = 0.0f;
@@ -206,7 +209,7 @@ struct CurvatureModule final : MapSet::Module, SignedRange {
     set("range", range);
     set("range_given", given > 0.0f ? 1.0 : 0.0);
     set("clamped_texels", static_cast<double>(clamped));
-    set("flat_range_fallback", range > 0.0f ? 0.0 : 1.0);
+    set("flat_range_fallback", flat() ? 1.0 : 0.0);
   }
   void integer_mapping(float& scale, float& offset) const override { SignedRange::integer_mapping(scale, offset); }
   float given = 0.0f;
@@ -325,7 +328,7 @@ struct ThicknessModule final : MapSet::Module {
     texel_means<1>(in, image, {0.0f}, [&](std::size_t s, std::array<float, 1>& v) { v[0] = (*in.thickness)[s]; });
   }
   void integer_mapping(float& scale, float& offset) const override {
-    scale = distance_ > 0.0f ? 1.0f / distance_ : 0.0f;
+    scale = distance_ > 0.0f && std::isfinite(1.0f / distance_) ? 1.0f / distance_ : 0.0f;
     offset = 0.0f;
   }
   float distance_;
