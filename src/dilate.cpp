@@ -245,12 +245,14 @@ void dilate(const std::vector<DilateLayer>& layers, std::vector<std::uint8_t>& c
       std::uint64_t fallback_count = 0;
       std::vector<Neighbours> neighbours(end - begin);
       for (std::size_t j = begin; j < end; ++j) neighbours[j - begin] = covered_neighbours(grid, frontier[j]);
-      for (std::size_t l = 0; l < layers.size(); ++l) {
-        const Image& layer = *layers[l].image;
-        const DilateMode mode = layers[l].mode;
-        for (std::size_t j = begin; j < end; ++j) {
+      // Texel by texel, every layer: the layers' reads of one texel's
+      // neighbours are in flight together.
+      for (std::size_t j = begin; j < end; ++j) {
+        const Neighbours& n = neighbours[j - begin];
+        for (std::size_t l = 0; l < layers.size(); ++l) {
+          const Image& layer = *layers[l].image;
+          const DilateMode mode = layers[l].mode;
           float* value = values[l].data() + j * layer.channels;
-          const Neighbours& n = neighbours[j - begin];
           const bool fallback =
               mode == DilateMode::unit_vector ? fill_value(layer, n, value) : fill_plain(layer, n, value, mode);
           if (fallback) ++fallback_count;

@@ -249,6 +249,15 @@ void hit_values(const BandInputs& in, const MapSettings& settings, const HitValu
   const auto row_of = [&](Image* image, int y) {
     return image ? image->pixels.data() + static_cast<std::size_t>(in.out_row + y) * width * image->channels : nullptr;
   };
+  // Raw pointers, so the loop reloads none of them after its stores.
+  const std::uint8_t* const coverage = samples.coverage.data();
+  const std::int32_t* const sample_triangle = samples.triangle.data();
+  const std::int32_t* const hit_triangle = in.hits.triangle.data();
+  const float* const hit_distance = in.hits.distance.data();
+  const glm::vec2* const hit_bary = in.hits.bary.data();
+  const std::uint32_t* const indices = in.high.indices.data();
+  const glm::vec3* const positions = in.high.positions.data();
+  const float* const vertex_curvature = kCurvature ? curvature->data() : nullptr;
   tbb::parallel_for(tbb::blocked_range<int>(0, samples.height), [&](const tbb::blocked_range<int>& rows) {
     for (int y = rows.begin(); y != rows.end(); ++y) {
       float* height = row_of(out.height, y);
@@ -262,13 +271,13 @@ void hit_values(const BandInputs& in, const MapSettings& settings, const HitValu
         // scalar expression's operations in its order, so the same bits.
         detail::f4 p = {0.0f, 0.0f, 0.0f, 0.0f};
         int used = 0;
-        if (samples.coverage[texel]) {
+        if (coverage[texel]) {
           for (int j = 0; j < spp; ++j) {
             const std::size_t s = texel * spp + static_cast<std::size_t>(j);
-            const std::int32_t tri = samples.triangle[s];
+            const std::int32_t tri = sample_triangle[s];
             if (tri < 0) continue;
             ++used;
-            const std::int32_t hit = in.hits.triangle[s];
+            const std::int32_t hit = hit_triangle[s];
             if (hit < 0) {
               // A miss: height and curvature 0, the low surface point.
               m += 1.0f;
@@ -278,23 +287,23 @@ void hit_values(const BandInputs& in, const MapSettings& settings, const HitValu
               }
               continue;
             }
-            h += in.hits.distance[s];
+            h += hit_distance[s];
             if (kPosition || kCurvature) {
-              const std::uint32_t* c = &in.high.indices[3 * static_cast<std::size_t>(hit)];
-              const glm::vec2 b = in.hits.bary[s];
+              const std::uint32_t* c = &indices[3 * static_cast<std::size_t>(hit)];
+              const glm::vec2 b = hit_bary[s];
               const float w = 1.0f - b.x - b.y;
               if (kPosition) {
                 // Four floats from each corner: the fourth is the next
                 // vertex's x (or pad_for_embree()'s spare one), never used.
                 const auto corner = [&](std::uint32_t v) {
                   detail::f4 q;
-                  std::memcpy(&q, &in.high.positions[v], sizeof(q));
+                  std::memcpy(&q, &positions[v], sizeof(q));
                   return q;
                 };
                 p += corner(c[0]) * detail::splat4(w) + corner(c[1]) * detail::splat4(b.x) +
                      corner(c[2]) * detail::splat4(b.y);
               }
-              if (kCurvature) k += (*curvature)[c[0]] * w + (*curvature)[c[1]] * b.x + (*curvature)[c[2]] * b.y;
+              if (kCurvature) k += vertex_curvature[c[0]] * w + vertex_curvature[c[1]] * b.x + vertex_curvature[c[2]] * b.y;
             }
           }
         }
