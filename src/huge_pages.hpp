@@ -48,6 +48,14 @@ inline void touch_pages(void* data, std::size_t bytes) {
   });
 }
 
+// Reserves room for n elements in an empty `v` and advises it for huge
+// pages before anything touches it (the loaders' arrays, size_output()).
+template <typename T>
+void reserve_huge_pages(std::vector<T>& v, std::size_t n) {
+  v.reserve(n);
+  advise_huge_pages(v.data(), v.capacity() * sizeof(T));
+}
+
 // Sizes `v` to n elements. When the capacity is too small the old contents
 // are dropped (an output buffer) and the new allocation is reserved, advised,
 // faulted in on every core, and only then sized (zero-filled).
@@ -56,8 +64,7 @@ void size_output(std::vector<T>& v, std::size_t n) {
   static_assert(std::is_trivially_copyable_v<T>, "raw storage is written before the elements exist");
   if (v.capacity() < n) {
     std::vector<T>().swap(v);
-    v.reserve(n);
-    advise_huge_pages(v.data(), n * sizeof(T));
+    reserve_huge_pages(v, n);
     touch_pages(v.data(), n * sizeof(T));
   }
   v.resize(n);

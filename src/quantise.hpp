@@ -15,7 +15,8 @@ namespace nmbake::detail {
 // the whole part by truncation and the fraction p - whole, which is exact
 // in float, against 0.5 (the same as floor(p + 0.5) in double; p + 0.5f in
 // float is not: the float below 0.5 plus 0.5 rounds to 1). All in float and
-// through a signed conversion, so a row's loop vectorises.
+// through a signed conversion, so the PNG writer's SIMD lanes
+// (image_png.cpp) do the same operations per lane.
 inline std::uint32_t quantise(float v, float max_value) {
   const float p = std::clamp(v, 0.0f, 1.0f) * max_value;
   const auto whole = static_cast<std::int32_t>(p);

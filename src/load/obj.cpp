@@ -230,11 +230,9 @@ class ObjParser {
     // Untouched reserved pages cost no memory; a rough guess from typical
     // line lengths saves most of the regrowth copies of a big mesh.
     const std::uint64_t bytes = reader_.file_size();
-    positions_.reserve(static_cast<std::size_t>(bytes / 80));
-    out_.indices.reserve(static_cast<std::size_t>(bytes / 14));
     // Advised for 2 MB pages before the first touch, as the PLY loader's.
-    detail::advise_huge_pages(positions_.data(), positions_.capacity() * sizeof(glm::vec3));
-    detail::advise_huge_pages(out_.indices.data(), out_.indices.capacity() * sizeof(std::uint32_t));
+    detail::reserve_huge_pages(positions_, static_cast<std::size_t>(bytes / 80));
+    detail::reserve_huge_pages(out_.indices, static_cast<std::size_t>(bytes / 14));
 
     if (options_.serial) {
       std::string_view line;

@@ -423,14 +423,10 @@ class PlyParser {
     // Advised before the first touch (huge_pages.hpp): 2 MB pages are faulted
     // in 512 times less often than 4 KB ones (BENCHMARKS.md, "Loading"), and
     // the bake's scattered reads of the hits' corners miss the TLB less.
-    const auto huge = [&](auto& v, std::size_t n) {
-      v.reserve(n);
-      detail::advise_huge_pages(v.data(), n * sizeof(v[0]));
-    };
-    huge(out_.positions, count + 1);
+    detail::reserve_huge_pages(out_.positions, count + 1);
     out_.positions.resize(count);
     if (has_normals_) {
-      huge(out_.normals, count);
+      detail::reserve_huge_pages(out_.normals, count);
       out_.normals.resize(count);
     }
     if (has_uvs_) out_.uvs.resize(count);
@@ -633,8 +629,7 @@ class PlyParser {
     const auto vertex_count = static_cast<std::uint32_t>(out_.positions.size());
     const bool swap = swap_;
     if (out_.indices.capacity() == 0) {
-      out_.indices.reserve(static_cast<std::size_t>(element.count) * 3);
-      detail::advise_huge_pages(out_.indices.data(), out_.indices.capacity() * sizeof(std::uint32_t));
+      detail::reserve_huge_pages(out_.indices, static_cast<std::size_t>(element.count) * 3);
     }
     std::uint64_t f = first;
     while (f < element.count) {

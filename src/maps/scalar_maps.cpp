@@ -26,35 +26,44 @@ struct Extent {
   float min = 0.0f, max = 0.0f, largest = 0.0f;
   std::uint64_t texels = 0;
 };
+// An Extent being gathered, chunk by chunk.
+struct ExtentSum {
+  float min = INFINITY, max = -INFINITY;
+  std::uint64_t texels = 0;
+  void add(float v) {
+    min = std::min(min, v);
+    max = std::max(max, v);
+    ++texels;
+  }
+  void add(const ExtentSum& other) {
+    min = std::min(min, other.min);
+    max = std::max(max, other.max);
+    texels += other.texels;
+  }
+  Extent extent() const {
+    Extent e;
+    if (texels == 0) return e;
+    e.min = min;
+    e.max = max;
+    e.largest = std::max(std::fabs(min), std::fabs(max));
+    e.texels = texels;
+    return e;
+  }
+};
 Extent covered_extent(const Image& image, const std::vector<std::uint8_t>& coverage) {
-  struct Part {
-    float min = INFINITY, max = -INFINITY;
-    std::uint64_t texels = 0;
-  };
-  const Part all = tbb::parallel_reduce(
-      tbb::blocked_range<std::size_t>(0, coverage.size(), 1 << 16), Part{},
-      [&](const tbb::blocked_range<std::size_t>& r, Part part) {
-        for (std::size_t t = r.begin(); t != r.end(); ++t) {
-          if (!coverage[t]) continue;
-          part.min = std::min(part.min, image.pixels[t]);
-          part.max = std::max(part.max, image.pixels[t]);
-          ++part.texels;
-        }
-        return part;
-      },
-      [](Part a, const Part& b) {
-        a.min = std::min(a.min, b.min);
-        a.max = std::max(a.max, b.max);
-        a.texels += b.texels;
-        return a;
-      });
-  Extent e;
-  if (all.texels == 0) return e;
-  e.min = all.min;
-  e.max = all.max;
-  e.largest = std::max(std::fabs(e.min), std::fabs(e.max));
-  e.texels = all.texels;
-  return e;
+  return tbb::parallel_reduce(
+             tbb::blocked_range<std::size_t>(0, coverage.size(), 1 << 16), ExtentSum{},
+             [&](const tbb::blocked_range<std::size_t>& r, ExtentSum sum) {
+               for (std::size_t t = r.begin(); t != r.end(); ++t) {
+                 if (coverage[t]) sum.add(image.pixels[t]);
+               }
+               return sum;
+             },
+             [](ExtentSum a, const ExtentSum& b) {
+               a.add(b);
+               return a;
+             })
+      .extent();
 }
 
 // Covered texels with |v| > limit.
@@ -92,8 +101,7 @@ Percentile covered_percentile_99(const Image& image, const std::vector<std::uint
   constexpr std::size_t kChunk = std::size_t{1} << 18;
   const std::size_t chunks = (coverage.size() + kChunk - 1) / kChunk;
   struct Part {
-    float min = INFINITY, max = -INFINITY;
-    std::uint64_t texels = 0;
+    ExtentSum extent;
     std::vector<std::uint32_t> histogram;
   };
   std::vector<Part> parts(chunks);
@@ -103,26 +111,16 @@ Percentile covered_percentile_99(const Image& image, const std::vector<std::uint
     const std::size_t end = std::min(coverage.size(), (c + 1) * kChunk);
     for (std::size_t t = c * kChunk; t < end; ++t) {
       if (!coverage[t]) continue;
-      const float v = image.pixels[t];
-      part.min = std::min(part.min, v);
-      part.max = std::max(part.max, v);
-      ++part.texels;
-      ++part.histogram[bin_of(v)];
+      part.extent.add(image.pixels[t]);
+      ++part.histogram[bin_of(image.pixels[t])];
     }
   });
   Percentile out;
-  float min = INFINITY, max = -INFINITY;
-  std::uint64_t texels = 0;
-  for (const Part& part : parts) {
-    min = std::min(min, part.min);
-    max = std::max(max, part.max);
-    texels += part.texels;
-  }
-  if (texels == 0) return out;
-  out.extent.min = min;
-  out.extent.max = max;
-  out.extent.largest = std::max(std::fabs(min), std::fabs(max));
-  out.extent.texels = texels;
+  ExtentSum all;
+  for (const Part& part : parts) all.add(part.extent);
+  if (all.texels == 0) return out;
+  out.extent = all.extent();
+  const std::uint64_t texels = all.texels;
   const std::uint64_t rank = std::min(texels - 1, texels * 99 / 100);
   std::uint64_t below = 0, in_bin = 0;
   std::size_t bin = 0;
@@ -138,7 +136,7 @@ Percentile covered_percentile_99(const Image& image, const std::vector<std::uint
   // The bin's values, chunk by chunk in parallel, joined in chunk order.
   std::vector<std::vector<float>> values(chunks);
   tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
-    if (parts[c].texels == 0) return;
+    if (parts[c].extent.texels == 0) return;
     const std::size_t end = std::min(coverage.size(), (c + 1) * kChunk);
     for (std::size_t t = c * kChunk; t < end; ++t) {
       if (coverage[t] && bin_of(image.pixels[t]) == bin) values[c].push_back(std::fabs(image.pixels[t]));
