@@ -77,11 +77,29 @@ void quantise_row_as(const float* values, std::size_t width, std::size_t channel
   const std::size_t count = width * channels;
   const auto value = [&](std::size_t i) { return kMapped ? values[i] * m.scale + m.offset : values[i]; };
   if (bits == 8 && dither) {
-    for (std::size_t x = 0, i = 0; x < width; ++x) {
+    // Four texels of a channel at a time, then the rest one by one.
+    const auto y32 = static_cast<std::uint32_t>(y);
+    std::size_t x = 0;
+    for (; x + 4 <= width; x += 4) {
+      const auto x32 = static_cast<std::uint32_t>(x);
+      if (channels == 1) {
+        float v[4];
+        for (std::size_t k = 0; k < 4; ++k) v[k] = value(x + k);
+        detail::quantise_dithered4_8bit(v, x32, y32, 0, out + x);
+        continue;
+      }
+      for (std::size_t c = 0; c < channels; ++c) {
+        float v[4];
+        std::uint8_t q[4];
+        for (std::size_t k = 0; k < 4; ++k) v[k] = value((x + k) * channels + c);
+        detail::quantise_dithered4_8bit(v, x32, y32, static_cast<std::uint32_t>(c), q);
+        for (std::size_t k = 0; k < 4; ++k) out[(x + k) * channels + c] = q[k];
+      }
+    }
+    for (std::size_t i = x * channels; x < width; ++x) {
       for (std::size_t c = 0; c < channels; ++c, ++i) {
-        out[i] = static_cast<std::uint8_t>(detail::quantise_dithered(value(i), 255.0f, static_cast<std::uint32_t>(x),
-                                                                      static_cast<std::uint32_t>(y),
-                                                                      static_cast<std::uint32_t>(c)));
+        out[i] = static_cast<std::uint8_t>(detail::quantise_dithered(
+            value(i), 255.0f, static_cast<std::uint32_t>(x), y32, static_cast<std::uint32_t>(c)));
       }
     }
     return;
@@ -108,7 +126,24 @@ void quantise_row_as(const float* values, std::size_t width, std::size_t channel
     const detail::f4 p = v * detail::splat4(max_value);
     const detail::i4 whole = __builtin_convertvector(p, detail::i4);
     const detail::i4 q = whole - ((p - __builtin_convertvector(whole, detail::f4)) >= detail::splat4(0.5f));
+#if defined(__SSE2__)
+    // Packed in lanes too (q in [0, max]): 16-bit samples big-endian, the
+    // unsigned range through the signed pack by an offset of 2^15.
+    const __m128i lanes = reinterpret_cast<__m128i>(q);
+    if (bits == 8) {
+      const __m128i bytes = _mm_packus_epi16(_mm_packs_epi32(lanes, lanes), _mm_setzero_si128());
+      const std::int32_t four = _mm_cvtsi128_si32(bytes);
+      std::memcpy(out + i, &four, 4);
+    } else {
+      const __m128i swapped = _mm_or_si128(_mm_slli_epi32(_mm_and_si128(lanes, _mm_set1_epi32(0xff)), 8),
+                                           _mm_srli_epi32(lanes, 8));
+      const __m128i offset = _mm_sub_epi32(swapped, _mm_set1_epi32(0x8000));
+      const __m128i samples = _mm_xor_si128(_mm_packs_epi32(offset, offset), _mm_set1_epi16(-0x8000));
+      _mm_storel_epi64(reinterpret_cast<__m128i*>(out + 2 * i), samples);
+    }
+#else
     for (int k = 0; k < 4; ++k) put(i + static_cast<std::size_t>(k), static_cast<std::uint32_t>(q[k]));
+#endif
   }
   for (; i < count; ++i) put(i, detail::quantise(value(i), max_value));
 }

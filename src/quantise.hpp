@@ -8,6 +8,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace nmbake::detail {
 
@@ -35,9 +40,12 @@ inline std::uint32_t quantise(float v, float max_value) {
 // is mapped into [1/128, 127/128] (mean 1/2) so values exactly on a step
 // stay there. A pure function of the texel's index: the same bytes with any
 // thread count. Double precision: exact enough for any map side nmbake writes.
+constexpr double kDitherX = 0.75487766624669276, kDitherY = 0.56984029099805327,
+                 kDitherChannel = 0.41421356237309515;
+
 inline float dither_threshold(std::uint32_t x, std::uint32_t y, std::uint32_t c) {
-  constexpr double a1 = 0.75487766624669276, a2 = 0.56984029099805327, channel = 0.41421356237309515;
-  double v = a1 * static_cast<double>(x) + a2 * static_cast<double>(y) + channel * static_cast<double>(c);
+  double v = kDitherX * static_cast<double>(x) + kDitherY * static_cast<double>(y) +
+             kDitherChannel * static_cast<double>(c);
   // v >= 0 and far below 2^63: truncation is floor (inline, no libm call).
   v -= static_cast<double>(static_cast<std::int64_t>(v));
   return static_cast<float>((v * 126.0 + 1.0) / 128.0);
@@ -50,6 +58,43 @@ inline std::uint32_t quantise_dithered(float v, float max_value, std::uint32_t x
   const auto q = static_cast<std::uint32_t>(
       static_cast<std::int64_t>(static_cast<double>(p) + static_cast<double>(dither_threshold(x, y, c))));
   return std::min(q, static_cast<std::uint32_t>(max_value));
+}
+
+// quantise_dithered() to 8 bits of the four values v[0..3] (already mapped)
+// of channel c at texels x..x+3 of row y, into out[0..3]: per lane the same
+// IEEE operations in the same order (SSE2, two doubles a register), so the
+// same bytes. The 8-bit maps (curvature, AO) spent half their write in the
+// scalar version. The truncations go through 32-bit integers: every value
+// truncated here lies in [0, 2^31) (below 0.76 x + 0.57 y + 2 for the
+// threshold, below 256 for the quantised value), where that is the 64-bit
+// truncation; the saturating packs are the final min(q, 255).
+inline void quantise_dithered4_8bit(const float* v, std::uint32_t x, std::uint32_t y, std::uint32_t c,
+                                    std::uint8_t* out) {
+#if defined(__SSE2__)
+  const __m128 clamped = _mm_min_ps(_mm_max_ps(_mm_loadu_ps(v), _mm_setzero_ps()), _mm_set1_ps(1.0f));
+  const __m128 p = _mm_mul_ps(clamped, _mm_set1_ps(255.0f));
+  const __m128d row = _mm_set1_pd(kDitherY * static_cast<double>(y)),
+                ch = _mm_set1_pd(kDitherChannel * static_cast<double>(c));
+  const __m128d first = _mm_set1_pd(static_cast<double>(x));
+  const auto two = [&](__m128d xs, __m128d p2) {
+    __m128d t = _mm_add_pd(_mm_add_pd(_mm_mul_pd(_mm_set1_pd(kDitherX), xs), row), ch);
+    t = _mm_sub_pd(t, _mm_cvtepi32_pd(_mm_cvttpd_epi32(t)));
+    // / 128 as * 2^-7: the same double (a power of two, no underflow).
+    t = _mm_mul_pd(_mm_add_pd(_mm_mul_pd(t, _mm_set1_pd(126.0)), _mm_set1_pd(1.0)), _mm_set1_pd(0x1p-7));
+    t = _mm_cvtps_pd(_mm_cvtpd_ps(t));  // the threshold as a float, as dither_threshold() returns it
+    return _mm_cvttpd_epi32(_mm_add_pd(p2, t));
+  };
+  const __m128i lo = two(_mm_add_pd(first, _mm_set_pd(1.0, 0.0)), _mm_cvtps_pd(p));
+  const __m128i hi = two(_mm_add_pd(first, _mm_set_pd(3.0, 2.0)), _mm_cvtps_pd(_mm_movehl_ps(p, p)));
+  const __m128i q = _mm_unpacklo_epi64(lo, hi);
+  const __m128i bytes = _mm_packus_epi16(_mm_packs_epi32(q, q), _mm_setzero_si128());
+  const std::int32_t four = _mm_cvtsi128_si32(bytes);
+  std::memcpy(out, &four, 4);
+#else
+  for (std::uint32_t k = 0; k < 4; ++k) {
+    out[k] = static_cast<std::uint8_t>(quantise_dithered(v[k], 255.0f, x + k, y, c));
+  }
+#endif
 }
 
 }  // namespace nmbake::detail

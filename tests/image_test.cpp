@@ -806,6 +806,55 @@ TEST(ImageWrite, QuantiseIsRoundOfTheFloatProduct) {
   }
 }
 
+// The dithered quantiser four lanes at a time (quantise_dithered4_8bit, what the
+// PNG writer runs) gives quantise_dithered()'s integers: for values around
+// every step, out of range and at far texels; and a PNG of 1 to 4 channels
+// whose widths leave 0 to 3 texels for the scalar tail stores them.
+TEST(ImageWrite, DitheredLanesAreTheScalarDither) {
+  std::uint32_t seed = 11;
+  const auto next = [&] { return seed = seed * 1664525u + 1013904223u; };
+  for (int i = 0; i < 400000; ++i) {
+    float v[4];
+    for (float& x : v) {
+      // Mostly near a step (where the threshold decides), some anywhere.
+      const std::uint32_t r = next();
+      x = (r & 3) ? (static_cast<float>((r >> 2) % 256) + static_cast<float>(next() >> 8) * 0x1p-24f - 0.5f) /
+                        255.0f
+                  : static_cast<float>(r >> 8) * 0x1p-24f * 1.4f - 0.2f;
+    }
+    const std::uint32_t x = next() % 70000, y = next() % 70000, c = next() % 4;
+    std::uint8_t lanes[4];
+    detail::quantise_dithered4_8bit(v, x, y, c, lanes);
+    for (std::uint32_t k = 0; k < 4; ++k) {
+      ASSERT_EQ(std::uint32_t{lanes[k]}, detail::quantise_dithered(v[k], 255.0f, x + k, y, c))
+          << v[k] << " at " << x + k << "," << y;
+    }
+  }
+  TempDir dir;
+  for (int channels = 1; channels <= 4; ++channels) {
+    for (const int width : {1, 3, 4, 7, 66}) {
+      SCOPED_TRACE(std::to_string(channels) + " channels, width " + std::to_string(width));
+      Image image = make_image(width, 9, channels);
+      for (float& p : image.pixels) p = static_cast<float>(next() >> 8) * 0x1p-24f;
+      WriteOptions options;
+      options.dither = true;
+      ASSERT_TRUE(write_image(image, dir.file("d.png"), PixelFormat::png8, options).is_ok());
+      Image back;
+      ASSERT_TRUE(read_image(dir.file("d.png"), back).is_ok());
+      ASSERT_EQ(back.pixels.size(), image.pixels.size());
+      for (int yy = 0, i = 0; yy < 9; ++yy) {
+        for (int xx = 0; xx < width; ++xx) {
+          for (int c = 0; c < channels; ++c, ++i) {
+            const std::uint32_t q = detail::quantise_dithered(image.pixels[i], 255.0f, xx, yy, c);
+            ASSERT_EQ(std::lround(back.pixels[i] * 255.0f), static_cast<long>(q))
+                << xx << "," << yy << " c" << c;
+          }
+        }
+      }
+    }
+  }
+}
+
 // WriteOptions::scale and offset: integer files store v * scale + offset,
 // the same bytes as the mapped image written plainly; float files store v.
 TEST(ImageWrite, IntegerFilesStoreTheMappedValues) {

@@ -1,16 +1,16 @@
 // Google Benchmark kernels of the stages that are not ray casting: each must
 // stay small beside trace (issue: no stage other than load, BVH build and
 // trace above 10% of a bake). Scenes come from the generators.
-#include <filesystem>
-#include <string>
-
-#include <cmath>
-
 #include <benchmark/benchmark.h>
-#include <glm/geometric.hpp>
 #include <unistd.h>
 
+#include <cmath>
+#include <filesystem>
+#include <glm/geometric.hpp>
+#include <string>
+
 #include "nmbake/bake.hpp"
+#include "nmbake/maps.hpp"
 #include "scenes.hpp"
 
 namespace {
@@ -81,6 +81,50 @@ void BM_Dilate(benchmark::State& state) {
 }
 BENCHMARK(BM_Dilate)->Arg(2048)->Arg(4096)->Unit(benchmark::kMillisecond)->UseRealTime();
 
+// The map set's layers (normal, height, position, curvature) in one
+// dilation, as a bake of those maps runs it.
+void BM_DilateSet(benchmark::State& state) {
+  const int size = static_cast<int>(state.range(0));
+  TexelSamples samples;
+  RasterStats rs;
+  rasterize(moon_surface(), size, size, 1, samples, rs);
+  const std::size_t texels = static_cast<std::size_t>(size) * size;
+  Image normal{size, size, 3, std::vector<float>(texels * 3, 0.5f)};
+  Image height{size, size, 1, std::vector<float>(texels, 0.25f)};
+  Image position{size, size, 3, std::vector<float>(texels * 3, 0.75f)};
+  Image curvature{size, size, 1, std::vector<float>(texels, 0.5f)};
+  const std::vector<DilateLayer> layers = {{&normal, DilateMode::unit_vector},
+                                           {&height, DilateMode::mean},
+                                           {&position, DilateMode::mean},
+                                           {&curvature, DilateMode::mean}};
+  std::vector<std::uint8_t> coverage(samples.coverage.size());
+  for (auto _ : state) {
+    std::copy(samples.coverage.begin(), samples.coverage.end(), coverage.begin());
+    DilateStats stats;
+    dilate(layers, coverage, 16, stats);
+    benchmark::DoNotOptimize(curvature.pixels.data());
+  }
+}
+BENCHMARK(BM_DilateSet)->Name("BM_Dilate/set")->Arg(2048)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// Vertex mean curvature of the moon's ~1M-triangle high mesh (the
+// curvature map's pass over the high mesh, in the prepare stage).
+void BM_Curvature(benchmark::State& state) {
+  static const Mesh high = [] {
+    Mesh m = moon().high;
+    MeshStats stats;
+    if (!m.has_normals()) compute_vertex_normals(m, stats);
+    return m;
+  }();
+  for (auto _ : state) {
+    CurvatureStats stats;
+    std::vector<float> curvature = vertex_mean_curvature(high, high.normals, stats);
+    benchmark::DoNotOptimize(curvature.data());
+  }
+  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(high.triangle_count()));
+}
+BENCHMARK(BM_Curvature)->Unit(benchmark::kMillisecond)->UseRealTime();
+
 void BM_Load(benchmark::State& state, const char* extension) {
   const std::string path = temp_file(std::string("high") + extension);
   if (!save_mesh(path, moon().high)) {
@@ -127,6 +171,32 @@ void BM_Write(benchmark::State& state, PixelFormat format, const char* extension
 }
 BENCHMARK_CAPTURE(BM_Write, png16, PixelFormat::png16, ".png")->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(BM_Write, exr_float, PixelFormat::exr_float, ".exr")->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// A curvature map as a bake writes it: one channel, 8 bits, dithered (the
+// default for 8-bit maps), values around 0.5 with smooth swells and a
+// sub-step hash like BM_Write's.
+void BM_WriteDithered(benchmark::State& state) {
+  const int size = 2048;
+  Image image{size, size, 1, std::vector<float>(static_cast<std::size_t>(size) * size)};
+  for (int y = 0; y < size; ++y) {
+    for (int x = 0; x < size; ++x) {
+      const float u = 6.2831853f * static_cast<float>(x) / 97.0f,
+                  v = 6.2831853f * static_cast<float>(y) / 131.0f;
+      const std::uint32_t h = static_cast<std::uint32_t>(y * size + x) * 2654435761u;
+      image.pixels[static_cast<std::size_t>(y) * size + x] =
+          0.5f + 0.2f * std::sin(u) * std::cos(0.7f * v) +
+          1e-3f * (static_cast<float>(h >> 16) / 32768.0f - 1.0f);
+    }
+  }
+  const std::string path = temp_file("curvature.png");
+  WriteOptions options;
+  options.dither = true;
+  for (auto _ : state) {
+    if (!write_image(image, path, PixelFormat::png8, options)) state.SkipWithError("write failed");
+  }
+  std::filesystem::remove(path);
+}
+BENCHMARK(BM_WriteDithered)->Name("BM_Write/png8_dither")->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 
