@@ -19,10 +19,7 @@
 // the same bytes.
 #include "image_exr.hpp"
 
-#include "deflate_huffman.hpp"
-#include "stream_file.hpp"
-
-#include <zlib.h>
+#include <libdeflate.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -30,6 +27,8 @@
 #include <cstring>
 #include <memory>
 
+#include "deflate_huffman.hpp"
+#include "stream_file.hpp"
 
 namespace nmbake::image_detail {
 
@@ -190,7 +189,7 @@ std::unique_ptr<Chunk> make_chunk(const Image& image, bool half, std::size_t c) 
   std::vector<std::uint8_t> packed = {0x78, 0x01};
   packed.reserve(raw_size + raw_size / 8 + 64);
   deflate_huffman(prepared.data(), prepared.size(), true, packed);
-  const uLong adler = adler32(adler32(0L, Z_NULL, 0), prepared.data(), static_cast<uInt>(prepared.size()));
+  const std::uint32_t adler = libdeflate_adler32(1, prepared.data(), prepared.size());
   for (int i = 3; i >= 0; --i) packed.push_back(static_cast<std::uint8_t>(adler >> (8 * i)));
   auto chunk = std::make_unique<Chunk>();
   chunk->index = c;

@@ -23,13 +23,13 @@
 // where level 1 wrote 13.2 MB in 0.24 s. The Huffman coding is our own
 // (deflate_huffman.cpp): zlib's per-byte block bookkeeping was three
 // quarters of the write, and ours codes a byte in about a nanosecond.
+//
+// Checksums: libdeflate's Adler-32 and CRC-32 (SIMD; zlib's were 10% of
+// the write, BENCHMARKS.md "Writing"); zlib's adler32_combine joins the
+// groups' Adler-32s (libdeflate has none).
 #include "image_png.hpp"
 
-#include "deflate_huffman.hpp"
-#include "stream_file.hpp"
-#include "quantise.hpp"
-#include "simd4.hpp"
-
+#include <libdeflate.h>
 #include <zlib.h>
 
 #include <algorithm>
@@ -37,10 +37,12 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-
 #include <memory>
 
-
+#include "deflate_huffman.hpp"
+#include "quantise.hpp"
+#include "simd4.hpp"
+#include "stream_file.hpp"
 
 namespace nmbake::image_detail {
 
@@ -59,7 +61,7 @@ void put_chunk(std::vector<std::uint8_t>& out, const char (&type)[5], const std:
   const std::size_t type_at = out.size();
   out.insert(out.end(), type, type + 4);
   if (size > 0) out.insert(out.end(), data, data + size);
-  const uLong crc = crc32(crc32(0L, Z_NULL, 0), out.data() + type_at, static_cast<uInt>(size + 4));
+  const std::uint32_t crc = libdeflate_crc32(0, out.data() + type_at, size + 4);
   put_u32(out, static_cast<std::uint32_t>(crc));
 }
 
@@ -196,7 +198,7 @@ struct Group {
 
 uLong idat_crc(const Bytes& data) {
   static constexpr std::uint8_t kType[4] = {'I', 'D', 'A', 'T'};
-  return crc32(crc32(crc32(0L, Z_NULL, 0), kType, 4), data.data.get(), static_cast<uInt>(data.size));
+  return libdeflate_crc32(libdeflate_crc32(0, kType, 4), data.data.get(), data.size);
 }
 
 }  // namespace
@@ -254,7 +256,7 @@ void stream_png(const Image& image, int bits, bool dither, Mapping mapping, Put&
       std::swap(row, above);
     }
     group->raw_bytes = filtered.size;
-    group->adler = adler32(adler32(0L, Z_NULL, 0), filtered.data.get(), static_cast<uInt>(filtered.size));
+    group->adler = libdeflate_adler32(1, filtered.data.get(), filtered.size);
     const bool last = g + 1 == group_count;
     // Room for the zlib header (first group), the stream, and the Adler-32 (last).
     group->deflated = Bytes(2 + deflate_huffman_bound(filtered.size) + 4);
