@@ -39,7 +39,7 @@ class BitWriter {
   // The codes of `size` bytes, table[b] = code | length << 16 (lengths at
   // most 15): the same bits as put() for each, three codes per store of
   // the 64-bit buffer, with whole bytes moved out without a branch.
-  void put_codes(const std::uint8_t* data, std::size_t size, const std::uint32_t* table) {
+  void put_codes(const std::uint8_t* data, std::size_t size, const std::uint32_t* table, int longest) {
     while (filled_ >= 8) {  // fewer than 8 bits pending: 7 + 3 * 15 fit in 64
       *at_++ = static_cast<std::uint8_t>(buffer_);
       buffer_ >>= 8;
@@ -49,6 +49,25 @@ class BitWriter {
     int filled = filled_;
     std::uint8_t* at = at_;
     std::size_t k = 0;
+    if (longest <= 14) {
+      // 7 + 4 * 14 fit in 64: four codes a store.
+      for (; k + 4 <= size; k += 4) {
+        const std::uint32_t t0 = table[data[k]], t1 = table[data[k + 1]], t2 = table[data[k + 2]],
+                            t3 = table[data[k + 3]];
+        buffer |= static_cast<std::uint64_t>(t0 & 0xffffu) << filled;
+        filled += static_cast<int>(t0 >> 16);
+        buffer |= static_cast<std::uint64_t>(t1 & 0xffffu) << filled;
+        filled += static_cast<int>(t1 >> 16);
+        buffer |= static_cast<std::uint64_t>(t2 & 0xffffu) << filled;
+        filled += static_cast<int>(t2 >> 16);
+        buffer |= static_cast<std::uint64_t>(t3 & 0xffffu) << filled;
+        filled += static_cast<int>(t3 >> 16);
+        std::memcpy(at, &buffer, 8);
+        at += filled >> 3;
+        buffer >>= filled & ~7;
+        filled &= 7;
+      }
+    }
     for (; k + 3 <= size; k += 3) {
       const std::uint32_t t0 = table[data[k]], t1 = table[data[k + 1]], t2 = table[data[k + 2]];
       buffer |= static_cast<std::uint64_t>(t0 & 0xffffu) << filled;
@@ -186,7 +205,7 @@ void write_block(const std::uint8_t* data, std::size_t size, bool final, BitWrit
   // The bytes: code and length fetched together from one table.
   std::array<std::uint32_t, 256> table;
   for (int b = 0; b < 256; ++b) table[b] = codes[b] | (static_cast<std::uint32_t>(lengths[b]) << 16);
-  bits.put_codes(data, size, table.data());
+  bits.put_codes(data, size, table.data(), *std::max_element(lengths.begin(), lengths.begin() + 256));
   bits.put(codes[kEndOfBlock], lengths[kEndOfBlock]);
 }
 
@@ -198,8 +217,9 @@ std::vector<std::uint8_t> huffman_lengths(const std::vector<std::uint32_t>& freq
   std::vector<std::uint32_t> used;
   for (std::size_t s = 0; s < symbols; ++s)
     if (freq[s] > 0) used.push_back(static_cast<std::uint32_t>(s));
-  NMBAKE_CHECK(symbols >= 2 && max_bits >= 1 && (std::size_t{1} << max_bits) >= used.size(),
-               "a prefix code of this many symbols fits the length limit");
+  NMBAKE_CHECK(
+      symbols >= 2 && symbols <= 65536 && max_bits >= 1 && (std::size_t{1} << max_bits) >= used.size(),
+      "a prefix code of this many symbols fits the length limit");
   if (used.size() < 2) {
     // One symbol (or none): a complete code needs two, so the first other
     // symbol gets the second one-bit code.
@@ -214,9 +234,13 @@ std::vector<std::uint8_t> huffman_lengths(const std::vector<std::uint32_t>& freq
     // Two-queue Huffman: leaves sorted by (weight, symbol), internal nodes
     // created in non-decreasing weight; a leaf wins ties. Deterministic.
     const std::size_t n = used.size();
+    // Sorted by (weight, position) as one key: a stable sort by weight
+    // (weights stay below 2^40: counts of a block, halved).
+    std::vector<std::uint64_t> keys(n);
+    for (std::size_t i = 0; i < n; ++i) keys[i] = weight[i] << 16 | i;
+    std::sort(keys.begin(), keys.end());
     std::vector<std::uint32_t> order(n);
-    std::iota(order.begin(), order.end(), 0u);
-    std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return weight[a] < weight[b]; });
+    for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<std::uint32_t>(keys[i] & 0xffffu);
     std::vector<std::uint64_t> node_weight(2 * n - 1);
     std::vector<std::uint32_t> parent(2 * n - 1, 0);
     for (std::size_t i = 0; i < n; ++i) node_weight[i] = weight[order[i]];
