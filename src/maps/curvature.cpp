@@ -10,18 +10,56 @@
 // +1/r). No adjacency is needed; a vertex takes the area-weighted mean of its
 // triangles' H, and the map interpolates it at the hit. Measured against the
 // alternatives on the analytic sphere and torus in tests/maps_test.cpp.
-#include <algorithm>
-#include <cmath>
-#include <cstdint>
-
-#include <glm/geometric.hpp>
+// Triangles are measured four at a time in SIMD lanes (BM_Curvature
+// 10.4/10.4/8.1 -> 7.8/7.9/6.3 ms), with the serial formula's values.
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <glm/geometric.hpp>
+
 #include "huge_pages.hpp"
 #include "nmbake/maps.hpp"
+#include "simd4.hpp"
 
 namespace nmbake {
+
+namespace {
+
+inline float splat(float v, float) { return v; }
+inline detail::f4 splat(float v, detail::f4) { return detail::splat4(v); }
+inline float root(float v) { return std::sqrt(v); }
+inline detail::f4 root(detail::f4 v) { return detail::sqrt4(v); }
+
+template <class T>
+struct Vec {
+  T x, y, z;
+};
+// glm::dot's order: (x + y) + z.
+template <class T>
+T dot(const Vec<T>& a, const Vec<T>& b) {
+  return a.x * b.x + a.y * b.y + a.z * b.z;
+}
+
+// One triangle's mean curvature h and area a from its edges e1, e2 and
+// normal differences d1, d2 (see above), and the bound its determinant
+// must exceed; for a float, or four triangles in SIMD lanes (the same IEEE
+// operations in the same order per lane, so the same values).
+template <class T>
+void shape_operator(const Vec<T>& e1, const Vec<T>& e2, const Vec<T>& d1, const Vec<T>& d2, T& h, T& a,
+                    T& det, T& bound) {
+  const T g11 = dot(e1, e1), g12 = dot(e1, e2), g22 = dot(e2, e2);
+  det = g11 * g22 - g12 * g12;
+  const T m11 = dot(e1, d1), m12 = dot(e1, d2), m21 = dot(e2, d1), m22 = dot(e2, d2);
+  const T half = splat(0.5f, det);
+  h = half * (g22 * m11 - g12 * (m12 + m21) + g11 * m22) / det;
+  a = half * root(det);
+  bound = splat(1e-12f, det) * g11 * g22;
+}
+
+}  // namespace
 
 std::vector<float> vertex_mean_curvature(const Mesh& high, const std::vector<glm::vec3>& normals,
                                          CurvatureStats& stats) {
@@ -52,26 +90,53 @@ std::vector<float> vertex_mean_curvature(const Mesh& high, const std::vector<glm
     const std::uint32_t end = static_cast<std::uint32_t>(vertex_count * (task + 1) / tasks);
     const auto owned = [&](std::uint32_t v) { return v >= begin && v < end; };
     std::uint64_t skipped = 0;
-    for (std::size_t t = 0; t < triangle_count; ++t) {
-      const std::uint32_t* v = &high.indices[3 * t];
-      if (!owned(v[0]) && !owned(v[1]) && !owned(v[2])) continue;
-      const glm::vec3 e1 = high.positions[v[1]] - high.positions[v[0]];
-      const glm::vec3 e2 = high.positions[v[2]] - high.positions[v[0]];
-      const glm::vec3 d1 = normals[v[1]] - normals[v[0]];
-      const glm::vec3 d2 = normals[v[2]] - normals[v[0]];
-      const float g11 = glm::dot(e1, e1), g12 = glm::dot(e1, e2), g22 = glm::dot(e2, e2);
-      const float det = g11 * g22 - g12 * g12;
-      const float m11 = glm::dot(e1, d1), m12 = glm::dot(e1, d2), m21 = glm::dot(e2, d1), m22 = glm::dot(e2, d2);
-      const float h = 0.5f * (g22 * m11 - g12 * (m12 + m21) + g11 * m22) / det;
-      const float a = 0.5f * std::sqrt(det);
-      if (!(det > 1e-12f * g11 * g22) || !std::isfinite(det) || !std::isfinite(h) || !std::isfinite(a)) {
+    const glm::vec3* const p = high.positions.data();
+    const glm::vec3* const n = normals.data();
+    const std::uint32_t* const indices = high.indices.data();
+    const auto add = [&](const std::uint32_t* v, bool valid, float h, float a) {
+      if (!valid) {
         if (owned(v[0])) ++skipped;
-        continue;
+        return;
       }
-      const glm::vec2 add(h * a, a);
+      const glm::vec2 sum(h * a, a);
       for (int c = 0; c < 3; ++c) {
-        if (owned(v[c])) sums[v[c]] += add;
+        if (owned(v[c])) sums[v[c]] += sum;
       }
+    };
+    const auto owns_any = [&](const std::uint32_t* v) { return owned(v[0]) || owned(v[1]) || owned(v[2]); };
+    std::size_t t = 0;
+    // Four triangles at a time in SIMD lanes, then one by one; each added
+    // in triangle order.
+    for (; t + 4 <= triangle_count; t += 4) {
+      const std::uint32_t* v = indices + 3 * t;
+      bool own[4];
+      for (int i = 0; i < 4; ++i) own[i] = owns_any(v + 3 * i);
+      if (!(own[0] || own[1] || own[2] || own[3])) continue;
+      const auto lanes = [&](const glm::vec3* values, int to, int from) {
+        const auto axis = [&](int k) {
+          return detail::f4{
+              values[v[to]][k] - values[v[from]][k], values[v[3 + to]][k] - values[v[3 + from]][k],
+              values[v[6 + to]][k] - values[v[6 + from]][k], values[v[9 + to]][k] - values[v[9 + from]][k]};
+        };
+        return Vec<detail::f4>{axis(0), axis(1), axis(2)};
+      };
+      detail::f4 h, a, det, bound;
+      shape_operator(lanes(p, 1, 0), lanes(p, 2, 0), lanes(n, 1, 0), lanes(n, 2, 0), h, a, det, bound);
+      const detail::i4 valid = (det > bound) & detail::finite4(det) & detail::finite4(h) & detail::finite4(a);
+      for (int i = 0; i < 4; ++i) {
+        if (own[i]) add(v + 3 * i, valid[i] != 0, h[i], a[i]);
+      }
+    }
+    for (; t < triangle_count; ++t) {
+      const std::uint32_t* v = indices + 3 * t;
+      if (!owns_any(v)) continue;
+      const auto edge = [&](const glm::vec3* values, int to, int from) {
+        const glm::vec3 e = values[v[to]] - values[v[from]];
+        return Vec<float>{e.x, e.y, e.z};
+      };
+      float h, a, det, bound;
+      shape_operator(edge(p, 1, 0), edge(p, 2, 0), edge(n, 1, 0), edge(n, 2, 0), h, a, det, bound);
+      add(v, det > bound && std::isfinite(det) && std::isfinite(h) && std::isfinite(a), h, a);
     }
     degenerate[task] = skipped;
     // The task's vertices are done: their weighted means.
