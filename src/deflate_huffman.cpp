@@ -162,18 +162,20 @@ std::vector<std::pair<std::uint8_t, std::uint8_t>> run_length(const std::vector<
 
 // One dynamic block of `data`.
 void write_block(const std::uint8_t* data, std::size_t size, bool final, BitWriter& bits) {
-  // Four histograms, so runs of one byte value do not serialise the counts.
-  std::array<std::array<std::uint32_t, 256>, 4> counts{};
+  // Eight histograms, so runs of one byte value do not serialise the counts
+  // (16-bit rows repeat their high bytes every second byte: with four,
+  // BM_Write/png16 took ~5% longer).
+  constexpr int kTables = 8;
+  std::array<std::array<std::uint32_t, 256>, kTables> counts{};
   std::size_t i = 0;
-  for (; i + 4 <= size; i += 4) {
-    ++counts[0][data[i]];
-    ++counts[1][data[i + 1]];
-    ++counts[2][data[i + 2]];
-    ++counts[3][data[i + 3]];
+  for (; i + kTables <= size; i += kTables) {
+    for (int k = 0; k < kTables; ++k) ++counts[k][data[i + k]];
   }
   for (; i < size; ++i) ++counts[0][data[i]];
   std::vector<std::uint32_t> freq(kLiteralCodes, 0);
-  for (int b = 0; b < 256; ++b) freq[b] = counts[0][b] + counts[1][b] + counts[2][b] + counts[3][b];
+  for (int b = 0; b < 256; ++b) {
+    for (int k = 0; k < kTables; ++k) freq[b] += counts[k][b];
+  }
   freq[kEndOfBlock] = 1;
   const std::vector<std::uint8_t> lengths = huffman_lengths(freq, 15);
   const std::vector<std::uint32_t> codes = canonical_codes(lengths);
