@@ -37,53 +37,18 @@ class BitWriter {
     }
   }
   // The codes of `size` bytes, table[b] = code | length << 16 (lengths at
-  // most 15): the same bits as put() for each, three codes per store of
-  // the 64-bit buffer, with whole bytes moved out without a branch.
+  // most 15, the longest `longest`): the same bits as put() for each,
+  // several codes per store of the 64-bit buffer (four when 7 + 4 x longest
+  // fit in 64, else three), whole bytes moved out without a branch.
   void put_codes(const std::uint8_t* data, std::size_t size, const std::uint32_t* table, int longest) {
     while (filled_ >= 8) {  // fewer than 8 bits pending: 7 + 3 * 15 fit in 64
       *at_++ = static_cast<std::uint8_t>(buffer_);
       buffer_ >>= 8;
       filled_ -= 8;
     }
-    std::uint64_t buffer = buffer_;
-    int filled = filled_;
-    std::uint8_t* at = at_;
     std::size_t k = 0;
-    if (longest <= 14) {
-      // 7 + 4 * 14 fit in 64: four codes a store.
-      for (; k + 4 <= size; k += 4) {
-        const std::uint32_t t0 = table[data[k]], t1 = table[data[k + 1]], t2 = table[data[k + 2]],
-                            t3 = table[data[k + 3]];
-        buffer |= static_cast<std::uint64_t>(t0 & 0xffffu) << filled;
-        filled += static_cast<int>(t0 >> 16);
-        buffer |= static_cast<std::uint64_t>(t1 & 0xffffu) << filled;
-        filled += static_cast<int>(t1 >> 16);
-        buffer |= static_cast<std::uint64_t>(t2 & 0xffffu) << filled;
-        filled += static_cast<int>(t2 >> 16);
-        buffer |= static_cast<std::uint64_t>(t3 & 0xffffu) << filled;
-        filled += static_cast<int>(t3 >> 16);
-        std::memcpy(at, &buffer, 8);
-        at += filled >> 3;
-        buffer >>= filled & ~7;
-        filled &= 7;
-      }
-    }
-    for (; k + 3 <= size; k += 3) {
-      const std::uint32_t t0 = table[data[k]], t1 = table[data[k + 1]], t2 = table[data[k + 2]];
-      buffer |= static_cast<std::uint64_t>(t0 & 0xffffu) << filled;
-      filled += static_cast<int>(t0 >> 16);
-      buffer |= static_cast<std::uint64_t>(t1 & 0xffffu) << filled;
-      filled += static_cast<int>(t1 >> 16);
-      buffer |= static_cast<std::uint64_t>(t2 & 0xffffu) << filled;
-      filled += static_cast<int>(t2 >> 16);
-      std::memcpy(at, &buffer, 8);  // little-endian: the stream's next bytes
-      at += filled >> 3;
-      buffer >>= filled & ~7;
-      filled &= 7;
-    }
-    buffer_ = buffer;
-    filled_ = filled;
-    at_ = at;
+    if (longest <= 14) put_runs<4>(data, size, table, k);
+    put_runs<3>(data, size, table, k);
     for (; k < size; ++k) put(table[data[k]] & 0xffffu, static_cast<int>(table[data[k]] >> 16));
   }
   // Pads with zero bits to a byte boundary and writes what is left.
@@ -97,6 +62,29 @@ class BitWriter {
   }
 
  private:
+  // put_codes() from byte k on, kCodes codes a store, while kCodes are left.
+  template <int kCodes>
+  void put_runs(const std::uint8_t* data, std::size_t size, const std::uint32_t* table, std::size_t& k) {
+    std::uint64_t buffer = buffer_;
+    int filled = filled_;
+    std::uint8_t* at = at_;
+    for (; k + kCodes <= size; k += kCodes) {
+      std::uint32_t t[kCodes];
+      for (int c = 0; c < kCodes; ++c) t[c] = table[data[k + c]];
+      for (int c = 0; c < kCodes; ++c) {
+        buffer |= static_cast<std::uint64_t>(t[c] & 0xffffu) << filled;
+        filled += static_cast<int>(t[c] >> 16);
+      }
+      std::memcpy(at, &buffer, 8);  // little-endian: the stream's next bytes
+      at += filled >> 3;
+      buffer >>= filled & ~7;
+      filled &= 7;
+    }
+    buffer_ = buffer;
+    filled_ = filled;
+    at_ = at;
+  }
+
   std::uint8_t* at_;
   std::uint64_t buffer_ = 0;
   int filled_ = 0;
