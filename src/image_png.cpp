@@ -25,7 +25,7 @@
 // quarters of the write, and ours codes a byte in about a nanosecond.
 //
 // Checksums: libdeflate's Adler-32 and CRC-32 (SIMD; zlib's were 10% of
-// the write, BENCHMARKS.md "Writing"); zlib's adler32_combine joins the
+// the write; BENCHMARKS.md, "The map set"); zlib's adler32_combine joins the
 // groups' Adler-32s (libdeflate has none).
 #include "image_png.hpp"
 
