@@ -133,9 +133,7 @@ void quantise_row_as(const float* values, std::size_t width, std::size_t channel
     // unsigned range through the signed pack by an offset of 2^15.
     const __m128i lanes = reinterpret_cast<__m128i>(q);
     if (bits == 8) {
-      const __m128i bytes = _mm_packus_epi16(_mm_packs_epi32(lanes, lanes), _mm_setzero_si128());
-      const std::int32_t four = _mm_cvtsi128_si32(bytes);
-      std::memcpy(out + i, &four, 4);
+      detail::store_bytes4(lanes, out + i);
     } else {
       const __m128i swapped = _mm_or_si128(_mm_slli_epi32(_mm_and_si128(lanes, _mm_set1_epi32(0xff)), 8),
                                            _mm_srli_epi32(lanes, 8));

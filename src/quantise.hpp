@@ -60,6 +60,16 @@ inline std::uint32_t quantise_dithered(float v, float max_value, std::uint32_t x
   return std::min(q, static_cast<std::uint32_t>(max_value));
 }
 
+#if defined(__SSE2__)
+// Four 32-bit lanes in [0, 255] stored as four bytes (saturating packs: a
+// larger lane stores 255).
+inline void store_bytes4(__m128i q, std::uint8_t* out) {
+  const __m128i bytes = _mm_packus_epi16(_mm_packs_epi32(q, q), _mm_setzero_si128());
+  const std::int32_t four = _mm_cvtsi128_si32(bytes);
+  std::memcpy(out, &four, 4);
+}
+#endif
+
 // quantise_dithered() to 8 bits of the four values v[0..3] (already mapped)
 // of channel c at texels x..x+3 of row y, into out[0..3]: per lane the same
 // IEEE operations in the same order (SSE2, two doubles a register), so the
@@ -86,10 +96,7 @@ inline void quantise_dithered4_8bit(const float* v, std::uint32_t x, std::uint32
   };
   const __m128i lo = two(_mm_add_pd(first, _mm_set_pd(1.0, 0.0)), _mm_cvtps_pd(p));
   const __m128i hi = two(_mm_add_pd(first, _mm_set_pd(3.0, 2.0)), _mm_cvtps_pd(_mm_movehl_ps(p, p)));
-  const __m128i q = _mm_unpacklo_epi64(lo, hi);
-  const __m128i bytes = _mm_packus_epi16(_mm_packs_epi32(q, q), _mm_setzero_si128());
-  const std::int32_t four = _mm_cvtsi128_si32(bytes);
-  std::memcpy(out, &four, 4);
+  store_bytes4(_mm_unpacklo_epi64(lo, hi), out);
 #else
   for (std::uint32_t k = 0; k < 4; ++k) {
     out[k] = static_cast<std::uint8_t>(quantise_dithered(v[k], 255.0f, x + k, y, c));

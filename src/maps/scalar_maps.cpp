@@ -50,19 +50,38 @@ struct ExtentSum {
     return e;
   }
 };
+// The extent of the covered texels in [begin, end), calling each(v) for
+// every covered value: two sums over alternating texels, so min and max are
+// two dependency chains each (neither depends on the order; a single chain
+// made the moon's curvature range 12 ms instead of 6).
+template <class Each>
+ExtentSum covered_extent_of(const Image& image, const std::vector<std::uint8_t>& coverage, std::size_t begin,
+                            std::size_t end, Each&& each) {
+  ExtentSum first, second;
+  std::size_t t = begin;
+  for (; t + 2 <= end; t += 2) {
+    if (coverage[t]) {
+      first.add(image.pixels[t]);
+      each(image.pixels[t]);
+    }
+    if (coverage[t + 1]) {
+      second.add(image.pixels[t + 1]);
+      each(image.pixels[t + 1]);
+    }
+  }
+  if (t < end && coverage[t]) {
+    first.add(image.pixels[t]);
+    each(image.pixels[t]);
+  }
+  first.add(second);
+  return first;
+}
+
 Extent covered_extent(const Image& image, const std::vector<std::uint8_t>& coverage) {
   return tbb::parallel_reduce(
              tbb::blocked_range<std::size_t>(0, coverage.size(), 1 << 16), ExtentSum{},
              [&](const tbb::blocked_range<std::size_t>& r, ExtentSum sum) {
-               // Two sums, alternating texels: two chains of min and max each.
-               ExtentSum second;
-               std::size_t t = r.begin();
-               for (; t + 2 <= r.end(); t += 2) {
-                 if (coverage[t]) sum.add(image.pixels[t]);
-                 if (coverage[t + 1]) second.add(image.pixels[t + 1]);
-               }
-               if (t != r.end() && coverage[t]) sum.add(image.pixels[t]);
-               sum.add(second);
+               sum.add(covered_extent_of(image, coverage, r.begin(), r.end(), [](float) {}));
                return sum;
              },
              [](ExtentSum a, const ExtentSum& b) {
@@ -115,26 +134,8 @@ Percentile covered_percentile_99(const Image& image, const std::vector<std::uint
     Part& part = parts[c];
     part.histogram.assign(kBins, 0);
     const std::size_t end = std::min(coverage.size(), (c + 1) * kChunk);
-    // Two extents, alternating texels, so the minimum and maximum are two
-    // chains each (min and max do not depend on the order).
-    ExtentSum second;
-    std::size_t t = c * kChunk;
-    for (; t + 2 <= end; t += 2) {
-      if (coverage[t]) {
-        part.extent.add(image.pixels[t]);
-        ++part.histogram[bin_of(image.pixels[t])];
-      }
-      if (coverage[t + 1]) {
-        second.add(image.pixels[t + 1]);
-        ++part.histogram[bin_of(image.pixels[t + 1])];
-      }
-    }
-    for (; t < end; ++t) {
-      if (!coverage[t]) continue;
-      part.extent.add(image.pixels[t]);
-      ++part.histogram[bin_of(image.pixels[t])];
-    }
-    part.extent.add(second);
+    part.extent =
+        covered_extent_of(image, coverage, c * kChunk, end, [&](float v) { ++part.histogram[bin_of(v)]; });
   });
   Percentile out;
   ExtentSum all;
