@@ -526,8 +526,11 @@ bool cpu_has_avx2() {
 namespace {
 
 // lanes: 1 (every sample on its own), 4, or 8 (falls back to 4 without AVX2).
+// Rows [first_row, last_row) of the band: in parallel, or on the calling thread
+// (encode_rows(): `out` must hold them already, as no thread may resize it).
 void encode_impl(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
-                 const EncodeOptions& options, Image& out, EncodeStats& stats, int lanes) {
+                 const EncodeOptions& options, Image& out, EncodeStats& stats, int lanes, int first_row,
+                 int last_row, bool parallel) {
   const int width = samples.width;
   const int height = samples.height;
   const int spp = samples.samples;
@@ -544,6 +547,7 @@ void encode_impl(const LowSurface& surface, const TexelSamples& samples, const M
   const int row_begin = samples.row_begin - options.out_row_begin;
   NMBAKE_CHECK(row_begin >= 0, "the band lies in the output's rows");
   if (out.width != width || out.channels != 3 || out.height < row_begin + height) {
+    NMBAKE_CHECK(parallel, "encode_rows() writes into an image that holds the band");
     out.width = width;
     out.height = std::max(out.height, row_begin + height);
     out.channels = 3;
@@ -552,15 +556,15 @@ void encode_impl(const LowSurface& surface, const TexelSamples& samples, const M
   float* const band_pixels = out.pixels.data() + static_cast<std::size_t>(row_begin) * width * 3;
   const glm::vec3 background = tangent_space ? glm::vec3(0.0f, 0.0f, 1.0f) : glm::vec3(0.0f);
 
-  std::vector<Counts> row_counts(height);
+  std::vector<Counts> row_counts(last_row - first_row);
   const std::size_t row_samples = static_cast<std::size_t>(width) * spp;
 
-  tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& rows) {
+  const auto encode_rows_of = [&](const tbb::blocked_range<int>& rows) {
     // Per sample of a row: its contribution, and whether it lies in a chart.
     std::vector<glm::vec3> contribution(row_samples);
     std::unique_ptr<bool[]> used(new bool[row_samples]);
     for (int y = rows.begin(); y != rows.end(); ++y) {
-      Counts& counts = row_counts[y];
+      Counts& counts = row_counts[y - first_row];
       const std::size_t first = static_cast<std::size_t>(y) * row_samples;
       std::size_t k = 0;
       if (in_lanes) {
@@ -607,7 +611,8 @@ void encode_impl(const LowSurface& surface, const TexelSamples& samples, const M
               if (ln > 0.0f && std::isfinite(ln)) value = low_normal_sum / ln;
             }
           }
-          if (tangent_space && options.decode.rebuild_blue && !onto_upper_hemisphere(value)) ++counts.below_horizon;
+          if (tangent_space && options.decode.rebuild_blue && !onto_upper_hemisphere(value))
+            ++counts.below_horizon;
           if (tangent_space && options.green == GreenChannel::down) value.y = -value.y;
         }
         float* p = band_pixels + texel * 3;
@@ -616,7 +621,12 @@ void encode_impl(const LowSurface& surface, const TexelSamples& samples, const M
         p[2] = 0.5f * value.z + 0.5f;
       }
     }
-  });
+  };
+  if (parallel) {
+    tbb::parallel_for(tbb::blocked_range<int>(first_row, last_row), encode_rows_of);
+  } else {
+    encode_rows_of(tbb::blocked_range<int>(first_row, last_row));
+  }
   for (const Counts& c : row_counts) {
     stats.singular_frames += c.singular;
     stats.zero_high_normals += c.zero_high;
@@ -629,14 +639,20 @@ void encode_impl(const LowSurface& surface, const TexelSamples& samples, const M
 
 void encode(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
             const EncodeOptions& options, Image& out, EncodeStats& stats) {
-  encode_impl(surface, samples, high, hits, options, out, stats, 8);
+  encode_impl(surface, samples, high, hits, options, out, stats, 8, 0, samples.height, true);
+}
+
+void encode_rows(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
+                 const EncodeOptions& options, Image& out, EncodeStats& stats, int row_begin, int row_end) {
+  NMBAKE_CHECK(0 <= row_begin && row_begin <= row_end && row_end <= samples.height, "rows of the band");
+  encode_impl(surface, samples, high, hits, options, out, stats, 8, row_begin, row_end, false);
 }
 
 namespace detail {
 
 void encode_in_lanes(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
                      const EncodeOptions& options, Image& out, EncodeStats& stats, int lanes) {
-  encode_impl(surface, samples, high, hits, options, out, stats, lanes);
+  encode_impl(surface, samples, high, hits, options, out, stats, lanes, 0, samples.height, true);
 }
 
 bool encode_has_eight_lanes() {

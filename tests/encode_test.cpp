@@ -248,6 +248,25 @@ TEST(Encode, FourLanePathMatchesThePerSampleReference) {
     Image image;
     EncodeStats stats;
     encode(surface, samples, high, hits, EncodeOptions{}, image, stats);
+    // Row blocks on the calling thread (the map set's encoding): uneven
+    // ones, an empty one, backwards, give the band's bytes and counts.
+    {
+      Image blocks;
+      blocks.width = samples.width;
+      blocks.height = samples.height;
+      blocks.channels = 3;
+      blocks.pixels.assign(image.pixels.size(), -1.0f);
+      EncodeStats block_stats;
+      for (const auto& [begin, end] : {std::pair{2, 3}, std::pair{1, 1}, std::pair{0, 2}}) {
+        encode_rows(surface, samples, high, hits, EncodeOptions{}, blocks, block_stats, begin, end);
+      }
+      EXPECT_EQ(0,
+                std::memcmp(blocks.pixels.data(), image.pixels.data(), image.pixels.size() * sizeof(float)));
+      EXPECT_EQ(block_stats.singular_frames, stats.singular_frames);
+      EXPECT_EQ(block_stats.zero_high_normals, stats.zero_high_normals);
+      EXPECT_EQ(block_stats.zero_results, stats.zero_results);
+      EXPECT_GT(block_stats.singular_frames, 0u);
+    }
     // Bit for bit the per-sample path, at four and at eight lanes, both for
     // groups on one low triangle (interpolated across the lanes) and mixed ones.
     for (const int lanes : {4, 8}) {

@@ -71,6 +71,12 @@ struct EncodeStats {
   std::uint64_t zero_high_normals = 0;  // interpolated high normal of length ~0: face normal used
   std::uint64_t zero_results = 0;       // averaged texel normal of length ~0: low normal kept
   std::uint64_t below_horizon = 0;      // rebuild_blue: texels with t.z < 0 stored on the horizon
+  void add(const EncodeStats& more) {
+    singular_frames += more.singular_frames;
+    zero_high_normals += more.zero_high_normals;
+    zero_results += more.zero_results;
+    below_horizon += more.below_horizon;
+  }
 };
 
 // Writes the rows of `samples` (a whole image, or the band of rows starting
@@ -80,6 +86,14 @@ struct EncodeStats {
 // encoded). Also computes the world-space high normal per sample from `hits`.
 void encode(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
             const EncodeOptions& options, Image& out, EncodeStats& stats);
+
+// encode() for rows [row_begin, row_end) of the band in `samples`, on the
+// calling thread, its counts added to `stats`: for a caller that runs
+// several maps over a block of rows at a time (MapSet), so each reads the
+// block's samples and hits while they are in cache. `out` must hold the
+// band's rows already (encode() sizes it; blocks in parallel must not).
+void encode_rows(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
+                 const EncodeOptions& options, Image& out, EncodeStats& stats, int row_begin, int row_end);
 
 // One tangent-space vector for a world normal, given the un-normalised frame
 // at a point: the function the image encoder uses, exposed for tests and the

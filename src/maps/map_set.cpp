@@ -308,7 +308,12 @@ void MapSet::encode_band(const LowSurface& surface, const TexelSamples& samples,
   const BandInputs in{surface, samples, high, hits, &visibility_, &bent_, &thickness_,
                       samples.row_begin - first_row_};
   HitValueImages values;
+  std::vector<Module*> by_rows;
   for (const auto& m : modules_) {
+    if (m->by_rows()) {
+      by_rows.push_back(m.get());
+      continue;
+    }
     if (!m->from_hit_values()) {
       m->encode_band(in, settings_, normal_stats);
       continue;
@@ -320,7 +325,31 @@ void MapSet::encode_band(const LowSurface& surface, const TexelSamples& samples,
       default: values.miss = &m->image; break;
     }
   }
-  if (values.height || values.position || values.curvature || values.miss) encode_hit_values(in, settings_, values);
+  const bool hit_values = values.height || values.position || values.curvature || values.miss;
+  if (by_rows.empty() && !hit_values) return;
+  // Blocks of about kBlockSamples samples (~0.5 MB of samples and hits):
+  // after the normal map's pass over a block, the hit values' pass reads it
+  // from cache. The moon's set, 2048^2 at 4 spp, alternating binaries:
+  // encode 0.110 -> 0.101 s and 0.124 -> 0.111-0.115 s (blocks of 2 to 8
+  // rows alike, 32 rows slower); the normal map alone the same.
+  constexpr std::size_t kBlockSamples = 16384;
+  const std::size_t row_samples = static_cast<std::size_t>(samples.width) * samples.samples;
+  const int block_rows =
+      static_cast<int>(std::max<std::size_t>(1, kBlockSamples / std::max<std::size_t>(1, row_samples)));
+  const int blocks = (samples.height + block_rows - 1) / block_rows;
+  std::vector<EncodeStats> stats(static_cast<std::size_t>(blocks) * by_rows.size());
+  tbb::parallel_for(0, blocks, [&](int b) {
+    const int row_begin = b * block_rows, row_end = std::min(samples.height, row_begin + block_rows);
+    for (std::size_t i = 0; i < by_rows.size(); ++i) {
+      by_rows[i]->encode_rows(in, settings_, row_begin, row_end, stats[b * by_rows.size() + i]);
+    }
+    if (hit_values) encode_hit_values(in, settings_, values, row_begin, row_end);
+  });
+  for (std::size_t i = 0; i < by_rows.size(); ++i) {
+    EncodeStats band;
+    for (int b = 0; b < blocks; ++b) band.add(stats[b * by_rows.size() + i]);
+    by_rows[i]->rows_encoded(band, normal_stats);
+  }
 }
 
 void MapSet::finish(std::vector<std::uint8_t>& coverage, int padding, DilateStats& dilate_stats) {

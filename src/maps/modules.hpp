@@ -38,6 +38,16 @@ struct MapSet::Module {
   // maps are encoded together by encode_hit_values(), one pass over the
   // band for all of them (their encode_band() does nothing).
   virtual bool from_hit_values() const { return false; }
+  // A map encoded a block of rows at a time (its encode_band() does
+  // nothing): MapSet::encode_band() runs these and the hit values over each
+  // block in turn, blocks in parallel, so every map reads a block's samples
+  // and hits while they are in cache. encode_rows() encodes rows
+  // [row_begin, row_end) of the band on the calling thread, adding to the
+  // block's own `stats`; after the band, rows_encoded() gets their sum.
+  virtual bool by_rows() const { return false; }
+  virtual void encode_rows(const BandInputs& /*in*/, const MapSettings& /*settings*/, int /*row_begin*/,
+                           int /*row_end*/, EncodeStats& /*stats*/) {}
+  virtual void rows_encoded(const EncodeStats& /*band*/, EncodeStats& /*normal_stats*/) {}
   // After the last band, before dilation: ranges from the covered texels.
   virtual void finish(const std::vector<std::uint8_t>& /*coverage*/) {}
   // Integer files store v * scale + offset (clamped to [0, 1] by the writer).
@@ -74,10 +84,12 @@ struct HitValueImages {
   Image* curvature = nullptr;
   Image* miss = nullptr;
 };
-// One pass over the band's texels for every hit-value map: a sample's hit
-// triangle is read once for all of them. Each map's texel is the mean of its
-// samples' values, as texel_means() computes it.
-void encode_hit_values(const BandInputs& in, const MapSettings& settings, const HitValueImages& out);
+// One pass over rows [row_begin, row_end) of the band for every hit-value
+// map, on the calling thread: a sample's hit triangle is read once for all
+// of them. Each map's texel is the mean of its samples' values, as
+// texel_means() computes it.
+void encode_hit_values(const BandInputs& in, const MapSettings& settings, const HitValueImages& out,
+                       int row_begin, int row_end);
 
 namespace maps_detail {
 

@@ -15,21 +15,28 @@ namespace {
 
 using maps_detail::interpolate;
 
+// Row block by row block (by_rows()): the encode stage's encode_rows().
 struct NormalModule final : MapSet::Module {
   bool object;
   NormalModule(MapKind map, bool object_space) : Module(map), object(object_space) {}
-  void encode_band(const BandInputs& in, const MapSettings& settings, EncodeStats& normal_stats) override {
+  void encode_band(const BandInputs&, const MapSettings&, EncodeStats&) override {}
+  bool by_rows() const override { return true; }
+  void encode_rows(const BandInputs& in, const MapSettings& settings, int row_begin, int row_end,
+                   EncodeStats& stats) override {
+    EncodeOptions options = settings.encode;
+    if (object) {
+      options.space = NormalSpace::object;
+      options.green = GreenChannel::up;
+    }
+    nmbake::encode_rows(in.surface, in.samples, in.high, in.hits, options, image, stats, row_begin, row_end);
+  }
+  void rows_encoded(const EncodeStats& band, EncodeStats& normal_stats) override {
     if (!object) {
-      encode(in.surface, in.samples, in.high, in.hits, settings.encode, image, normal_stats);
+      normal_stats.add(band);
       return;
     }
-    EncodeOptions options = settings.encode;
-    options.space = NormalSpace::object;
-    options.green = GreenChannel::up;
-    EncodeStats stats;
-    encode(in.surface, in.samples, in.high, in.hits, options, image, stats);
-    add("zero_high_normals", static_cast<double>(stats.zero_high_normals));
-    add("zero_results", static_cast<double>(stats.zero_results));
+    add("zero_high_normals", static_cast<double>(band.zero_high_normals));
+    add("zero_results", static_cast<double>(band.zero_results));
   }
 };
 

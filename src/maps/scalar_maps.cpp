@@ -250,7 +250,8 @@ struct MissModule final : MapSet::Module {
 // encode_hit_values() for the maps that need the hit triangle's corners
 // (position: their positions; curvature: their vertex curvature).
 template <bool kPosition, bool kCurvature>
-void hit_values(const BandInputs& in, const MapSettings& settings, const HitValueImages& out) {
+void hit_values(const BandInputs& in, const MapSettings& settings, const HitValueImages& out, int row_begin,
+                int row_end) {
   const TexelSamples& samples = in.samples;
   const int width = samples.width, spp = samples.samples;
   const std::vector<float>* curvature = settings.vertex_curvature;
@@ -278,70 +279,70 @@ void hit_values(const BandInputs& in, const MapSettings& settings, const HitValu
   const std::uint32_t* const indices = in.high.indices.data();
   const glm::vec3* const positions = in.high.positions.data();
   const float* const vertex_curvature = kCurvature ? curvature->data() : nullptr;
-  tbb::parallel_for(tbb::blocked_range<int>(0, samples.height), [&](const tbb::blocked_range<int>& rows) {
-    for (int y = rows.begin(); y != rows.end(); ++y) {
-      float* height = row_of(out.height, y);
-      float* position = row_of(out.position, y);
-      float* curv = row_of(out.curvature, y);
-      float* miss = row_of(out.miss, y);
-      for (int x = 0; x < width; ++x) {
-        const std::size_t texel = static_cast<std::size_t>(y) * width + x;
-        float h = 0.0f, m = 0.0f, k = 0.0f;
-        // The position sum in SIMD lanes (x, y, z, unused): per lane the
-        // scalar expression's operations in its order, so the same bits.
-        detail::f4 p = {0.0f, 0.0f, 0.0f, 0.0f};
-        int used = 0;
-        if (coverage[texel]) {
-          for (int j = 0; j < spp; ++j) {
-            const std::size_t s = texel * spp + static_cast<std::size_t>(j);
-            const std::int32_t tri = sample_triangle[s];
-            if (tri < 0) continue;
-            ++used;
-            const std::int32_t hit = hit_triangle[s];
-            if (hit < 0) {
-              // A miss: height and curvature 0, the low surface point.
-              m += 1.0f;
-              if (kPosition) {
-                const glm::vec3 low = interpolate(in.surface.position, 3 * static_cast<std::size_t>(tri), samples.bary[s]);
-                p += detail::f4{low.x, low.y, low.z, 0.0f};
-              }
-              continue;
+  for (int y = row_begin; y != row_end; ++y) {
+    float* height = row_of(out.height, y);
+    float* position = row_of(out.position, y);
+    float* curv = row_of(out.curvature, y);
+    float* miss = row_of(out.miss, y);
+    for (int x = 0; x < width; ++x) {
+      const std::size_t texel = static_cast<std::size_t>(y) * width + x;
+      float h = 0.0f, m = 0.0f, k = 0.0f;
+      // The position sum in SIMD lanes (x, y, z, unused): per lane the
+      // scalar expression's operations in its order, so the same bits.
+      detail::f4 p = {0.0f, 0.0f, 0.0f, 0.0f};
+      int used = 0;
+      if (coverage[texel]) {
+        for (int j = 0; j < spp; ++j) {
+          const std::size_t s = texel * spp + static_cast<std::size_t>(j);
+          const std::int32_t tri = sample_triangle[s];
+          if (tri < 0) continue;
+          ++used;
+          const std::int32_t hit = hit_triangle[s];
+          if (hit < 0) {
+            // A miss: height and curvature 0, the low surface point.
+            m += 1.0f;
+            if (kPosition) {
+              const glm::vec3 low =
+                  interpolate(in.surface.position, 3 * static_cast<std::size_t>(tri), samples.bary[s]);
+              p += detail::f4{low.x, low.y, low.z, 0.0f};
             }
-            h += hit_distance[s];
-            if (kPosition || kCurvature) {
-              const std::uint32_t* c = &indices[3 * static_cast<std::size_t>(hit)];
-              const glm::vec2 b = hit_bary[s];
-              const float w = 1.0f - b.x - b.y;
-              if (kPosition) {
-                // Four floats from each corner: the fourth is the next
-                // vertex's x (or pad_for_embree()'s spare one), never used.
-                const auto corner = [&](std::uint32_t v) {
-                  detail::f4 q;
-                  std::memcpy(&q, &positions[v], sizeof(q));
-                  return q;
-                };
-                p += corner(c[0]) * detail::splat4(w) + corner(c[1]) * detail::splat4(b.x) +
-                     corner(c[2]) * detail::splat4(b.y);
-              }
-              if (kCurvature) k += vertex_curvature[c[0]] * w + vertex_curvature[c[1]] * b.x + vertex_curvature[c[2]] * b.y;
-            }
+            continue;
           }
-        }
-        // A covered texel has at least one sample in a chart (raster.hpp);
-        // uncovered texels hold 0 (position: the box's corner).
-        const float inv = used > 0 ? 1.0f / static_cast<float>(used) : 0.0f;
-        if (height) height[x] = h * inv;
-        if (miss) miss[x] = m * inv;
-        if (kCurvature) curv[x] = k * inv;
-        if (kPosition) {
-          for (int a = 0; a < 3; ++a) {
-            position[3 * x + a] =
-                used > 0 ? std::clamp((p[a] * inv - box.min[a]) * inv_extent[a] + flat[a], 0.0f, 1.0f) : 0.0f;
+          h += hit_distance[s];
+          if (kPosition || kCurvature) {
+            const std::uint32_t* c = &indices[3 * static_cast<std::size_t>(hit)];
+            const glm::vec2 b = hit_bary[s];
+            const float w = 1.0f - b.x - b.y;
+            if (kPosition) {
+              // Four floats from each corner: the fourth is the next
+              // vertex's x (or pad_for_embree()'s spare one), never used.
+              const auto corner = [&](std::uint32_t v) {
+                detail::f4 q;
+                std::memcpy(&q, &positions[v], sizeof(q));
+                return q;
+              };
+              p += corner(c[0]) * detail::splat4(w) + corner(c[1]) * detail::splat4(b.x) +
+                   corner(c[2]) * detail::splat4(b.y);
+            }
+            if (kCurvature)
+              k += vertex_curvature[c[0]] * w + vertex_curvature[c[1]] * b.x + vertex_curvature[c[2]] * b.y;
           }
         }
       }
+      // A covered texel has at least one sample in a chart (raster.hpp);
+      // uncovered texels hold 0 (position: the box's corner).
+      const float inv = used > 0 ? 1.0f / static_cast<float>(used) : 0.0f;
+      if (height) height[x] = h * inv;
+      if (miss) miss[x] = m * inv;
+      if (kCurvature) curv[x] = k * inv;
+      if (kPosition) {
+        for (int a = 0; a < 3; ++a) {
+          position[3 * x + a] =
+              used > 0 ? std::clamp((p[a] * inv - box.min[a]) * inv_extent[a] + flat[a], 0.0f, 1.0f) : 0.0f;
+        }
+      }
     }
-  });
+  }
 }
 
 struct OcclusionModule final : MapSet::Module {
@@ -424,11 +425,13 @@ struct IdModule final : MapSet::Module {
 
 }  // namespace
 
-void encode_hit_values(const BandInputs& in, const MapSettings& settings, const HitValueImages& out) {
-  if (out.position && out.curvature) return hit_values<true, true>(in, settings, out);
-  if (out.position) return hit_values<true, false>(in, settings, out);
-  if (out.curvature) return hit_values<false, true>(in, settings, out);
-  hit_values<false, false>(in, settings, out);
+void encode_hit_values(const BandInputs& in, const MapSettings& settings, const HitValueImages& out,
+                       int row_begin, int row_end) {
+  NMBAKE_CHECK(0 <= row_begin && row_begin <= row_end && row_end <= in.samples.height, "rows of the band");
+  if (out.position && out.curvature) return hit_values<true, true>(in, settings, out, row_begin, row_end);
+  if (out.position) return hit_values<true, false>(in, settings, out, row_begin, row_end);
+  if (out.curvature) return hit_values<false, true>(in, settings, out, row_begin, row_end);
+  hit_values<false, false>(in, settings, out, row_begin, row_end);
 }
 
 std::unique_ptr<MapSet::Module> make_value_module(MapKind map, const MapSettings& settings) {
