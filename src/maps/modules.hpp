@@ -35,8 +35,8 @@ struct MapSet::Module {
   virtual ~Module() = default;
   virtual void encode_band(const BandInputs& in, const MapSettings& settings, EncodeStats& normal_stats) = 0;
   // Read straight from the hits (height, position, curvature, miss): such
-  // maps are encoded together by encode_hit_values(), one pass over the
-  // band for all of them (their encode_band() does nothing).
+  // maps are encoded together by encode_hit_values(), one pass over each
+  // block of rows for all of them (their encode_band() does nothing).
   virtual bool from_hit_values() const { return false; }
   // A map encoded a block of rows at a time (its encode_band() does
   // nothing): MapSet::encode_band() runs these and the hit values over each
