@@ -560,8 +560,11 @@ void encode_impl(const LowSurface& surface, const TexelSamples& samples, const M
   const std::size_t row_samples = static_cast<std::size_t>(width) * spp;
 
   const auto encode_rows_of = [&](const tbb::blocked_range<int>& rows) {
-    // Per sample of a row: its contribution, and whether it lies in a chart.
-    std::vector<glm::vec3> contribution(row_samples);
+    // Per sample of a row: its contribution, and whether it lies in a chart
+    // (neither filled first: every sample's used[] is set, and its
+    // contribution wherever used[] is true; the map set calls this for
+    // every block of two rows).
+    std::unique_ptr<glm::vec3[]> contribution(new glm::vec3[row_samples]);
     std::unique_ptr<bool[]> used(new bool[row_samples]);
     for (int y = rows.begin(); y != rows.end(); ++y) {
       Counts& counts = row_counts[y - first_row];
