@@ -19,10 +19,10 @@
 #include <vector>
 
 #include "test_util.hpp"
-#include "deflate_huffman.hpp"
-#include "image_exr.hpp"
-#include "image_png.hpp"
-#include "quantise.hpp"
+#include "image/deflate_huffman.hpp"
+#include "image/exr.hpp"
+#include "image/png.hpp"
+#include "image/quantise.hpp"
 
 #include <zlib.h>
 // Imath's half is the reference for ours; its computed conversions, so

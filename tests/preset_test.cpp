@@ -4,7 +4,7 @@
 // report and the key.
 //
 // The decodes below are written here from each engine's description
-// (README, "Outputs as engines want them"), not taken from src/encode.cpp,
+// (README, "Outputs as engines want them"), not taken from src/maps/encode.cpp,
 // so a wrong inverse there cannot agree with itself.
 #include "nmbake/preset.hpp"
 

@@ -2,7 +2,7 @@
 // half/float EXR (our own encoders), 16-bit TIFF and 8-bit TGA (OpenImageIO), written to a
 // temporary file in the target's folder and renamed, so a failed bake never
 // leaves a half-written map. OpenImageIO is a module loaded on first use
-// (src/image_oiio.hpp); its types never leave it.
+// (src/image/oiio.hpp); its types never leave it.
 #pragma once
 
 #include <cstdint>

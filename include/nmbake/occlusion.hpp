@@ -3,7 +3,7 @@
 // The trace stage found, per sample, the high triangle and barycentrics of
 // its hit (Hits); these passes start new rays there, band by band, in 16-wide
 // packets, over the same 16 x 16 texel tiles as trace() and in its texel
-// order. The implementation (src/trace_occlusion.cpp) shares the Embree
+// order. The implementation (src/trace/occlusion.cpp) shares the Embree
 // scene of HighScene; Embree's types stay there.
 //
 // At a hit: P = the barycentric point of the high triangle, N_s = its

@@ -45,7 +45,7 @@ struct TangentStats {
 // collinear positions (the reference still groups those).
 void compute_tangents(const Mesh& mesh, std::vector<glm::vec4>& corner_tangents, TangentStats& stats);
 
-// Tangent bases other than MikkTSpace, for the accuracy lab (src/tangents_alt.cpp):
+// Tangent bases other than MikkTSpace, for the accuracy lab (src/mesh/tangents_alt.cpp):
 // what a baker that does not follow the renderer's basis stores. A renderer
 // decodes with MikkTSpace, so a map baked in another basis is wrong by the
 // angle between the two frames.

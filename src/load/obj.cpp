@@ -45,7 +45,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
-#include "huge_pages.hpp"
+#include "base/huge_pages.hpp"
 #include "load/parsers.hpp"
 
 namespace nmbake::load_detail {

@@ -25,7 +25,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
 
-#include "huge_pages.hpp"
+#include "base/huge_pages.hpp"
 #include "load/parsers.hpp"
 
 namespace nmbake::load_detail {

@@ -20,9 +20,9 @@
 #include <cstdint>
 #include <glm/geometric.hpp>
 
-#include "huge_pages.hpp"
+#include "base/huge_pages.hpp"
 #include "nmbake/maps.hpp"
-#include "simd4.hpp"
+#include "base/simd4.hpp"
 
 namespace nmbake {
 

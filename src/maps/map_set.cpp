@@ -7,8 +7,8 @@
 
 #include <tbb/parallel_for.h>
 
-#include "huge_pages.hpp"
-#include "modules.hpp"
+#include "base/huge_pages.hpp"
+#include "maps/modules.hpp"
 
 namespace nmbake {
 

@@ -7,7 +7,7 @@
 
 #include <glm/geometric.hpp>
 
-#include "modules.hpp"
+#include "maps/modules.hpp"
 
 namespace nmbake {
 

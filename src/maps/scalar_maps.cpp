@@ -9,8 +9,8 @@
 #include <glm/geometric.hpp>
 #include <tbb/parallel_reduce.h>
 
-#include "modules.hpp"
-#include "simd4.hpp"
+#include "maps/modules.hpp"
+#include "base/simd4.hpp"
 
 namespace nmbake {
 

@@ -17,7 +17,7 @@
 //
 // The header carries only the required attributes, so the same map gives
 // the same bytes.
-#include "image_exr.hpp"
+#include "image/exr.hpp"
 
 #include <libdeflate.h>
 
@@ -27,8 +27,8 @@
 #include <cstring>
 #include <memory>
 
-#include "deflate_huffman.hpp"
-#include "stream_file.hpp"
+#include "image/deflate_huffman.hpp"
+#include "image/stream_file.hpp"
 
 namespace nmbake::image_detail {
 

@@ -11,7 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "strings.hpp"
+#include "base/strings.hpp"
 
 #include "nmbake/cleanup.hpp"
 #include "nmbake/task.hpp"

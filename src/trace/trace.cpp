@@ -24,9 +24,9 @@
 #include <glm/vector_relational.hpp>
 #include <tbb/parallel_for.h>
 
-#include "huge_pages.hpp"
-#include "simd4.hpp"
-#include "trace_scene.hpp"
+#include "base/huge_pages.hpp"
+#include "base/simd4.hpp"
+#include "trace/scene.hpp"
 
 namespace nmbake {
 

@@ -3,7 +3,7 @@
 // symbol (literals 0-255 and end-of-block 256; one unused distance code),
 // the code lengths run-length coded with symbols 16/17/18 and themselves
 // Huffman coded (at most 7 bits), then the bytes.
-#include "deflate_huffman.hpp"
+#include "image/deflate_huffman.hpp"
 
 #include <algorithm>
 #include <array>

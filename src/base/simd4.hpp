@@ -15,7 +15,7 @@
 #include <glm/vec3.hpp>
 #include <glm/vec4.hpp>
 
-#include "shuffle_compat.hpp"
+#include "base/shuffle_compat.hpp"
 
 static_assert(sizeof(glm::vec3) == 3 * sizeof(float), "glm::vec3 is three packed floats");
 

@@ -21,7 +21,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
-#include "simd4.hpp"
+#include "base/simd4.hpp"
 
 namespace nmbake {
 

@@ -5,7 +5,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "map_report_json.hpp"
+#include "bake/map_report_json.hpp"
 #include "nmbake/bake.hpp"
 #include "nmbake/preset.hpp"
 

@@ -13,7 +13,7 @@
 #include <numeric>
 
 #include "nmbake/preview.hpp"
-#include "preview_draw.hpp"
+#include "inspect/preview_draw.hpp"
 
 namespace nmbake {
 

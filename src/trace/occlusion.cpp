@@ -22,7 +22,7 @@
 #include <glm/geometric.hpp>
 #include <tbb/parallel_for.h>
 
-#include "trace_scene.hpp"
+#include "trace/scene.hpp"
 
 namespace nmbake {
 

@@ -10,8 +10,8 @@
 //    the EXR attribute is empty, so files are byte-identical run to run;
 //  * integer quantisation is ours (quantise.hpp, shared with PNG); OIIO gets
 //    data already in the file's type and converts nothing.
-#include "image_oiio.hpp"
-#include "quantise.hpp"
+#include "image/oiio.hpp"
+#include "image/quantise.hpp"
 
 #include <OpenImageIO/imageio.h>
 

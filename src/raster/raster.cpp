@@ -24,8 +24,8 @@
 // precision: at 16384^2 a float keeps only ~1/1000 texel.
 #include "nmbake/raster.hpp"
 
-#include "huge_pages.hpp"
-#include "shuffle_compat.hpp"
+#include "base/huge_pages.hpp"
+#include "base/shuffle_compat.hpp"
 
 #include <algorithm>
 #include <bit>

@@ -27,7 +27,7 @@
 // Checksums: libdeflate's Adler-32 and CRC-32 (SIMD; zlib's were 10% of
 // the write; BENCHMARKS.md, "The map set"); zlib's adler32_combine joins the
 // groups' Adler-32s (libdeflate has none).
-#include "image_png.hpp"
+#include "image/png.hpp"
 
 #include <libdeflate.h>
 #include <zlib.h>
@@ -39,10 +39,10 @@
 #include <cstring>
 #include <memory>
 
-#include "deflate_huffman.hpp"
-#include "quantise.hpp"
-#include "simd4.hpp"
-#include "stream_file.hpp"
+#include "image/deflate_huffman.hpp"
+#include "image/quantise.hpp"
+#include "base/simd4.hpp"
+#include "image/stream_file.hpp"
 
 namespace nmbake::image_detail {
 

@@ -41,7 +41,7 @@
 #include <tbb/parallel_for.h>
 #include <xxhash.h>
 
-#include "map_report_json.hpp"
+#include "bake/map_report_json.hpp"
 #include "nmbake/cleanup.hpp"
 #include "nmbake/preset.hpp"
 #include "nmbake/udim.hpp"

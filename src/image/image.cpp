@@ -8,9 +8,9 @@
 // compression, half or float samples.
 #include "nmbake/image.hpp"
 
-#include "image_oiio.hpp"
-#include "image_exr.hpp"
-#include "image_png.hpp"
+#include "image/oiio.hpp"
+#include "image/exr.hpp"
+#include "image/png.hpp"
 #include "nmbake/budget.hpp"
 #include "nmbake/cleanup.hpp"
 

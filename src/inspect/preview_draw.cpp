@@ -2,7 +2,7 @@
 // synthesized pictures", 1977, as used by the classic normal-mapping
 // articles), Embree 3 primary rays, a 5x7 bitmap font and a heat ramp for the
 // 3D views of preview.hpp.
-#include "preview_draw.hpp"
+#include "inspect/preview_draw.hpp"
 
 #include <embree3/rtcore.h>
 #include <tbb/parallel_for.h>

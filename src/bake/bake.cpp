@@ -3,7 +3,7 @@
 // this file only wires them, times them and collects their counters.
 #include "nmbake/bake.hpp"
 
-#include "huge_pages.hpp"
+#include "base/huge_pages.hpp"
 #include "nmbake/budget.hpp"
 #include "nmbake/maps.hpp"
 #include "nmbake/job.hpp"
