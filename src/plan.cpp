@@ -160,7 +160,8 @@ Status plan_jobs(const std::vector<BakeJob>& jobs, const PlanOptions& options, s
   std::vector<PlanTask> merges;
   for (const BakeJob& job : jobs) {
     if (!names.insert(job.name).second) {
-      return Status::bad_input(concat(options.job_file, ": two bakes are named '", job.name,
+      return Status::bad_input(concat(printable_text(options.job_file), ": two bakes are named '",
+                                      printable_text(job.name),
                                       "': a plan runs each by name (--only), so names must differ"));
     }
     BakeKey key;

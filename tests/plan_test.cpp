@@ -317,6 +317,21 @@ TEST(PlanQuoting, InexpressibleNamesAndPathsAreRefusedBeforeWriting) {
   }
 }
 
+// A name is job file content: its terminal controls are escaped in messages.
+TEST(PlanQuoting, NamesInMessagesAreEscaped) {
+  test::TempDir dir;
+  write_meshes(dir);
+  const std::string name = "\x1b]0;title\x07\x1b[31mred";
+  test::write_text(dir.file("job.toml"), bake_entry(name, "a.png", 32) + bake_entry(name, "b.png", 32));
+  const test::CommandResult r = test::run_command("cd " + dir.path().string() + " && " + test::cli_path() +
+                                                  " plan job.toml --json p.json 2>&1");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("two bakes are named '\\x1b]0;title\\x07\\x1b[31mred'"), std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find('\x1b'), std::string::npos) << printable_text(r.output);
+  EXPECT_FALSE(fs::exists(dir.file("p.json")));
+}
+
 // Refusals are per format: an untiled bake's output path is not in its
 // command, so a line feed in it suits the Slurm lists (the bake reads it
 // from the job file) but not a Ninja file.
