@@ -44,13 +44,37 @@ struct PlanTask {
 };
 
 // The tasks of `jobs` (from load_job_file(options.job_file)), bakes before
-// merges. bad_input when two bakes share a name (--only needs names) or an
-// input cannot be hashed.
+// merges. bad_input, naming the job file, when two bakes share a name
+// (--only needs names), an input cannot be hashed, a name or path holds a NUL
+// byte (no argv carries one), two tasks write one file (the maps of one
+// would be the other's; Ninja refuses it), or a task writes a file that a
+// bake reads (a cycle).
 Status plan_jobs(const std::vector<BakeJob>& jobs, const PlanOptions& options, std::vector<PlanTask>& tasks);
 
-Status write_ninja_plan(const std::vector<PlanTask>& tasks, const std::string& path);
-Status write_slurm_plan(const std::vector<PlanTask>& tasks, const std::string& folder);
-Status write_json_plan(const std::vector<PlanTask>& tasks, const std::string& path);
+// Whether every name, path and command word of `tasks` can be written in
+// that format (RELIABILITY.md, "Plans: what quoting guarantees"); bad_input
+// naming `job_file`, the bake, the text and the byte otherwise. A writer
+// refuses what its check refuses before it writes anything; a caller writing
+// several formats checks them all first, so that a refusal writes nothing.
+//   * Ninja: no line feed or carriage return anywhere (its lexer ends a path
+//     or a value there; `$` + newline continues a line, it adds no newline);
+//   * Slurm: no line feed or carriage return in a command word (the task
+//     lists hold one command a line; a second line would be a second command
+//     for the next array task), nor in `folder`, which also may not hold a
+//     backslash (sbatch drops it from --output and turns off its patterns);
+//   * JSON: valid UTF-8 (a JSON string cannot hold other bytes).
+Status check_ninja_plan(const std::vector<PlanTask>& tasks, const std::string& job_file);
+Status check_slurm_plan(const std::vector<PlanTask>& tasks, const std::string& job_file,
+                        const std::string& folder);
+Status check_json_plan(const std::vector<PlanTask>& tasks, const std::string& job_file);
+
+// `job_file` only names the plan's source in refusals.
+Status write_ninja_plan(const std::vector<PlanTask>& tasks, const std::string& job_file,
+                        const std::string& path);
+Status write_slurm_plan(const std::vector<PlanTask>& tasks, const std::string& job_file,
+                        const std::string& folder);
+Status write_json_plan(const std::vector<PlanTask>& tasks, const std::string& job_file,
+                       const std::string& path);
 
 // A command line for a POSIX shell: each word single-quoted when it needs it.
 std::string shell_command(const std::vector<std::string>& argv);

@@ -46,14 +46,26 @@ int run_plan(const PlanFlags& f, const GlobalOptions& global) {
   if (!cache.empty()) options.cache_dir = std::filesystem::absolute(cache).lexically_normal().string();
   std::vector<PlanTask> tasks;
   if (const Status s = plan_jobs(jobs, options, tasks); !s) return fail(s);
+  // Every format asked for is checked before the first is written: a refusal
+  // leaves nothing behind.
+  const std::string& job = options.job_file;
   if (!f.ninja.empty()) {
-    if (const Status s = write_ninja_plan(tasks, f.ninja); !s) return fail(s);
+    if (const Status s = check_ninja_plan(tasks, job); !s) return fail(s);
   }
   if (!f.slurm.empty()) {
-    if (const Status s = write_slurm_plan(tasks, f.slurm); !s) return fail(s);
+    if (const Status s = check_slurm_plan(tasks, job, f.slurm); !s) return fail(s);
   }
   if (!f.json.empty()) {
-    if (const Status s = write_json_plan(tasks, f.json); !s) return fail(s);
+    if (const Status s = check_json_plan(tasks, job); !s) return fail(s);
+  }
+  if (!f.ninja.empty()) {
+    if (const Status s = write_ninja_plan(tasks, job, f.ninja); !s) return fail(s);
+  }
+  if (!f.slurm.empty()) {
+    if (const Status s = write_slurm_plan(tasks, job, f.slurm); !s) return fail(s);
+  }
+  if (!f.json.empty()) {
+    if (const Status s = write_json_plan(tasks, job, f.json); !s) return fail(s);
   }
   if (!global.quiet) {
     int tiles = 0, merges = 0;

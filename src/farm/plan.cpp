@@ -5,7 +5,9 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <set>
+#include <string_view>
 
 #include <sys/stat.h>
 
@@ -68,6 +70,88 @@ Status bake_outputs(const BakeJob& job, std::vector<std::string>& outputs) {
   return Status::ok();
 }
 
+// "bake 'NAME'" for messages (the name comes from the job file).
+std::string bake_label(const PlanTask& t) { return concat("bake '", printable_text(t.name), "'"); }
+
+// What a byte that a format cannot carry is called in a refusal.
+const char* byte_name(char c) {
+  switch (c) {
+    case '\0':
+      return "a NUL byte";
+    case '\n':
+      return "a line feed";
+    case '\r':
+      return "a carriage return";
+    case '\\':
+      return "a backslash";
+    default:
+      return "a byte";
+  }
+}
+
+// Every text of a task that reaches a plan file, with what to call it in a
+// refusal: its name first, then its files, then the other command words
+// (the job file, the nmbake program, the cache folder).
+template <typename Visit>
+Status for_each_text(const PlanTask& t, Visit visit) {
+  NMBAKE_TRY(visit(t.name, "its name"));
+  for (const std::string& o : t.outputs) NMBAKE_TRY(visit(o, "the output"));
+  for (const std::string& i : t.inputs) NMBAKE_TRY(visit(i, "the input"));
+  for (const std::string& w : t.command) NMBAKE_TRY(visit(w, "the command word"));
+  return Status::ok();
+}
+
+// bad_input when a text of a task holds one of `bytes`, which `format` cannot carry.
+Status refuse_bytes(const std::vector<PlanTask>& tasks, const std::string& job_file, std::string_view bytes,
+                    const char* format) {
+  for (const PlanTask& t : tasks) {
+    NMBAKE_TRY(for_each_text(t, [&](const std::string& text, const char* what) {
+      const std::size_t at = text.find_first_of(bytes);
+      if (at == std::string::npos) return Status::ok();
+      const std::string quoted =
+          std::string(what) == "its name" ? "" : concat(" '", printable_text(text), "'");
+      return Status::bad_input(concat(printable_text(job_file), ": ", bake_label(t), ": ", what, quoted,
+                                      " holds ", byte_name(text[at]), ", which ", format, " cannot carry"));
+    }));
+  }
+  return Status::ok();
+}
+
+// A plan whose tasks can run at all: no NUL byte (no argv carries one: the
+// name after --only would be cut), every file written by one task only (two
+// bakes of one output overwrite each other's maps, and Ninja refuses the
+// file), and nothing a bake reads written by a task (a cycle; merges read the
+// tile files their tiles write, by design).
+Status check_plan_files(const std::vector<PlanTask>& tasks, const std::string& job_file) {
+  NMBAKE_TRY(refuse_bytes(tasks, job_file, std::string_view("\0", 1), "a command line"));
+  std::map<std::string, const PlanTask*> writers;
+  for (const PlanTask& t : tasks) {
+    for (const std::string& o : t.outputs) {
+      const auto [it, fresh] = writers.emplace(o, &t);
+      if (fresh) continue;
+      const std::string file = printable_text(o);
+      if (it->second->name == t.name) {
+        return Status::bad_input(
+            concat(printable_text(job_file), ": ", bake_label(t), " writes ", file, " twice"));
+      }
+      return Status::bad_input(concat(printable_text(job_file), ": bakes '", printable_text(it->second->name),
+                                      "' and '", printable_text(t.name), "' both write ", file,
+                                      ": each output must come from one bake"));
+    }
+  }
+  for (const PlanTask& t : tasks) {
+    if (t.kind == "merge") continue;
+    for (const std::string& i : t.inputs) {
+      const auto it = writers.find(i);
+      if (it == writers.end()) continue;
+      const std::string reader = it->second->name == t.name ? "it" : bake_label(t);
+      return Status::bad_input(concat(printable_text(job_file), ": ", bake_label(*it->second), " writes ",
+                                      printable_text(i), ", which ", reader, " reads"));
+    }
+  }
+  return Status::ok();
+}
+
 }  // namespace
 
 Status plan_jobs(const std::vector<BakeJob>& jobs, const PlanOptions& options, std::vector<PlanTask>& tasks) {
@@ -76,7 +160,8 @@ Status plan_jobs(const std::vector<BakeJob>& jobs, const PlanOptions& options, s
   std::vector<PlanTask> merges;
   for (const BakeJob& job : jobs) {
     if (!names.insert(job.name).second) {
-      return Status::bad_input(concat(options.job_file, ": two bakes are named '", job.name,
+      return Status::bad_input(concat(printable_text(options.job_file), ": two bakes are named '",
+                                      printable_text(job.name),
                                       "': a plan runs each by name (--only), so names must differ"));
     }
     BakeKey key;
@@ -147,28 +232,62 @@ Status plan_jobs(const std::vector<BakeJob>& jobs, const PlanOptions& options, s
     merges.push_back(std::move(merge));
   }
   for (PlanTask& m : merges) tasks.push_back(std::move(m));
-  return Status::ok();
+  return check_plan_files(tasks, options.job_file);
 }
 
 namespace {
 
-// Ninja paths: '$', ' ', ':' and newlines are escaped with '$'.
+// Ninja's lexer ends a path at ' ', ':', '|', a newline or '$', and has
+// escapes for '$ ', '$:' and '$$' only. '|' (which starts implicit outputs or
+// order-only inputs even inside a word) is written as a variable, which a path
+// may reference and whose value takes any byte but newlines. Newlines cannot
+// be written at all ('$' + newline continues the line): check_ninja_plan
+// refuses them before this runs.
 std::string ninja_path(const std::string& path) {
   std::string out;
   for (const char c : path) {
+    NMBAKE_CHECK(c != '\n' && c != '\r', "line breaks are refused by check_ninja_plan");
+    if (c == '|') {
+      out += "${nmbake_pipe}";
+      continue;
+    }
     if (c == '$' || c == ' ' || c == ':') out += '$';
-    if (c == '\n') return out + "$\n";  // never in our paths; kept valid anyway
     out += c;
   }
   return out;
 }
 
-// A variable's value: only '$' is special (and newlines).
+// A variable's value: only '$' is special (and newlines, refused as above).
 std::string ninja_value(const std::string& text) {
   std::string out;
   for (const char c : text) {
+    NMBAKE_CHECK(c != '\n' && c != '\r', "line breaks are refused by check_ninja_plan");
     if (c == '$') out += '$';
-    out += c == '\n' ? ' ' : c;
+    out += c;
+  }
+  return out;
+}
+
+// sbatch reads an #SBATCH line as words: quotes group, a backslash escapes
+// the next byte (and is dropped), an unquoted '#' starts a comment. The
+// --output value is a pattern in which '%' starts a replacement ('%%' is
+// one '%') and any backslash turns every replacement off (so %A_%a would
+// name one log for every array task): check_slurm_plan refuses backslashes.
+std::string sbatch_output_value(const std::string& pattern) {
+  std::string out = "\"";
+  for (const char c : pattern) {
+    if (c == '"') out += '\\';
+    out += c;
+  }
+  return out + '"';
+}
+
+// '%' in a folder name, escaped for an --output pattern.
+std::string sbatch_pattern_text(const std::string& text) {
+  std::string out;
+  for (const char c : text) {
+    if (c == '%') out += '%';
+    out += c;
   }
   return out;
 }
@@ -179,12 +298,68 @@ Status write_file(const std::string& path, const std::string& text, bool executa
 
 }  // namespace
 
-Status write_ninja_plan(const std::vector<PlanTask>& tasks, const std::string& path) {
+Status check_ninja_plan(const std::vector<PlanTask>& tasks, const std::string& job_file) {
+  return refuse_bytes(tasks, job_file, "\n\r", "a Ninja file");
+}
+
+Status check_slurm_plan(const std::vector<PlanTask>& tasks, const std::string& job_file,
+                        const std::string& folder) {
+  // A carriage return is a line break to many text tools (and to bash in a
+  // file edited on Windows): refused with the line feed, so that one line is
+  // always one task whatever reads the list.
+  for (const PlanTask& t : tasks) {
+    for (const std::string& word : t.command) {
+      const std::size_t at = word.find_first_of("\n\r");
+      if (at == std::string::npos) continue;
+      const std::string what =
+          word == t.name ? "its name" : concat("the command word '", printable_text(word), "'");
+      return Status::bad_input(concat(printable_text(job_file), ": ", bake_label(t), ": ", what, " holds ",
+                                      byte_name(word[at]),
+                                      ", which a Slurm task list (one command a line) cannot carry"));
+    }
+  }
+  const std::string dir = absolute(folder);
+  if (const std::size_t at = dir.find_first_of("\n\r\\"); at != std::string::npos) {
+    return Status::bad_input(
+        concat(printable_text(dir), ": a Slurm plan folder cannot hold ", byte_name(dir[at]),
+               dir[at] == '\\' ? " (sbatch drops it from #SBATCH --output and turns off the log's %A_%a)"
+                               : " (an #SBATCH line ends there)"));
+  }
+  return Status::ok();
+}
+
+Status check_json_plan(const std::vector<PlanTask>& tasks, const std::string& job_file) {
+  // The writer's own test: nlohmann's dump() throws on a byte that is not
+  // UTF-8 (a job file's path is any bytes; that was an internal error).
+  const auto json_string = [](const std::string& text) {
+    try {
+      (void)nlohmann::json(text).dump();
+      return true;
+    } catch (const nlohmann::json::type_error&) {
+      return false;
+    }
+  };
+  for (const PlanTask& t : tasks) {
+    NMBAKE_TRY(for_each_text(t, [&](const std::string& text, const char* what) {
+      if (json_string(text)) return Status::ok();
+      const std::string quoted =
+          std::string(what) == "its name" ? "" : concat(" '", printable_text(text), "'");
+      return Status::bad_input(concat(printable_text(job_file), ": ", bake_label(t), ": ", what, quoted,
+                                      " is not valid UTF-8, which a JSON string cannot carry"));
+    }));
+  }
+  return Status::ok();
+}
+
+Status write_ninja_plan(const std::vector<PlanTask>& tasks, const std::string& job_file,
+                        const std::string& path) {
+  NMBAKE_TRY(check_ninja_plan(tasks, job_file));
   std::string text =
       "# Written by nmbake plan: one build statement per bake, tile and merge.\n"
       "# `ninja -f FILE` bakes what is out of date; restat: a task whose outputs\n"
       "# do not change does not make its dependents run.\n"
       "ninja_required_version = 1.3\n\n"
+      "nmbake_pipe = |\n\n"
       "rule nmbake\n  command = $cmd\n  description = $desc\n  restat = 1\n\n";
   for (const PlanTask& t : tasks) {
     text += "build";
@@ -198,7 +373,9 @@ Status write_ninja_plan(const std::vector<PlanTask>& tasks, const std::string& p
   return write_file(path, text);
 }
 
-Status write_slurm_plan(const std::vector<PlanTask>& tasks, const std::string& folder) {
+Status write_slurm_plan(const std::vector<PlanTask>& tasks, const std::string& job_file,
+                        const std::string& folder) {
+  NMBAKE_TRY(check_slurm_plan(tasks, job_file, folder));
   std::error_code ec;
   fs::create_directories(fs::path(folder) / "logs", ec);
   if (ec) return Status::io(folder + ": cannot create the plan folder: " + ec.message());
@@ -217,11 +394,14 @@ Status write_slurm_plan(const std::vector<PlanTask>& tasks, const std::string& f
   NMBAKE_TRY(write_file(dir + "/tasks.txt", bakes));
   NMBAKE_TRY(write_file(dir + "/merges.txt", merges));
   const auto array_script = [&](const char* name, const char* list, int count) {
-    return std::string("#!/bin/bash\n") + "# Written by nmbake plan: array task K runs line K + 1 of " + list + ".\n" +
-           "#SBATCH --job-name=nmbake-" + name + "\n" + "#SBATCH --array=0-" + std::to_string(std::max(0, count - 1)) +
-           "\n" + "#SBATCH --output=" + dir + "/logs/" + name + "-%A_%a.log\n" + "set -euo pipefail\n" +
-           "line=$(sed -n \"$((SLURM_ARRAY_TASK_ID + 1))p\" " + shell_command({dir + "/" + list}) + ")\n" +
-           "echo \"nmbake task $SLURM_ARRAY_JOB_ID.$SLURM_ARRAY_TASK_ID: $line\"\n" + "exec bash -c \"$line\"\n";
+    return std::string("#!/bin/bash\n") + "# Written by nmbake plan: array task K runs line K + 1 of " +
+           list + ".\n" + "#SBATCH --job-name=nmbake-" + name + "\n" + "#SBATCH --array=0-" +
+           std::to_string(std::max(0, count - 1)) + "\n" + "#SBATCH --output=" +
+           sbatch_output_value(sbatch_pattern_text(dir) + "/logs/" + name + "-%A_%a.log") + "\n" +
+           "set -euo pipefail\n" + "line=$(sed -n \"$((SLURM_ARRAY_TASK_ID + 1))p\" " +
+           shell_command({dir + "/" + list}) + ")\n" +
+           "echo \"nmbake task $SLURM_ARRAY_JOB_ID.$SLURM_ARRAY_TASK_ID: $line\"\n" +
+           "exec bash -c \"$line\"\n";
   };
   NMBAKE_TRY(write_file(dir + "/bake.sbatch", array_script("bake", "tasks.txt", bake_count), true));
   NMBAKE_TRY(write_file(dir + "/merge.sbatch", array_script("merge", "merges.txt", merge_count), true));
@@ -247,7 +427,9 @@ Status write_slurm_plan(const std::vector<PlanTask>& tasks, const std::string& f
   return write_file(dir + "/submit.sh", submit, true);
 }
 
-Status write_json_plan(const std::vector<PlanTask>& tasks, const std::string& path) {
+Status write_json_plan(const std::vector<PlanTask>& tasks, const std::string& job_file,
+                       const std::string& path) {
+  NMBAKE_TRY(check_json_plan(tasks, job_file));
   nlohmann::ordered_json j;
   j["format"] = "nmbake-plan";
   j["version"] = 1;

@@ -39,7 +39,7 @@ low = "t/torus_low.obj"
 high = "t/torus_high.ply"
 outputs = ["out/torus.png", "out/torus.exr"]
 [[bake]]
-name = "object"
+name = "object it's \$(touch marker) \`touch marker\` a | b: c"
 low = "s/sphere_low.obj"
 high = "s/sphere_high.ply"
 space = "object"
@@ -68,12 +68,16 @@ mkdir -p "$work/out"
 mv "$work/out" "$work/ref"
 mkdir -p "$work/out"
 
-"$nmbake" plan "$work/job.toml" --tiles 4 --tiles-min-size 300 --slurm "$work/plan" --cache "$work/cache"
+# A plan folder with what sbatch's #SBATCH parser and --output pattern read
+# specially (a space, '#', '%', a quote), and a bake name with what the
+# array task's `bash -c` would run: the logs land where asked, nothing runs.
+plan="$work/plan dir #%x \"q\""
+"$nmbake" plan "$work/job.toml" --tiles 4 --tiles-min-size 300 --slurm "$plan" --cache "$work/cache"
 eval "$("$cluster" start "$slurm_dir")"
 echo "cluster up: $SLURM_CONF"
-if ! timeout 300 "$work/plan/submit.sh" --wait | tee "$work/submit.log"; then
+if ! timeout 300 "$plan/submit.sh" --wait | tee "$work/submit.log"; then
   echo "FAIL: submit.sh --wait failed"
-  for f in "$work"/plan/logs/*; do echo "== $f"; cat "$f"; done
+  for f in "$plan"/logs/*; do echo "== $f"; cat "$f"; done
   exit 1
 fi
 for id in $(grep -o 'job [0-9]*' "$work/submit.log" | cut -d' ' -f2); do
@@ -97,6 +101,14 @@ for f in sphere.png torus.png torus.exr object.png big.png big.exr "${maps[@]}";
 done
 ls "$work"/out/big.png.tile-*-of-4 "$work"/out/bigmaps_normal.png.tile-*-of-4 >/dev/null ||
   { echo "FAIL: no tile files"; status=1; }
+bake_id=$(grep -o 'bake array: job [0-9]*' "$work/submit.log" | cut -d' ' -f4)
+logs=$(find "$plan/logs" -name "bake-${bake_id}_*.log" | wc -l)
+echo "bake logs: $logs (one per array task)"
+[ "$logs" -eq 11 ] || { echo "FAIL: expected 11 bake logs in $plan/logs"; status=1; }
+if [ -n "$(find "$work" -name marker)" ]; then
+  echo "FAIL: a bake name ran as a command (marker file)"
+  status=1
+fi
 entries=$(find "$work/cache" -mindepth 1 -maxdepth 1 -type d | wc -l)
 echo "cache entries: $entries (3 whole bakes; tiles are not cached)"
 [ "$entries" -eq 3 ] || status=1
