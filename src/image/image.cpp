@@ -11,7 +11,7 @@
 #include "image/oiio.hpp"
 #include "image/exr.hpp"
 #include "image/png.hpp"
-#include "nmbake/budget.hpp"
+#include "nmbake/memory.hpp"
 #include "nmbake/cleanup.hpp"
 
 #include <dlfcn.h>

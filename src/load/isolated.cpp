@@ -18,7 +18,7 @@
 #include <type_traits>
 #include <vector>
 
-#include "nmbake/budget.hpp"
+#include "nmbake/memory.hpp"
 
 namespace nmbake::load_detail {
 namespace {

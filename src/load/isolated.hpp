@@ -6,7 +6,7 @@
 // and allocates whatever a count in a file says (an 8.6 KB .dae took 18.9 GB
 // and 110 s before failing), both found by tests/fuzz/fuzz_assimp. We cannot
 // fix the library, so it reads in a child (fork()), whose address space is
-// capped at the memory available (budget.hpp; not in sanitizer builds, whose
+// capped at the memory available (memory.hpp; not in sanitizer builds, whose
 // shadow memory needs terabytes of it), and sends the mesh back through a pipe.
 #pragma once
 
