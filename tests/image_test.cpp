@@ -143,14 +143,14 @@ const char* extension_of(PixelFormat format) {
 TEST(ImageFormat, NamesRoundTrip) {
   for (PixelFormat format : all_formats) {
     PixelFormat parsed = PixelFormat::png8;
-    ASSERT_TRUE(parse_pixel_format(to_string(format), parsed)) << to_string(format);
+    ASSERT_TRUE(parse_word(to_string(format), parsed)) << to_string(format);
     EXPECT_EQ(parsed, format);
   }
   EXPECT_STREQ(to_string(PixelFormat::exr_half), "exr-half");
   PixelFormat unused = PixelFormat::png8;
-  EXPECT_FALSE(parse_pixel_format("png", unused));
-  EXPECT_FALSE(parse_pixel_format("exr_half", unused));
-  EXPECT_FALSE(parse_pixel_format("", unused));
+  EXPECT_FALSE(parse_word("png", unused));
+  EXPECT_FALSE(parse_word("exr_half", unused));
+  EXPECT_FALSE(parse_word("", unused));
 }
 
 TEST(ImageFormat, FromPathAndExtensionMatch) {

@@ -598,8 +598,8 @@ TEST(TangentsAlt, LengyelAndFaceMatchTheUvGradientOnAPlaneAndFlipWhenMirrored) {
     for (const glm::vec4& v : t) EXPECT_NEAR(glm::distance(v, glm::vec4(-1, 0, 0, -1)), 0.0f, 1e-6f) << to_string(basis);
   }
   TangentBasis parsed;
-  EXPECT_TRUE(parse_tangent_basis("lengyel", parsed) && parsed == TangentBasis::lengyel);
-  EXPECT_FALSE(parse_tangent_basis("mikk", parsed));
+  EXPECT_TRUE(parse_word("lengyel", parsed) && parsed == TangentBasis::lengyel);
+  EXPECT_FALSE(parse_word("mikk", parsed));
 }
 
 }  // namespace

@@ -79,7 +79,7 @@ struct BakeOptions {
   float edge_band = kDefaultEdgeBand;     // the banded cage's band, in units of front + back
   // Misses traced again out and in up to the distance probes' reach
   // (trace.hpp): `automatic` = when neither distance nor a cage is given.
-  enum class Retry : std::uint8_t { automatic, on, off };
+  using Retry = RetryMisses;
   Retry retry_misses = Retry::automatic;
   bool ignore_backfaces = false;
   HighNormals high_normals = HighNormals::smooth;

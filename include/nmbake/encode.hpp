@@ -34,14 +34,46 @@
 #include "nmbake/raster.hpp"
 #include "nmbake/surface.hpp"
 #include "nmbake/trace.hpp"
+#include "nmbake/words.hpp"
 
 namespace nmbake {
 
 enum class NormalSpace : std::uint8_t { tangent, object };
+inline constexpr Word<NormalSpace> kNormalSpaceWords[] = {
+    {"tangent", NormalSpace::tangent, "in the low mesh's MikkTSpace frame"},
+    {"object", NormalSpace::object, "in the mesh's own axes"},
+};
+NMBAKE_WORDS(NormalSpace, kNormalSpaceWords)
+
 enum class GreenChannel : std::uint8_t { up, down };
+inline constexpr Word<GreenChannel> kGreenChannelWords[] = {
+    {"up", GreenChannel::up, "OpenGL: Blender, Unity, glTF, Maya"},
+    {"down", GreenChannel::down, "DirectX: Unreal, 3ds Max"},
+    {"opengl", GreenChannel::up, "", WordUse::alias},
+    {"directx", GreenChannel::down, "", WordUse::alias},
+};
+NMBAKE_WORDS(GreenChannel, kGreenChannelWords)
+
 enum class HighNormals : std::uint8_t { smooth, face };
+inline constexpr Word<HighNormals> kHighNormalsWords[] = {
+    {"smooth", HighNormals::smooth, "interpolated vertex normals"},
+    {"face", HighNormals::face, "the hit triangle's own normal"},
+};
+NMBAKE_WORDS(HighNormals, kHighNormalsWords)
+
 enum class TangentEncode : std::uint8_t { inverse, transpose };  // transpose: for the method comparison only
+inline constexpr Word<TangentEncode> kTangentEncodeWords[] = {
+    {"inverse", TangentEncode::inverse, "the exact inverse of the decode"},
+    {"transpose", TangentEncode::transpose, "dot products (for comparison only)"},
+};
+NMBAKE_WORDS(TangentEncode, kTangentEncodeWords)
+
 enum class Bitangent : std::uint8_t { pixel, vertex };
+inline constexpr Word<Bitangent> kBitangentWords[] = {
+    {"pixel", Bitangent::pixel, "sign * cross(N, T) from the interpolated N, T"},
+    {"vertex", Bitangent::vertex, "per vertex, interpolated"},
+};
+NMBAKE_WORDS(Bitangent, kBitangentWords)
 
 // How the renderer a map is baked for decodes it (see the top of this file).
 // The default is MikkTSpace's per-pixel decode, what nmbake always baked.
@@ -52,8 +84,16 @@ struct NormalDecode {
   bool is_default() const { return bitangent == Bitangent::pixel && !unit_frame && !rebuild_blue; }
   bool operator==(const NormalDecode&) const = default;
 };
-const char* to_string(Bitangent bitangent);
-bool parse_bitangent(const std::string& text, Bitangent& out);  // "pixel", "vertex"
+// The words of the decode's other two rules (NormalDecode::unit_frame, rebuild_blue).
+inline constexpr Word<bool> kFrameRuleWords[] = {
+    {"raw", false, "T, B, N as interpolated"},
+    {"normalized", true, "T, B, N normalised before the decode"},
+    {"normalised", true, "", WordUse::alias},
+};
+inline constexpr Word<bool> kBlueRuleWords[] = {
+    {"stored", false, "z read from blue"},
+    {"rebuilt", true, "z = sqrt(1 - x^2 - y^2) (BC5)"},
+};
 
 struct EncodeOptions {
   NormalSpace space = NormalSpace::tangent;

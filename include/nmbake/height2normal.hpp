@@ -45,7 +45,11 @@
 namespace nmbake {
 
 enum class HeightBorder : std::uint8_t { clamp, wrap };
-bool parse_height_border(const std::string& text, HeightBorder& out);  // clamp | wrap
+inline constexpr Word<HeightBorder> kHeightBorderWords[] = {
+    {"clamp", HeightBorder::clamp, "the edge texel repeats"},
+    {"wrap", HeightBorder::wrap, "the map tiles"},
+};
+NMBAKE_WORDS(HeightBorder, kHeightBorderWords)
 
 struct HeightToNormalOptions {
   float strength = 1.0f;  // S: height units per texel -> slope

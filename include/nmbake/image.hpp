@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "nmbake/common.hpp"
+#include "nmbake/words.hpp"
 
 namespace nmbake {
 
@@ -30,10 +31,16 @@ struct Image {
 // OpenImageIO: about a third smaller, about ten times slower to write.
 // tga8: uncompressed 8-bit Targa through OpenImageIO.
 enum class PixelFormat : std::uint8_t { png8, png16, tiff16, exr_half, exr_float, exr_float_piz, tga8 };
-
-const char* to_string(PixelFormat format);
-// "png8", "png16", "tiff16", "exr-half", "exr-float", "exr-float-piz", "tga".
-bool parse_pixel_format(const std::string& text, PixelFormat& out);
+inline constexpr Word<PixelFormat> kPixelFormatWords[] = {
+    {"png8", PixelFormat::png8, "8-bit PNG (dithered)"},
+    {"png16", PixelFormat::png16, "16-bit PNG"},
+    {"tiff16", PixelFormat::tiff16, "16-bit TIFF"},
+    {"exr-half", PixelFormat::exr_half, "half-float EXR (ZIP)"},
+    {"exr-float", PixelFormat::exr_float, "float EXR (ZIP)"},
+    {"exr-float-piz", PixelFormat::exr_float_piz, "float EXR (PIZ): a third smaller, ten times slower to write"},
+    {"tga", PixelFormat::tga8, "8-bit Targa (dithered)"},
+};
+NMBAKE_WORDS(PixelFormat, kPixelFormatWords)
 // Whether the format stores 8 bits a sample (png8, tga8): the ones dithered.
 bool is_8bit(PixelFormat format);
 // From the file extension: .png -> png16, .tif/.tiff -> tiff16, .exr -> exr_float, .tga -> tga8.

@@ -39,17 +39,4 @@ struct BakeJob {
 
 Status load_job_file(const std::string& path, std::vector<BakeJob>& jobs);
 
-// Option values as text, shared by the CLI and job files. Each returns false
-// for an unknown word.
-bool parse_normal_space(const std::string& text, NormalSpace& out);   // tangent | object
-bool parse_green_channel(const std::string& text, GreenChannel& out);  // up | down (also opengl | directx)
-bool parse_hit_rule(const std::string& text, HitRule& out);            // first | nearest
-bool parse_high_normals(const std::string& text, HighNormals& out);    // smooth | face
-bool parse_cage_mode(const std::string& text, CageMode& out);          // banded | averaged | interpolated
-const char* to_string(CageMode mode);                                  // banded | averaged | interpolated | mesh
-bool parse_retry_misses(const std::string& text, BakeOptions::Retry& out);  // auto | on | off
-bool parse_build_quality(const std::string& text, BuildQuality& out);  // low | medium | high
-bool parse_bvh_memory(const std::string& text, BvhMemory& out);        // auto | fast | compact
-bool parse_tangent_encode(const std::string& text, TangentEncode& out);  // inverse | transpose
-
 }  // namespace nmbake

@@ -72,10 +72,20 @@ enum class MapKind : std::uint8_t {
   miss
 };
 
-// "normal", "height", "ao", "bent-normal", "curvature", "thickness",
-// "position", "object-normal", "vertex-color", "id", "miss".
-const char* to_string(MapKind map);
-bool parse_map_kind(const std::string& text, MapKind& out);
+inline constexpr Word<MapKind> kMapKindWords[] = {
+    {"normal", MapKind::normal, "tangent- or object-space normal map"},
+    {"height", MapKind::height, "distance of the high surface from the low"},
+    {"ao", MapKind::ao, "ambient occlusion"},
+    {"bent-normal", MapKind::bent_normal, "the mean unoccluded direction"},
+    {"curvature", MapKind::curvature, "the high surface's mean curvature"},
+    {"thickness", MapKind::thickness, "how far rays travel inside the high mesh"},
+    {"position", MapKind::position, "the hit point in the high mesh's bounds"},
+    {"object-normal", MapKind::object_normal, "the high normal in object space"},
+    {"vertex-color", MapKind::vertex_color, "the high mesh's vertex colour"},
+    {"id", MapKind::id, "a colour per part or material"},
+    {"miss", MapKind::miss, "white where a ray found no high surface"},
+};
+NMBAKE_WORDS(MapKind, kMapKindWords)
 // Appends the maps of "normal,height" (any number of names, commas, spaces)
 // to `out`, skipping names already there (the order of first mention is
 // kept). bad_input naming the unknown word and the known ones.
@@ -99,8 +109,12 @@ MapTraits map_traits(MapKind map);
 // Collada materials); automatic: materials when the high mesh has a named
 // material (Mesh::has_named_materials()), else parts.
 enum class IdSource : std::uint8_t { automatic, part, material };
-const char* to_string(IdSource source);  // "auto", "part", "material"
-bool parse_id_source(const std::string& text, IdSource& out);
+inline constexpr Word<IdSource> kIdSourceWords[] = {
+    {"auto", IdSource::automatic, "materials when the high mesh names one, else parts"},
+    {"part", IdSource::part, "a colour per high part"},
+    {"material", IdSource::material, "a colour per high material"},
+};
+NMBAKE_WORDS(IdSource, kIdSourceWords)
 // `requested` for `high`: part or material, never automatic.
 IdSource resolve_id_source(IdSource requested, const Mesh& high);
 

@@ -27,15 +27,24 @@
 
 #include "nmbake/common.hpp"
 #include "nmbake/mesh.hpp"
+#include "nmbake/words.hpp"
 
 namespace nmbake {
 
 enum class MatchMode : std::uint8_t { automatic, name, off };
+inline constexpr Word<MatchMode> kMatchModeWords[] = {
+    {"auto", MatchMode::automatic, "by name when a low part ends in the low suffix"},
+    {"name", MatchMode::name, "by name, always"},
+    {"off", MatchMode::off, "every low triangle against every high triangle"},
+};
+NMBAKE_WORDS(MatchMode, kMatchModeWords)
+
 enum class Unmatched : std::uint8_t { error, all };
-bool parse_match_mode(const std::string& text, MatchMode& out);  // auto | name | off
-bool parse_unmatched(const std::string& text, Unmatched& out);   // error | all
-const char* to_string(MatchMode mode);
-const char* to_string(Unmatched unmatched);
+inline constexpr Word<Unmatched> kUnmatchedWords[] = {
+    {"error", Unmatched::error, "a low part with no high match is an error"},
+    {"all", Unmatched::all, "bake it against every unused high part"},
+};
+NMBAKE_WORDS(Unmatched, kUnmatchedWords)
 
 // One explicit group of a job file: part names of the low and high files.
 struct GroupSpec {

@@ -32,10 +32,4 @@ struct PresetOverrides {
 void apply_engine_preset(const EnginePreset& preset, const PresetOverrides& given, GreenChannel& green,
                          NormalDecode& decode);
 
-// The words of the decode's other two rules (CLI flags, job keys, reports).
-const char* frame_rule_name(bool unit_frame);  // "raw" | "normalized"
-bool parse_frame_rule(const std::string& text, bool& unit_frame);
-const char* blue_rule_name(bool rebuild_blue);  // "stored" | "rebuilt"
-bool parse_blue_rule(const std::string& text, bool& rebuild_blue);
-
 }  // namespace nmbake

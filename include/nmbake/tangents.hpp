@@ -25,6 +25,7 @@
 #include <glm/vec4.hpp>
 
 #include "nmbake/mesh.hpp"
+#include "nmbake/words.hpp"
 
 namespace nmbake {
 
@@ -65,8 +66,13 @@ void compute_tangents(const Mesh& mesh, std::vector<glm::vec4>& corner_tangents,
 //            normal, its sign from w (w < 0: -1, else +1). The mesh must
 //            have tangents (the bake checks first: bad_input).
 enum class TangentBasis : std::uint8_t { mikktspace, lengyel, face, file };
-bool parse_tangent_basis(const std::string& text, TangentBasis& out);  // mikktspace | lengyel | face | file
-const char* to_string(TangentBasis basis);
+inline constexpr Word<TangentBasis> kTangentBasisWords[] = {
+    {"mikktspace", TangentBasis::mikktspace, "what renderers decode"},
+    {"lengyel", TangentBasis::lengyel, "Lengyel's per-vertex frame (comparison only)"},
+    {"face", TangentBasis::face, "each triangle's own frame (comparison only)"},
+    {"file", TangentBasis::file, "the low mesh's own tangents"},
+};
+NMBAKE_WORDS(TangentBasis, kTangentBasisWords)
 void compute_tangents_lengyel(const Mesh& mesh, std::vector<glm::vec4>& corner_tangents, TangentStats& stats);
 void compute_tangents_face(const Mesh& mesh, std::vector<glm::vec4>& corner_tangents, TangentStats& stats);
 void compute_tangents_file(const Mesh& mesh, std::vector<glm::vec4>& corner_tangents, TangentStats& stats);

@@ -54,18 +54,56 @@
 #include "nmbake/mesh.hpp"
 #include "nmbake/raster.hpp"
 #include "nmbake/surface.hpp"
+#include "nmbake/words.hpp"
 
 namespace nmbake {
 
 enum class CageMode : std::uint8_t { averaged, interpolated, mesh, banded };
+inline constexpr Word<CageMode> kCageModeWords[] = {
+    {"banded", CageMode::banded, "averaged normals near hard edges, shading normals elsewhere"},
+    {"averaged", CageMode::averaged, "pushed out along averaged normals (hard edges do not open gaps)"},
+    {"interpolated", CageMode::interpolated, "pushed out along the shading normals"},
+    {"mesh", CageMode::mesh, "a cage mesh was given", WordUse::reported},
+};
+NMBAKE_WORDS(CageMode, kCageModeWords)
+
 enum class HitRule : std::uint8_t { first, nearest };
+inline constexpr Word<HitRule> kHitRuleWords[] = {
+    {"first", HitRule::first, "the first hit from the cage"},
+    {"nearest", HitRule::nearest, "the hit nearest to the low surface"},
+};
+NMBAKE_WORDS(HitRule, kHitRuleWords)
+
 enum class BuildQuality : std::uint8_t { low, medium, high };
+inline constexpr Word<BuildQuality> kBuildQualityWords[] = {
+    {"low", BuildQuality::low, "fastest build; rays as fast (BENCHMARKS.md)"},
+    {"medium", BuildQuality::medium, "Embree's default build"},
+    {"high", BuildQuality::high, "spatial splits; never traced faster here"},
+};
+NMBAKE_WORDS(BuildQuality, kBuildQualityWords)
+
 // BVH layout: `fast` lets Embree copy each leaf's triangle vertices into the
 // BVH (triangle4v); `compact` keeps only indices into the shared vertex
 // buffer: about a third of the BVH's memory, rays ~20% slower (measured in
 // BENCHMARKS.md); `automatic` is compact above kCompactBvhAbove triangles.
 enum class BvhMemory : std::uint8_t { automatic, fast, compact };
+inline constexpr Word<BvhMemory> kBvhMemoryWords[] = {
+    {"auto", BvhMemory::automatic, "compact above 16M high triangles"},
+    {"fast", BvhMemory::fast, "triangle vertices copied into the BVH"},
+    {"compact", BvhMemory::compact, "indices only: a third of the memory, rays ~20% slower"},
+};
+NMBAKE_WORDS(BvhMemory, kBvhMemoryWords)
 constexpr std::size_t kCompactBvhAbove = 16'000'000;
+
+// Whether a ray that missed is traced again, out and in up to kProbeReach:
+// `automatic` when neither distance nor a cage is given.
+enum class RetryMisses : std::uint8_t { automatic, on, off };
+inline constexpr Word<RetryMisses> kRetryMissesWords[] = {
+    {"auto", RetryMisses::automatic, "when no distance or cage is given"},
+    {"on", RetryMisses::on, "always"},
+    {"off", RetryMisses::off, "never"},
+};
+NMBAKE_WORDS(RetryMisses, kRetryMissesWords)
 
 struct GroupDistances {
   float front = 0.0f;

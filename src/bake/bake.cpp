@@ -6,7 +6,6 @@
 #include "base/huge_pages.hpp"
 #include "nmbake/budget.hpp"
 #include "nmbake/maps.hpp"
-#include "nmbake/job.hpp"
 #include "nmbake/task.hpp"
 #include "nmbake/udim.hpp"
 

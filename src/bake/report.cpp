@@ -78,8 +78,8 @@ std::string BakeReport::to_json() const {
   j["encoding"] = {{"preset", preset.empty() ? ordered_json(nullptr) : ordered_json(preset)},
                    {"green", green == GreenChannel::up ? "up" : "down"},
                    {"bitangent", to_string(decode.bitangent)},
-                   {"tbn", frame_rule_name(decode.unit_frame)},
-                   {"blue", blue_rule_name(decode.rebuild_blue)},
+                   {"tbn", word_of(kFrameRuleWords, decode.unit_frame)},
+                   {"blue", word_of(kBlueRuleWords, decode.rebuild_blue)},
                    {"dither_8bit", dither}};
   j["distances"] = {{"front", front},
                     {"back", back},

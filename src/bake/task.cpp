@@ -22,7 +22,6 @@
 // read the options (the key holds them).
 #include "nmbake/task.hpp"
 
-#include "nmbake/job.hpp"
 
 #include <algorithm>
 #include <bit>
@@ -104,8 +103,8 @@ std::string bake_key_text(const BakeOptions& o) {
   // explicit flags (the rules are what change bytes; the name errs on the
   // side of a miss).
   line("preset", o.preset.empty() ? "none" : o.preset);
-  line("decode", std::string(to_string(o.decode.bitangent)) + " " + frame_rule_name(o.decode.unit_frame) + " " +
-                     blue_rule_name(o.decode.rebuild_blue));
+  line("decode", std::string(to_string(o.decode.bitangent)) + " " + word_of(kFrameRuleWords, o.decode.unit_frame) + " " +
+                     word_of(kBlueRuleWords, o.decode.rebuild_blue));
   line("dither", o.dither ? "on" : "off");
   // The BVH's quality and layout do not choose other hits, but a key errs on
   // the side of a miss.

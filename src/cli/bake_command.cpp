@@ -114,7 +114,7 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
       return Status::bad_input("--samples " + f.samples + ": expected 1, 4, 16, 64 or adaptive");
     }
   }
-  if (!parse_normal_space(f.space, o.space)) return Status::bad_input("--space " + f.space + ": expected tangent or object");
+  if (!parse_word(f.space, o.space)) return Status::bad_input("--space " + f.space + ": expected tangent or object");
   if (!f.preset.empty()) {
     EnginePreset preset;
     if (!find_engine_preset(f.preset, preset)) {
@@ -123,36 +123,36 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
     o.preset = f.preset;
     apply_engine_preset(preset, {}, o.green, o.decode);
   }
-  if (!f.green.empty() && !parse_green_channel(f.green, o.green)) {
+  if (!f.green.empty() && !parse_word(f.green, o.green)) {
     return Status::bad_input("--green " + f.green + ": expected up or down");
   }
-  if (!f.bitangent.empty() && !parse_bitangent(f.bitangent, o.decode.bitangent)) {
+  if (!f.bitangent.empty() && !parse_word(f.bitangent, o.decode.bitangent)) {
     return Status::bad_input("--bitangent " + f.bitangent + ": expected pixel or vertex");
   }
-  if (!f.tbn.empty() && !parse_frame_rule(f.tbn, o.decode.unit_frame)) {
+  if (!f.tbn.empty() && !parse_word(kFrameRuleWords, f.tbn, o.decode.unit_frame)) {
     return Status::bad_input("--tbn " + f.tbn + ": expected raw or normalized");
   }
-  if (!f.blue.empty() && !parse_blue_rule(f.blue, o.decode.rebuild_blue)) {
+  if (!f.blue.empty() && !parse_word(kBlueRuleWords, f.blue, o.decode.rebuild_blue)) {
     return Status::bad_input("--blue " + f.blue + ": expected stored or rebuilt");
   }
   if (f.dither != "on" && f.dither != "off") return Status::bad_input("--dither " + f.dither + ": expected on or off");
   o.dither = f.dither == "on";
-  if (!parse_hit_rule(f.hit, o.hit)) return Status::bad_input("--hit " + f.hit + ": expected first or nearest");
-  if (!parse_cage_mode(f.cage_mode, o.cage_mode)) return Status::bad_input("--cage-mode " + f.cage_mode + ": expected banded, averaged or interpolated");
+  if (!parse_word(f.hit, o.hit)) return Status::bad_input("--hit " + f.hit + ": expected first or nearest");
+  if (!parse_word(f.cage_mode, o.cage_mode)) return Status::bad_input("--cage-mode " + f.cage_mode + ": expected banded, averaged or interpolated");
   o.edge_band = f.edge_band;
-  if (!parse_retry_misses(f.retry_misses, o.retry_misses)) return Status::bad_input("--retry-misses " + f.retry_misses + ": expected auto, on or off");
-  if (!parse_high_normals(f.high_normals, o.high_normals)) return Status::bad_input("--high-normals " + f.high_normals + ": expected smooth or face");
-  if (!parse_bvh_memory(f.bvh, o.bvh_memory)) return Status::bad_input("--bvh " + f.bvh + ": expected auto, fast or compact");
-  if (!parse_build_quality(f.build_quality, o.build_quality)) return Status::bad_input("--build-quality " + f.build_quality + ": expected low, medium or high");
-  if (!parse_tangent_encode(f.encode, o.tangent_encode)) return Status::bad_input("--encode " + f.encode + ": expected inverse or transpose");
-  if (!parse_tangent_basis(f.tangent_basis, o.tangent_basis)) return Status::bad_input("--tangent-basis " + f.tangent_basis + ": expected mikktspace, lengyel, face or file");
+  if (!parse_word(f.retry_misses, o.retry_misses)) return Status::bad_input("--retry-misses " + f.retry_misses + ": expected auto, on or off");
+  if (!parse_word(f.high_normals, o.high_normals)) return Status::bad_input("--high-normals " + f.high_normals + ": expected smooth or face");
+  if (!parse_word(f.bvh, o.bvh_memory)) return Status::bad_input("--bvh " + f.bvh + ": expected auto, fast or compact");
+  if (!parse_word(f.build_quality, o.build_quality)) return Status::bad_input("--build-quality " + f.build_quality + ": expected low, medium or high");
+  if (!parse_word(f.encode, o.tangent_encode)) return Status::bad_input("--encode " + f.encode + ": expected inverse or transpose");
+  if (!parse_word(f.tangent_basis, o.tangent_basis)) return Status::bad_input("--tangent-basis " + f.tangent_basis + ": expected mikktspace, lengyel, face or file");
   if (f.tangents != "mikktspace" && f.tangents != "file") return Status::bad_input("--tangents " + f.tangents + ": expected mikktspace or file");
   if (f.tangents == "file") o.tangent_basis = TangentBasis::file;
   o.uv_set = f.uv_set;
   if (!parse_distance(f.front, o.front)) return Status::bad_input("--front " + f.front + ": expected a distance, N% or auto");
   if (!parse_distance(f.back, o.back)) return Status::bad_input("--back " + f.back + ": expected a distance, N% or auto");
-  if (!parse_match_mode(f.match, o.match.mode)) return Status::bad_input("--match " + f.match + ": expected auto, name or off");
-  if (!parse_unmatched(f.unmatched, o.match.unmatched)) return Status::bad_input("--unmatched " + f.unmatched + ": expected error or all");
+  if (!parse_word(f.match, o.match.mode)) return Status::bad_input("--match " + f.match + ": expected auto, name or off");
+  if (!parse_word(f.unmatched, o.match.unmatched)) return Status::bad_input("--unmatched " + f.unmatched + ": expected error or all");
   if (f.low_suffix.empty() || f.high_suffix.empty()) return Status::bad_input("--low-suffix and --high-suffix must not be empty");
   o.groups_per_scene = f.groups_per_scene;
   o.match.low_suffix = f.low_suffix;
@@ -177,13 +177,13 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
   if (!parse_distance(f.thickness_distance, o.thickness_distance)) return Status::bad_input("--thickness-distance " + f.thickness_distance + ": expected a distance, N% or auto");
   o.ao_rays = f.ao_rays;
   o.thickness_rays = f.thickness_rays;
-  if (!parse_id_source(f.id_source, o.id_source))
+  if (!parse_word(f.id_source, o.id_source))
     return Status::bad_input("--id-source " + f.id_source + ": expected auto, part or material");
   for (const std::string& path : f.outputs) {
     OutputSpec out;
     out.path = path;
     if (!f.format.empty()) {
-      if (!parse_pixel_format(f.format, out.format)) {
+      if (!parse_word(f.format, out.format)) {
         return Status::bad_input("--format " + f.format + ": expected png8, png16, tiff16, exr-half, exr-float, exr-float-piz or tga");
       }
       out.format_given = true;

@@ -25,7 +25,7 @@ int run_diff(const DiffFlags& f, const GlobalOptions& global) {
     return s.code() == StatusCode::internal ? kInternal : kBadInput;
   };
   DiffOptions options;
-  if (!parse_green_channel(f.green_b, options.green_b)) {
+  if (!parse_word(f.green_b, options.green_b)) {
     std::fprintf(stderr, "nmbake: error: --green-b %s: expected up or down\n", f.green_b.c_str());
     return kBadInput;
   }

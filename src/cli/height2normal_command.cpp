@@ -36,7 +36,7 @@ int usage_error(const std::string& message) {
 int run_height2normal(const Height2NormalFlags& f, const GlobalOptions& global) {
   PixelFormat format;
   if (!f.format.empty()) {
-    if (!parse_pixel_format(f.format, format)) return usage_error("--format " + f.format + ": unknown format");
+    if (!parse_word(f.format, format)) return usage_error("--format " + f.format + ": unknown format");
     if (!format_matches_extension(format, f.output)) {
       return usage_error("--format " + f.format + " cannot be written to " + f.output);
     }
@@ -44,7 +44,7 @@ int run_height2normal(const Height2NormalFlags& f, const GlobalOptions& global) 
     return usage_error(f.output + ": expected a .png, .tif/.tiff or .exr output");
   }
   GreenChannel green;
-  if (!parse_green_channel(f.green, green)) return usage_error("--green " + f.green + ": expected up or down");
+  if (!parse_word(f.green, green)) return usage_error("--green " + f.green + ": expected up or down");
 
   Image out;
   HeightToNormalStats stats;
@@ -55,7 +55,7 @@ int run_height2normal(const Height2NormalFlags& f, const GlobalOptions& global) 
     HeightToNormalOptions options;
     options.strength = f.strength;
     options.green = green;
-    if (!parse_height_border(f.border, options.border)) return usage_error("--border " + f.border + ": expected clamp or wrap");
+    if (!parse_word(f.border, options.border)) return usage_error("--border " + f.border + ": expected clamp or wrap");
     Image height;
     const Status read = read_image(f.inputs[0], height);
     if (!read) return fail(read);
@@ -69,7 +69,7 @@ int run_height2normal(const Height2NormalFlags& f, const GlobalOptions& global) 
     options.green = green;
     options.padding = f.padding;
     const std::string space = f.space.empty() ? "object" : f.space;
-    if (!parse_normal_space(space, options.space)) return usage_error("--space " + space + ": expected tangent or object");
+    if (!parse_word(space, options.space)) return usage_error("--space " + space + ": expected tangent or object");
     Image atlas;
     if (f.inputs.size() == 6) {
       std::vector<Image> faces(6);

@@ -22,7 +22,7 @@ int run_merge(const MergeFlags& f, const GlobalOptions& global) {
     OutputSpec out;
     out.path = path;
     out.format_given = !f.format.empty();  // else `.png` takes each map's own depth, as in the bake
-    const bool ok = f.format.empty() ? pixel_format_from_path(path, out.format) : parse_pixel_format(f.format, out.format);
+    const bool ok = f.format.empty() ? pixel_format_from_path(path, out.format) : parse_word(f.format, out.format);
     if (!ok) {
       std::fprintf(stderr, "nmbake: error: %s: unknown image extension or --format\n", path.c_str());
       return kBadInput;

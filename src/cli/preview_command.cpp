@@ -86,20 +86,20 @@ int run_preview_3d(const PreviewFlags& f, const GlobalOptions& global, const Ima
     }
     apply_engine_preset(preset, {}, options.green, options.decode);
   }
-  if (!f.green.empty() && !parse_green_channel(f.green, options.green))
+  if (!f.green.empty() && !parse_word(f.green, options.green))
     return fail(Status::bad_input("--green " + f.green + ": expected up or down"));
-  if (!f.bitangent.empty() && !parse_bitangent(f.bitangent, options.decode.bitangent))
+  if (!f.bitangent.empty() && !parse_word(f.bitangent, options.decode.bitangent))
     return fail(Status::bad_input("--bitangent " + f.bitangent + ": expected pixel or vertex"));
-  if (!f.tbn.empty() && !parse_frame_rule(f.tbn, options.decode.unit_frame))
+  if (!f.tbn.empty() && !parse_word(kFrameRuleWords, f.tbn, options.decode.unit_frame))
     return fail(Status::bad_input("--tbn " + f.tbn + ": expected raw or normalized"));
-  if (!f.blue.empty() && !parse_blue_rule(f.blue, options.decode.rebuild_blue))
+  if (!f.blue.empty() && !parse_word(kBlueRuleWords, f.blue, options.decode.rebuild_blue))
     return fail(Status::bad_input("--blue " + f.blue + ": expected stored or rebuilt"));
-  if (!parse_normal_space(f.space, options.space)) {
+  if (!parse_word(f.space, options.space)) {
     return fail(Status::bad_input("--space " + f.space + ": expected tangent or object"));
   }
-  if (!parse_hit_rule(f.hit, options.hit))
+  if (!parse_word(f.hit, options.hit))
     return fail(Status::bad_input("--hit " + f.hit + ": expected first or nearest"));
-  if (!parse_cage_mode(f.cage_mode, options.cage_mode))
+  if (!parse_word(f.cage_mode, options.cage_mode))
     return fail(Status::bad_input("--cage-mode " + f.cage_mode + ": expected banded, averaged or interpolated"));
   if (!parse_distance(f.front, options.front)) {
     return fail(Status::bad_input("--front " + f.front + ": expected a distance, N% or auto"));
@@ -173,7 +173,7 @@ int run_preview(const PreviewFlags& f, const GlobalOptions& global) {
     return kBadInput;
   }
   if (!f.preset.empty()) options.green = preset.green;
-  if (!f.green.empty() && !parse_green_channel(f.green, options.green)) {
+  if (!f.green.empty() && !parse_word(f.green, options.green)) {
     std::fprintf(stderr, "nmbake: error: --green %s: expected up or down\n", f.green.c_str());
     return kBadInput;
   }

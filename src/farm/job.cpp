@@ -12,75 +12,6 @@
 
 namespace nmbake {
 
-bool parse_normal_space(const std::string& t, NormalSpace& out) {
-  if (t == "tangent") out = NormalSpace::tangent;
-  else if (t == "object") out = NormalSpace::object;
-  else return false;
-  return true;
-}
-bool parse_green_channel(const std::string& t, GreenChannel& out) {
-  if (t == "up" || t == "opengl") out = GreenChannel::up;
-  else if (t == "down" || t == "directx") out = GreenChannel::down;
-  else return false;
-  return true;
-}
-bool parse_hit_rule(const std::string& t, HitRule& out) {
-  if (t == "first") out = HitRule::first;
-  else if (t == "nearest") out = HitRule::nearest;
-  else return false;
-  return true;
-}
-bool parse_high_normals(const std::string& t, HighNormals& out) {
-  if (t == "smooth") out = HighNormals::smooth;
-  else if (t == "face") out = HighNormals::face;
-  else return false;
-  return true;
-}
-bool parse_cage_mode(const std::string& t, CageMode& out) {
-  if (t == "banded") out = CageMode::banded;
-  else if (t == "averaged") out = CageMode::averaged;
-  else if (t == "interpolated") out = CageMode::interpolated;
-  else return false;
-  return true;
-}
-const char* to_string(CageMode mode) {
-  switch (mode) {
-    case CageMode::banded: return "banded";
-    case CageMode::averaged: return "averaged";
-    case CageMode::interpolated: return "interpolated";
-    case CageMode::mesh: break;
-  }
-  return "mesh";
-}
-bool parse_retry_misses(const std::string& t, BakeOptions::Retry& out) {
-  if (t == "auto") out = BakeOptions::Retry::automatic;
-  else if (t == "on") out = BakeOptions::Retry::on;
-  else if (t == "off") out = BakeOptions::Retry::off;
-  else return false;
-  return true;
-}
-bool parse_bvh_memory(const std::string& t, BvhMemory& out) {
-  if (t == "auto") out = BvhMemory::automatic;
-  else if (t == "fast") out = BvhMemory::fast;
-  else if (t == "compact") out = BvhMemory::compact;
-  else return false;
-  return true;
-}
-
-bool parse_build_quality(const std::string& t, BuildQuality& out) {
-  if (t == "low") out = BuildQuality::low;
-  else if (t == "medium") out = BuildQuality::medium;
-  else if (t == "high") out = BuildQuality::high;
-  else return false;
-  return true;
-}
-bool parse_tangent_encode(const std::string& t, TangentEncode& out) {
-  if (t == "inverse") out = TangentEncode::inverse;
-  else if (t == "transpose") out = TangentEncode::transpose;
-  else return false;
-  return true;
-}
-
 namespace {
 
 std::string where(const std::string& path, const toml::node& node) {
@@ -136,26 +67,26 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
   } else if (key == "padding") {
     if (!get_int(o.padding)) return bad("expected an integer");
   } else if (key == "space") {
-    if (!get_string(text) || !parse_normal_space(text, o.space)) return bad("expected \"tangent\" or \"object\"");
+    if (!get_string(text) || !parse_word(text, o.space)) return bad("expected \"tangent\" or \"object\"");
   } else if (key == "green") {
-    if (!get_string(text) || !parse_green_channel(text, o.green)) return bad("expected \"up\" or \"down\"");
+    if (!get_string(text) || !parse_word(text, o.green)) return bad("expected \"up\" or \"down\"");
   } else if (key == "hit") {
-    if (!get_string(text) || !parse_hit_rule(text, o.hit)) return bad("expected \"first\" or \"nearest\"");
+    if (!get_string(text) || !parse_word(text, o.hit)) return bad("expected \"first\" or \"nearest\"");
   } else if (key == "high_normals") {
-    if (!get_string(text) || !parse_high_normals(text, o.high_normals)) return bad("expected \"smooth\" or \"face\"");
+    if (!get_string(text) || !parse_word(text, o.high_normals)) return bad("expected \"smooth\" or \"face\"");
   } else if (key == "cage_mode") {
-    if (!get_string(text) || !parse_cage_mode(text, o.cage_mode))
+    if (!get_string(text) || !parse_word(text, o.cage_mode))
       return bad("expected \"banded\", \"averaged\" or \"interpolated\"");
   } else if (key == "edge_band") {
     if (!value.is_number() || !(*value.value<double>() >= 0.0 && *value.value<double>() <= 100.0))
       return bad("expected a number from 0 to 100");
     o.edge_band = static_cast<float>(*value.value<double>());
   } else if (key == "retry_misses") {
-    if (!get_string(text) || !parse_retry_misses(text, o.retry_misses)) return bad("expected \"auto\", \"on\" or \"off\"");
+    if (!get_string(text) || !parse_word(text, o.retry_misses)) return bad("expected \"auto\", \"on\" or \"off\"");
   } else if (key == "build_quality") {
-    if (!get_string(text) || !parse_build_quality(text, o.build_quality)) return bad("expected \"low\", \"medium\" or \"high\"");
+    if (!get_string(text) || !parse_word(text, o.build_quality)) return bad("expected \"low\", \"medium\" or \"high\"");
   } else if (key == "bvh") {
-    if (!get_string(text) || !parse_bvh_memory(text, o.bvh_memory)) return bad("expected \"auto\", \"fast\" or \"compact\"");
+    if (!get_string(text) || !parse_word(text, o.bvh_memory)) return bad("expected \"auto\", \"fast\" or \"compact\"");
   } else if (key == "tangents") {
     if (!get_string(text) || (text != "mikktspace" && text != "file")) return bad("expected \"mikktspace\" or \"file\"");
     o.tangent_basis = text == "file" ? TangentBasis::file : TangentBasis::mikktspace;
@@ -189,11 +120,11 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
     if (!get_string(text) || !find_engine_preset(text, preset)) return bad("expected one of " + engine_preset_names());
     o.preset = text;
   } else if (key == "bitangent") {
-    if (!get_string(text) || !parse_bitangent(text, o.decode.bitangent)) return bad("expected \"pixel\" or \"vertex\"");
+    if (!get_string(text) || !parse_word(text, o.decode.bitangent)) return bad("expected \"pixel\" or \"vertex\"");
   } else if (key == "tbn") {
-    if (!get_string(text) || !parse_frame_rule(text, o.decode.unit_frame)) return bad("expected \"raw\" or \"normalized\"");
+    if (!get_string(text) || !parse_word(kFrameRuleWords, text, o.decode.unit_frame)) return bad("expected \"raw\" or \"normalized\"");
   } else if (key == "blue") {
-    if (!get_string(text) || !parse_blue_rule(text, o.decode.rebuild_blue)) return bad("expected \"stored\" or \"rebuilt\"");
+    if (!get_string(text) || !parse_word(kBlueRuleWords, text, o.decode.rebuild_blue)) return bad("expected \"stored\" or \"rebuilt\"");
   } else if (key == "dither") {
     if (auto b = value.value<bool>(); b && value.is_boolean()) o.dither = *b;
     else if (get_string(text) && (text == "on" || text == "off")) o.dither = text == "on";
@@ -223,7 +154,7 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
       return bad("expected a number > 0 or \"auto\"");
     }
   } else if (key == "id_source") {
-    if (!get_string(text) || !parse_id_source(text, o.id_source))
+    if (!get_string(text) || !parse_word(text, o.id_source))
       return bad("expected \"auto\", \"part\" or \"material\"");
   } else if (key == "ao_rays" || key == "thickness_rays") {
     if (!get_int(key == "ao_rays" ? o.ao_rays : o.thickness_rays)) return bad("expected an integer");
@@ -255,9 +186,9 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
     if (!get_string(text) || text.empty()) return bad("expected a folder");
     job.cache_dir = resolve_path(folder, text);
   } else if (key == "match") {
-    if (!get_string(text) || !parse_match_mode(text, o.match.mode)) return bad("expected \"auto\", \"name\" or \"off\"");
+    if (!get_string(text) || !parse_word(text, o.match.mode)) return bad("expected \"auto\", \"name\" or \"off\"");
   } else if (key == "unmatched") {
-    if (!get_string(text) || !parse_unmatched(text, o.match.unmatched)) return bad("expected \"error\" or \"all\"");
+    if (!get_string(text) || !parse_word(text, o.match.unmatched)) return bad("expected \"error\" or \"all\"");
   } else if (key == "low_suffix" || key == "high_suffix" || key == "cage_suffix") {
     if (!get_string(text) || text.empty()) return bad("expected a non-empty string");
     (key == "low_suffix" ? o.match.low_suffix : key == "high_suffix" ? o.match.high_suffix : o.match.cage_suffix) = text;
@@ -308,7 +239,7 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
       }
       if (path.empty()) return Status::bad_input(where(file, item) + ": outputs: each output needs a path");
       out.path = resolve_path(folder, path);
-      const bool ok = format.empty() ? pixel_format_from_path(out.path, out.format) : parse_pixel_format(format, out.format);
+      const bool ok = format.empty() ? pixel_format_from_path(out.path, out.format) : parse_word(format, out.format);
       out.format_given = !format.empty();
       if (!ok) {
         return Status::bad_input(where(file, item) + ": outputs: " +

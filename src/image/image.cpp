@@ -379,39 +379,7 @@ Status check_image_header(const std::string& path, const ImageFileInfo& info) {
 
 }  // namespace
 
-const char* to_string(PixelFormat format) {
-  switch (format) {
-    case PixelFormat::png8:
-      return "png8";
-    case PixelFormat::png16:
-      return "png16";
-    case PixelFormat::tiff16:
-      return "tiff16";
-    case PixelFormat::exr_half:
-      return "exr-half";
-    case PixelFormat::exr_float:
-      return "exr-float";
-    case PixelFormat::exr_float_piz:
-      return "exr-float-piz";
-    case PixelFormat::tga8:
-      return "tga";
-  }
-  return "unknown";
-}
-
 bool is_8bit(PixelFormat format) { return format == PixelFormat::png8 || format == PixelFormat::tga8; }
-
-bool parse_pixel_format(const std::string& text, PixelFormat& out) {
-  for (PixelFormat format : {PixelFormat::png8, PixelFormat::png16, PixelFormat::tiff16,
-                             PixelFormat::exr_half, PixelFormat::exr_float, PixelFormat::exr_float_piz,
-                             PixelFormat::tga8}) {
-    if (text == to_string(format)) {
-      out = format;
-      return true;
-    }
-  }
-  return false;
-}
 
 bool pixel_format_from_path(const std::string& path, PixelFormat& out) {
   const std::string ext = lower_extension(path);

@@ -54,19 +54,6 @@ void orthonormal_frame(const glm::vec3& T, const glm::vec3& N, float sign, glm::
 
 }  // namespace
 
-const char* to_string(Bitangent bitangent) { return bitangent == Bitangent::vertex ? "vertex" : "pixel"; }
-
-bool parse_bitangent(const std::string& text, Bitangent& out) {
-  if (text == "pixel") {
-    out = Bitangent::pixel;
-  } else if (text == "vertex") {
-    out = Bitangent::vertex;
-  } else {
-    return false;
-  }
-  return true;
-}
-
 glm::vec3 tangent_to_world(const glm::vec3& t, const glm::vec3& T, const glm::vec3& N, float sign) {
   const glm::vec3 B = sign * glm::cross(N, T);
   const glm::vec3 n = t.x * T + t.y * B + t.z * N;

@@ -19,18 +19,6 @@
 
 namespace nmbake {
 
-bool parse_height_border(const std::string& text, HeightBorder& out) {
-  if (text == "clamp") {
-    out = HeightBorder::clamp;
-    return true;
-  }
-  if (text == "wrap") {
-    out = HeightBorder::wrap;
-    return true;
-  }
-  return false;
-}
-
 namespace {
 
 // Per-row counters, summed in row order afterwards (integers: any order

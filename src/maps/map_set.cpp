@@ -12,40 +12,6 @@
 
 namespace nmbake {
 
-namespace {
-
-struct MapName {
-  MapKind map;
-  const char* name;
-};
-constexpr MapName kMapNames[] = {
-    {MapKind::normal, "normal"},       {MapKind::height, "height"},
-    {MapKind::ao, "ao"},               {MapKind::bent_normal, "bent-normal"},
-    {MapKind::curvature, "curvature"}, {MapKind::thickness, "thickness"},
-    {MapKind::position, "position"},   {MapKind::object_normal, "object-normal"},
-    {MapKind::vertex_color, "vertex-color"}, {MapKind::id, "id"},
-    {MapKind::miss, "miss"},
-};
-
-}  // namespace
-
-const char* to_string(MapKind map) {
-  for (const MapName& n : kMapNames) {
-    if (n.map == map) return n.name;
-  }
-  return "?";
-}
-
-bool parse_map_kind(const std::string& text, MapKind& out) {
-  for (const MapName& n : kMapNames) {
-    if (text == n.name) {
-      out = n.map;
-      return true;
-    }
-  }
-  return false;
-}
-
 Status parse_map_list(const std::string& text, std::vector<MapKind>& out) {
   std::size_t begin = 0;
   bool any = false;
@@ -58,13 +24,8 @@ Status parse_map_list(const std::string& text, std::vector<MapKind>& out) {
     begin = end + 1;
     if (word.empty()) continue;
     MapKind map;
-    if (!parse_map_kind(word, map)) {
-      std::string known;
-      for (const MapName& n : kMapNames) {
-        if (!known.empty()) known += ", ";
-        known += n.name;
-      }
-      return Status::bad_input("unknown map '" + printable_text(word) + "' (maps: " + known + ")");
+    if (!parse_word(word, map)) {
+      return Status::bad_input("unknown map '" + printable_text(word) + "' (maps: " + word_list<MapKind>(", ") + ")");
     }
     any = true;
     if (std::find(out.begin(), out.end(), map) == out.end()) out.push_back(map);
@@ -167,28 +128,6 @@ glm::vec3 part_color(const std::string& name) {
     case 4: return {t, p, v};
     default: return {v, p, q};
   }
-}
-
-const char* to_string(IdSource source) {
-  switch (source) {
-    case IdSource::automatic:
-      return "auto";
-    case IdSource::part:
-      return "part";
-    case IdSource::material:
-      return "material";
-  }
-  return "?";
-}
-
-bool parse_id_source(const std::string& text, IdSource& out) {
-  for (const IdSource source : {IdSource::automatic, IdSource::part, IdSource::material}) {
-    if (text == to_string(source)) {
-      out = source;
-      return true;
-    }
-  }
-  return false;
 }
 
 IdSource resolve_id_source(IdSource requested, const Mesh& high) {

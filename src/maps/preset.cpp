@@ -55,30 +55,4 @@ void apply_engine_preset(const EnginePreset& preset, const PresetOverrides& give
   if (!given.blue) decode.rebuild_blue = preset.decode.rebuild_blue;
 }
 
-const char* frame_rule_name(bool unit_frame) { return unit_frame ? "normalized" : "raw"; }
-
-bool parse_frame_rule(const std::string& text, bool& unit_frame) {
-  if (text == "raw") {
-    unit_frame = false;
-  } else if (text == "normalized" || text == "normalised") {
-    unit_frame = true;
-  } else {
-    return false;
-  }
-  return true;
-}
-
-const char* blue_rule_name(bool rebuild_blue) { return rebuild_blue ? "rebuilt" : "stored"; }
-
-bool parse_blue_rule(const std::string& text, bool& rebuild_blue) {
-  if (text == "stored") {
-    rebuild_blue = false;
-  } else if (text == "rebuilt") {
-    rebuild_blue = true;
-  } else {
-    return false;
-  }
-  return true;
-}
-
 }  // namespace nmbake

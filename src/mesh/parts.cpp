@@ -9,32 +9,6 @@
 
 namespace nmbake {
 
-bool parse_match_mode(const std::string& text, MatchMode& out) {
-  if (text == "auto") out = MatchMode::automatic;
-  else if (text == "name") out = MatchMode::name;
-  else if (text == "off") out = MatchMode::off;
-  else return false;
-  return true;
-}
-
-bool parse_unmatched(const std::string& text, Unmatched& out) {
-  if (text == "error") out = Unmatched::error;
-  else if (text == "all") out = Unmatched::all;
-  else return false;
-  return true;
-}
-
-const char* to_string(MatchMode mode) {
-  switch (mode) {
-    case MatchMode::automatic: return "auto";
-    case MatchMode::name: return "name";
-    case MatchMode::off: break;
-  }
-  return "off";
-}
-
-const char* to_string(Unmatched unmatched) { return unmatched == Unmatched::all ? "all" : "error"; }
-
 namespace {
 
 bool ends_with_nocase(std::string_view name, std::string_view suffix) {

@@ -12,31 +12,6 @@
 
 namespace nmbake {
 
-bool parse_tangent_basis(const std::string& text, TangentBasis& out) {
-  if (text == "mikktspace") {
-    out = TangentBasis::mikktspace;
-  } else if (text == "lengyel") {
-    out = TangentBasis::lengyel;
-  } else if (text == "face") {
-    out = TangentBasis::face;
-  } else if (text == "file") {
-    out = TangentBasis::file;
-  } else {
-    return false;
-  }
-  return true;
-}
-
-const char* to_string(TangentBasis basis) {
-  switch (basis) {
-    case TangentBasis::lengyel: return "lengyel";
-    case TangentBasis::face: return "face";
-    case TangentBasis::file: return "file";
-    case TangentBasis::mikktspace: break;
-  }
-  return "mikktspace";
-}
-
 namespace {
 
 bool finite_nonzero(const glm::vec3& v) {

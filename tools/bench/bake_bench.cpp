@@ -112,11 +112,11 @@ int main(int argc, char** argv) {
     }
   }
   const bool with_ao = std::find(o.maps.begin(), o.maps.end(), nmbake::MapKind::ao) != o.maps.end();
-  if (!nmbake::parse_build_quality(quality, o.build_quality)) {
+  if (!nmbake::parse_word(quality, o.build_quality)) {
     std::fprintf(stderr, "nmbake-bench: --build-quality %s: expected low, medium or high\n", quality.c_str());
     return 2;
   }
-  if (!nmbake::parse_bvh_memory(bvh, o.bvh_memory)) {
+  if (!nmbake::parse_word(bvh, o.bvh_memory)) {
     std::fprintf(stderr, "nmbake-bench: --bvh %s: expected auto, fast or compact\n", bvh.c_str());
     return 2;
   }

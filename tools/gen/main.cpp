@@ -145,7 +145,7 @@ int run_eval(const std::string& scene, const std::string& map_path, const std::s
   if (space != "tangent" && space != "object") return fail_with("--space: expected tangent or object");
   o.space = space == "object" ? nmbake::NormalSpace::object : nmbake::NormalSpace::tangent;
   o.green = green == "down" ? nmbake::GreenChannel::down : nmbake::GreenChannel::up;
-  if (!nmbake::parse_cage_mode(cage_mode, o.rays.cage)) return fail_with("--cage-mode: expected banded, averaged or interpolated");
+  if (!nmbake::parse_word(cage_mode, o.rays.cage)) return fail_with("--cage-mode: expected banded, averaged or interpolated");
   o.rays.edge_band = edge_band;
   if (!report_path.empty()) {
     std::ifstream in(report_path);

@@ -224,7 +224,7 @@ int run_map_lab(const std::string& out_dir, int size) {
     o.low_path = low_path;
     o.high_path = high_path;
     MapKind map;
-    parse_map_kind(c.map, map);
+    parse_word(c.map, map);
     o.maps = {map};
     const std::string map_file = (dir / (c.map + "_" + std::to_string(c.rays) + "_" + std::to_string(o.samples) + ".exr")).string();
     o.outputs = {{map_file, PixelFormat::exr_float}};
