@@ -13,7 +13,8 @@
 #include <string>
 #include <vector>
 
-#include "nmbake/bake.hpp"
+#include "nmbake/bake_options.hpp"
+#include "nmbake/bake_report.hpp"
 #include "nmbake/task.hpp"
 
 namespace nmbake {

@@ -26,7 +26,7 @@
 #include <string>
 #include <vector>
 
-#include "nmbake/bake.hpp"
+#include "nmbake/bake_options.hpp"
 
 namespace nmbake {
 

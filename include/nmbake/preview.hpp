@@ -22,7 +22,6 @@
 #include <string>
 #include <vector>
 
-#include "nmbake/bake.hpp"
 #include "nmbake/encode.hpp"
 #include "nmbake/image.hpp"
 #include "nmbake/mesh.hpp"

@@ -104,4 +104,9 @@ void rasterize_per_sample(const LowSurface& surface, int width, int height, int 
                           RasterStats& stats, int row_begin = 0, int row_end = -1);
 }  // namespace detail
 
+// Rows per band of a width x height map at `samples` per texel: about
+// `band_samples` samples (0: 1M), a multiple of kRasterTileSize so bands
+// start on tile rows, at most `height`.
+int band_rows(int width, int height, int samples, std::size_t band_samples = 0);
+
 }  // namespace nmbake

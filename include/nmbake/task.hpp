@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-#include "nmbake/bake.hpp"
+#include "nmbake/bake_options.hpp"
 #include "nmbake/common.hpp"
 #include "nmbake/maps.hpp"
 

@@ -45,6 +45,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include <glm/vec2.hpp>
@@ -94,6 +95,25 @@ inline constexpr Word<BvhMemory> kBvhMemoryWords[] = {
 };
 NMBAKE_WORDS(BvhMemory, kBvhMemoryWords)
 constexpr std::size_t kCompactBvhAbove = 16'000'000;
+
+// A ray distance as the user gave it: scene units, percent of the low mesh's
+// bounding-box diagonal, or estimated from the meshes.
+struct Distance {
+  enum class Kind : std::uint8_t { automatic, absolute, percent };
+  Kind kind = Kind::automatic;
+  float value = 0.0f;
+};
+// Limits of a ray distance (README, "Limits"): front and back are each at
+// most kMaxDistance scene units and at most kMaxDistanceDiagonals times the
+// low mesh's bounding-box diagonal. With kMaxCoordinate (mesh.hpp) this keeps
+// every ray origin and range finite and far inside what Embree accepts
+// (1.8e18); a longer ray could only find surfaces the low mesh does not bake.
+constexpr float kMaxDistance = 1e12f;
+constexpr float kMaxDistanceDiagonals = 1000.0f;
+
+// "auto", "0.05", "2%". Returns false on anything else (negative, NaN, junk).
+bool parse_distance(const std::string& text, Distance& out);
+std::string to_string(const Distance& distance);
 
 // Whether a ray that missed is traced again, out and in up to kProbeReach:
 // `automatic` when neither distance nor a cage is given.

@@ -28,36 +28,6 @@
 
 namespace nmbake {
 
-bool parse_distance(const std::string& text, Distance& out) {
-  if (text == "auto") {
-    out = Distance{};
-    return true;
-  }
-  std::string number = text;
-  Distance::Kind kind = Distance::Kind::absolute;
-  if (!number.empty() && number.back() == '%') {
-    number.pop_back();
-    kind = Distance::Kind::percent;
-  }
-  if (number.empty()) return false;
-  float value = 0.0f;
-  const char* end = number.data() + number.size();
-  const auto result = std::from_chars(number.data(), end, value);
-  if (result.ec != std::errc() || result.ptr != end || !std::isfinite(value) || value < 0.0f) return false;
-  out.kind = kind;
-  out.value = value;
-  return true;
-}
-
-std::string to_string(const Distance& distance) {
-  switch (distance.kind) {
-    case Distance::Kind::automatic: return "auto";
-    case Distance::Kind::percent: return std::to_string(distance.value) + "%";
-    case Distance::Kind::absolute: break;
-  }
-  return std::to_string(distance.value);
-}
-
 namespace {
 
 std::string number_text(double value) {
@@ -424,13 +394,6 @@ Status check_bake_inputs(const BakeOptions& o) {
   return Status::ok();
 }
 
-int band_rows(int width, int height, int samples, std::size_t band_samples) {
-  if (band_samples == 0) band_samples = std::size_t{1} << 20;
-  const std::size_t per_row = static_cast<std::size_t>(width) * static_cast<std::size_t>(samples);
-  std::size_t rows = std::max<std::size_t>(1, band_samples / per_row);
-  rows = std::max<std::size_t>(kRasterTileSize, rows / kRasterTileSize * kRasterTileSize);
-  return static_cast<int>(std::min<std::size_t>(rows, static_cast<std::size_t>(height)));
-}
 
 namespace {
 

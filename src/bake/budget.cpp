@@ -6,7 +6,7 @@
 #include <cmath>
 #include <string>
 
-#include "nmbake/bake.hpp"
+#include "nmbake/bake_options.hpp"
 #include "nmbake/task.hpp"
 
 namespace nmbake {

@@ -21,6 +21,7 @@
 // written: their texels are encoded, and dilating and writing them does not
 // read the options (the key holds them).
 #include "nmbake/task.hpp"
+#include "nmbake/bake.hpp"
 
 
 #include <algorithm>

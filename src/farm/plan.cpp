@@ -17,6 +17,7 @@
 
 #include "nmbake/cleanup.hpp"
 #include "nmbake/task.hpp"
+#include "nmbake/load.hpp"
 #include "nmbake/udim.hpp"
 
 namespace nmbake {

@@ -13,6 +13,8 @@
 #include <numeric>
 
 #include "nmbake/preview.hpp"
+#include "nmbake/load.hpp"
+#include "nmbake/parts.hpp"
 #include "inspect/preview_draw.hpp"
 
 namespace nmbake {

@@ -688,4 +688,12 @@ void rasterize_per_sample(const LowSurface& surface, int width, int height, int 
 
 }  // namespace detail
 
+int band_rows(int width, int height, int samples, std::size_t band_samples) {
+  if (band_samples == 0) band_samples = std::size_t{1} << 20;
+  const std::size_t per_row = static_cast<std::size_t>(width) * static_cast<std::size_t>(samples);
+  std::size_t rows = std::max<std::size_t>(1, band_samples / per_row);
+  rows = std::max<std::size_t>(kRasterTileSize, rows / kRasterTileSize * kRasterTileSize);
+  return static_cast<int>(std::min<std::size_t>(rows, static_cast<std::size_t>(height)));
+}
+
 }  // namespace nmbake

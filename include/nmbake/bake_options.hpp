@@ -1,0 +1,135 @@
+// What a bake is asked to do: its options (plain data; one default per
+// field, here), the outputs they name, and their checks. How options arrive
+// (a flag, a job file's key, a live request) is the option table's business
+// (options.hpp); the pipeline itself is bake.hpp.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "nmbake/adaptive.hpp"
+#include "nmbake/common.hpp"
+#include "nmbake/encode.hpp"
+#include "nmbake/image.hpp"
+#include "nmbake/maps.hpp"
+#include "nmbake/parts.hpp"
+#include "nmbake/trace.hpp"
+
+namespace nmbake {
+
+struct OutputSpec {
+  std::string path;  // may hold <UDIM> (udim.hpp): one map per UV tile; <MAP> (maps.hpp): one per map
+  PixelFormat format = PixelFormat::png16;
+  // Given explicitly (--format, a job file's `format`): every map is written
+  // in it. Otherwise `.png` takes each map's own depth (maps.hpp).
+  bool format_given = false;
+};
+
+// The map set's auto AO and thickness distance: this share of the low mesh's
+// bounding-box diagonal.
+constexpr float kAutoMapDistancePercent = 10.0f;
+
+struct BakeOptions {
+  std::string low_path;
+  std::string high_path;
+  std::string cage_path;  // empty: averaged cage
+  std::vector<OutputSpec> outputs;
+  int width = 2048;
+  int height = 2048;
+  int samples = 4;
+  // `--samples adaptive`: one sample per texel, then adaptive.max_samples
+  // (the fixed pattern) where the first pass says the normal varies
+  // (adaptive.hpp); `samples` is then unused.
+  bool adaptive = false;
+  AdaptiveOptions adaptive_options;
+  NormalSpace space = NormalSpace::tangent;
+  GreenChannel green = GreenChannel::up;
+  Distance front;  // auto
+  Distance back;   // auto
+  HitRule hit = HitRule::first;
+  CageMode cage_mode = CageMode::banded;  // `mesh` is implied by cage_path
+  float edge_band = kDefaultEdgeBand;     // the banded cage's band, in units of front + back
+  // Misses traced again out and in up to the distance probes' reach
+  // (trace.hpp): `automatic` = when neither distance nor a cage is given.
+  using Retry = RetryMisses;
+  Retry retry_misses = Retry::automatic;
+  bool ignore_backfaces = false;
+  HighNormals high_normals = HighNormals::smooth;
+  TangentEncode tangent_encode = TangentEncode::inverse;
+  TangentBasis tangent_basis = TangentBasis::mikktspace;  // file: the low mesh's own tangents; others: comparison only
+  int uv_set = 0;  // the low mesh's UV set (glTF TEXCOORD_N, FBX UV channel N)
+  BuildQuality build_quality = BuildQuality::low;  // measured: 4-6x faster builds than medium, rays as fast (BENCHMARKS.md)
+  BvhMemory bvh_memory = BvhMemory::automatic;
+  int padding = 16;
+  // A low mesh without UVs is unwrapped (atlas of the map's smaller side,
+  // this many texels between charts) and written beside the first map as
+  // <map stem>_low_uv.obj, with the normals it was baked with.
+  int unwrap_gutter = 4;
+  std::string debug_dump_prefix;  // non-empty: also write coverage / miss / distance images
+  // Samples per band of rows (raster, trace and encode run band by band);
+  // 0 = about 1M. Changes memory use only, never the result (tested).
+  std::size_t band_samples = 0;
+  // Parts into bake groups (parts.hpp): names matched by suffix, or groups.
+  MatchOptions match;
+  int groups_per_scene = 0;  // SceneGroups::groups_per_scene: 0 automatic (for benchmarks)
+  // A tile (task.hpp): tile_count > 0 bakes only the rows of tile
+  // tile_index and writes them, before dilation, to tile_path instead of
+  // the outputs (`nmbake merge` dilates and writes). Not with <UDIM>.
+  int tile_index = 0;
+  int tile_count = 0;
+  std::string tile_path;
+  // Memory the bake may use (budget.hpp): refused up front, with the numbers,
+  // when its estimate is larger. 0: the memory available to the process.
+  std::uint64_t max_memory_bytes = 0;
+  // Outputs as engines want them (preset.hpp). `preset` names the engine
+  // preset the green convention and `decode` came from ("" none; for the
+  // report: explicit flags may have overridden parts of it). `decode`: how
+  // the engine decodes the map; the encode stores its exact inverse.
+  // `dither`: 8-bit outputs (png8, tga) ordered-dithered instead of rounded.
+  std::string preset;
+  NormalDecode decode;
+  bool dither = true;
+  // The map set (maps.hpp): the maps baked from the same rays, each output
+  // written once per map (with several maps every output path holds <MAP>),
+  // and their options. The default, `normal` alone, is the bake as before.
+  std::vector<MapKind> maps{MapKind::normal};
+  float height_range = 0.0f;     // scene units: heights in [-R, R] fill an integer file; 0: auto
+  float curvature_range = 0.0f;  // 1/scene units, the same for mean curvature; 0: auto
+  int ao_rays = 64;              // per sample
+  Distance ao_distance;          // auto: kAutoMapDistancePercent of the low diagonal
+  int thickness_rays = 16;
+  Distance thickness_distance;   // auto: as ao_distance
+  IdSource id_source = IdSource::automatic;  // what the id map colours (maps.hpp)
+};
+
+// One file a bake writes per UV tile: an output for one map.
+struct MapOutput {
+  std::string path;  // <MAP> replaced; may still hold <UDIM>
+  PixelFormat format = PixelFormat::png16;  // resolved for the map (map_format)
+  MapKind map = MapKind::normal;
+};
+// Every output once per map, in output order, the maps in the set's order.
+std::vector<MapOutput> map_outputs(const BakeOptions& options);
+std::vector<MapOutput> map_outputs(const std::vector<OutputSpec>& outputs, const std::vector<MapKind>& maps);
+// With several maps every output path must name the map (<MAP>): bad_input
+// naming the first that does not.
+Status check_map_tokens(const std::vector<OutputSpec>& outputs, const std::vector<MapKind>& maps);
+
+// Checks options that need no file: sizes, sample count, outputs and formats,
+// distances against kMaxDistance (and percentages against
+// kMaxDistanceDiagonals). The unwrap gutter is checked by bake() when the low
+// mesh turns out to need an unwrap; distances against the diagonal once the
+// low mesh is loaded.
+Status validate_options(const BakeOptions& options);
+
+// Checks what can be known of the input files without loading them, so a
+// job finds a bad path in its last bake before the first bake runs: every
+// mesh path is non-empty, has no NUL byte, names a regular file with a
+// supported extension (.obj, .ply) that can be opened, and starts as its
+// format must (PLY: "ply"; OBJ: text, no NUL byte in its first 4 KiB); every
+// output, report and debug-dump path has no NUL byte. bad_input naming the
+// path (through printable_text) and the reason.
+Status check_bake_inputs(const BakeOptions& options);
+
+}  // namespace nmbake
