@@ -446,6 +446,20 @@ TEST(TaskTiles, MapSetTilesThroughTheCli) {
   EXPECT_FALSE(fs::exists(dir.file("x.png")));
 }
 
+// `merge` reads regular files only: a FIFO is refused at once (it blocked
+// for ever), naming it.
+TEST(TaskTiles, MergeRefusesATileThatIsNotARegularFile) {
+  test::TempDir dir;
+  const std::string fifo = dir.file("tile.nmt");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  // `timeout`: a merge that blocks fails the test instead of hanging it.
+  const test::CommandResult r = test::run_command("timeout 60 " + test::cli_path() + " merge " + fifo + " -o " +
+                                                  dir.file("m.png") + " 2>&1");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find(fifo + ": the tile file is not a regular file"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(dir.file("m.png")));
+}
+
 TEST(TaskKey, CoversBytesAndOptionsNotPathsOrThreads) {
   test::TempDir dir;
   BakeOptions o = sphere_bake(dir, 64, 64);
