@@ -30,6 +30,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <memory>
 
@@ -43,6 +44,7 @@
 
 #include "map_report_json.hpp"
 #include "nmbake/cleanup.hpp"
+#include "nmbake/image.hpp"
 #include "nmbake/preset.hpp"
 #include "nmbake/udim.hpp"
 
@@ -330,6 +332,39 @@ class HeaderReader {
   std::uint64_t left_;
 };
 
+// Where `nmbake merge` without -o may write the maps a tile file names: a
+// tile file is data from another machine (or made to look like one), so
+// the path it carries must not pick any file of this one. A relative path
+// without a `..` component (it is relative to the current folder, as the
+// bake's was to its own), or an absolute one inside the current folder or
+// the tile file's folder (a plan's tiles lie beside their maps); either
+// with an image extension. Anything else needs -o.
+Status check_tile_output(const std::string& path, const std::string& tile_path) {
+  namespace fs = std::filesystem;
+  const auto refuse = [&](const char* why) {
+    return Status::bad_input(printable_text(tile_path) + ": the tile names the output '" +
+                             printable_text(path) + "', " + why + ": give -o to write the maps elsewhere");
+  };
+  PixelFormat format{};
+  if (path.empty() || !pixel_format_from_path(path, format)) return refuse("not an image file name");
+  const fs::path p(path);
+  for (const fs::path& part : p) {
+    if (part == "..") return refuse("which leaves its folder through `..`");
+  }
+  if (p.is_relative()) return Status::ok();
+  std::error_code ec;
+  const fs::path normal = p.lexically_normal();
+  const auto inside = [&](const fs::path& folder) {
+    const fs::path relative = normal.lexically_relative(folder.lexically_normal());
+    return !relative.empty() && *relative.begin() != "..";
+  };
+  const fs::path here = fs::current_path(ec);
+  if (!ec && inside(here)) return Status::ok();
+  const fs::path tile_folder = fs::absolute(tile_path, ec).parent_path();
+  if (!ec && inside(tile_folder)) return Status::ok();
+  return refuse("an absolute path outside the current folder and the tile file's folder");
+}
+
 bool finite_at_least_zero(float v) { return std::isfinite(v) && v >= 0.0f; }
 
 // Whether two tiles' map sets finish and write alike (what a tile file holds
@@ -592,6 +627,9 @@ Status merge_tiles(const std::vector<std::string>& tile_paths, const std::vector
   const std::vector<OutputSpec> named = first.outputs;
   const std::vector<OutputSpec>& targets = outputs.empty() ? named : outputs;
   if (targets.empty()) return Status::bad_input("merge: no output map given (-o) and the tiles name none");
+  if (outputs.empty()) {
+    for (const OutputSpec& out : named) NMBAKE_TRY(check_tile_output(out.path, tile_paths.front()));
+  }
   if (const Status tokens = check_map_tokens(targets, settings.maps); !tokens) {
     return Status::bad_input("merge: " + tokens.message());
   }

@@ -460,6 +460,55 @@ TEST(TaskTiles, MergeRefusesATileThatIsNotARegularFile) {
   EXPECT_FALSE(fs::exists(dir.file("m.png")));
 }
 
+// Without -o, a tile's own output paths are written only inside the
+// current folder or the tile file's folder; the paths printed are escaped.
+TEST(TaskTiles, MergeWritesTheTilesPathsOnlyInsideItsFolders) {
+  test::TempDir dir;
+  const BakeOptions o = sphere_bake(dir, 64, 64);
+  fs::create_directories(dir.file("work"));
+  fs::create_directories(dir.file("tiles"));
+  fs::create_directories(dir.file("elsewhere"));
+  const auto tile_of = [&](const std::string& output, const std::string& tile) {
+    const test::CommandResult r = test::run_command(
+        "cd " + dir.file("work") + " && " + test::cli_path() + " bake -q --low " + o.low_path + " --high " +
+        o.high_path + " --size 64 --tile 1/1 --tile-file " + tile + " -o '" + output + "' 2>&1");
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+  };
+  const auto merge = [&](const std::string& tile, const std::string& flags = "") {
+    return test::run_command("cd " + dir.file("work") + " && " + test::cli_path() + " merge " + tile + flags +
+                             " 2>&1");
+  };
+  // Refused: an absolute path elsewhere, a `..` escape. Nothing written.
+  const std::string far = dir.file("elsewhere/far.png");
+  tile_of(far, dir.file("tiles/far.nmt"));
+  test::CommandResult r = merge(dir.file("tiles/far.nmt"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find(dir.file("tiles/far.nmt") + ": the tile names the output '" + far), std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(far));
+  // Fine when -o says where.
+  r = merge(dir.file("tiles/far.nmt"), " -o " + dir.file("elsewhere/chosen.png"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(dir.file("elsewhere/chosen.png")));
+  tile_of("../up.png", dir.file("tiles/up.nmt"));
+  r = merge(dir.file("tiles/up.nmt"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("which leaves its folder through `..`"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(dir.file("up.png")));
+  // Accepted: an absolute path beside the tile (a plan's layout), a
+  // relative one under the current folder, printed with escapes.
+  tile_of(dir.file("tiles/beside.png"), dir.file("tiles/beside.nmt"));
+  r = merge(dir.file("tiles/beside.nmt"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(dir.file("tiles/beside.png")));
+  tile_of("sub\x1b[31m.png", dir.file("tiles/esc.nmt"));
+  r = merge(dir.file("tiles/esc.nmt"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(dir.file("work/sub\x1b[31m.png")));
+  EXPECT_EQ(r.output.find('\x1b'), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("sub\\x1b[31m.png"), std::string::npos) << r.output;
+}
+
 TEST(TaskKey, CoversBytesAndOptionsNotPathsOrThreads) {
   test::TempDir dir;
   BakeOptions o = sphere_bake(dir, 64, 64);
