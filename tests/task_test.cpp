@@ -4,10 +4,13 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <fstream>
 #include <iterator>
 #include <sstream>
 #include <thread>
+
+#include <sys/stat.h>
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -443,6 +446,69 @@ TEST(TaskTiles, MapSetTilesThroughTheCli) {
   EXPECT_FALSE(fs::exists(dir.file("x.png")));
 }
 
+// `merge` reads regular files only: a FIFO is refused at once (it blocked
+// for ever), naming it.
+TEST(TaskTiles, MergeRefusesATileThatIsNotARegularFile) {
+  test::TempDir dir;
+  const std::string fifo = dir.file("tile.nmt");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  // `timeout`: a merge that blocks fails the test instead of hanging it.
+  const test::CommandResult r = test::run_command("timeout 60 " + test::cli_path() + " merge " + fifo + " -o " +
+                                                  dir.file("m.png") + " 2>&1");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find(fifo + ": the tile file is not a regular file"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(dir.file("m.png")));
+}
+
+// Without -o, a tile's own output paths are written only inside the
+// current folder or the tile file's folder; the paths printed are escaped.
+TEST(TaskTiles, MergeWritesTheTilesPathsOnlyInsideItsFolders) {
+  test::TempDir dir;
+  const BakeOptions o = sphere_bake(dir, 64, 64);
+  fs::create_directories(dir.file("work"));
+  fs::create_directories(dir.file("tiles"));
+  fs::create_directories(dir.file("elsewhere"));
+  const auto tile_of = [&](const std::string& output, const std::string& tile) {
+    const test::CommandResult r = test::run_command(
+        "cd " + dir.file("work") + " && " + test::cli_path() + " bake -q --low " + o.low_path + " --high " +
+        o.high_path + " --size 64 --tile 1/1 --tile-file " + tile + " -o '" + output + "' 2>&1");
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+  };
+  const auto merge = [&](const std::string& tile, const std::string& flags = "") {
+    return test::run_command("cd " + dir.file("work") + " && " + test::cli_path() + " merge " + tile + flags +
+                             " 2>&1");
+  };
+  // Refused: an absolute path elsewhere, a `..` escape. Nothing written.
+  const std::string far = dir.file("elsewhere/far.png");
+  tile_of(far, dir.file("tiles/far.nmt"));
+  test::CommandResult r = merge(dir.file("tiles/far.nmt"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find(dir.file("tiles/far.nmt") + ": the tile names the output '" + far), std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(far));
+  // Fine when -o says where.
+  r = merge(dir.file("tiles/far.nmt"), " -o " + dir.file("elsewhere/chosen.png"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(dir.file("elsewhere/chosen.png")));
+  tile_of("../up.png", dir.file("tiles/up.nmt"));
+  r = merge(dir.file("tiles/up.nmt"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("which leaves its folder through `..`"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(dir.file("up.png")));
+  // Accepted: an absolute path beside the tile (a plan's layout), a
+  // relative one under the current folder, printed with escapes.
+  tile_of(dir.file("tiles/beside.png"), dir.file("tiles/beside.nmt"));
+  r = merge(dir.file("tiles/beside.nmt"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(dir.file("tiles/beside.png")));
+  tile_of("sub\x1b[31m.png", dir.file("tiles/esc.nmt"));
+  r = merge(dir.file("tiles/esc.nmt"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(dir.file("work/sub\x1b[31m.png")));
+  EXPECT_EQ(r.output.find('\x1b'), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("sub\\x1b[31m.png"), std::string::npos) << r.output;
+}
+
 TEST(TaskKey, CoversBytesAndOptionsNotPathsOrThreads) {
   test::TempDir dir;
   BakeOptions o = sphere_bake(dir, 64, 64);
@@ -519,6 +585,104 @@ TEST(TaskCache, SecondBakeIsCachedAndConcurrentStoresStayWhole) {
   }
   EXPECT_EQ(entries, 1);
   for (const char* name : {"r2.png", "r3.png", "r4.png"}) EXPECT_EQ(read_bytes(dir.file(name)), read_bytes(dir.file("r1.png")));
+}
+
+// An entry is verified, not trusted: each kind of damage is a miss (a
+// warning naming the entry and why), a bake with the right bytes (never
+// the bytes of a file outside the entry), and a new entry in its place.
+TEST(TaskCache, BadEntriesAreRebakedAndReplaced) {
+  test::TempDir dir;
+  const BakeOptions o = sphere_bake(dir, 64, 64);
+  const std::string cache = dir.file("cache");
+  // `timeout`: a fetch that blocks on the FIFO fails the test instead of hanging it.
+  const std::string bake_cmd = "timeout 120 " + test::cli_path() + " bake --low " + o.low_path + " --high " +
+                               o.high_path + " --size 64 --cache " + cache + " -o " + dir.file("out.png") + " 2>&1";
+  test::CommandResult r = test::run_command(bake_cmd);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string good = read_bytes(dir.file("out.png"));
+  ASSERT_FALSE(good.empty());
+  std::string key;
+  for (const auto& e : fs::directory_iterator(cache)) key = e.path().filename().string();
+  const fs::path entry = fs::path(cache) / key;
+  fs::copy(entry, dir.file("saved"), fs::copy_options::recursive);
+  const std::string secret = "root:x:0:0:a file outside the entry\n";
+  test::write_text(dir.file("secret"), secret);
+  const std::string map = (entry / "o0_1001.png").string(), manifest = (entry / "manifest.json").string();
+  const auto edit_manifest = [&](const std::string& from, const std::string& to) {
+    std::string text = read_bytes(manifest);
+    const std::size_t at = text.find(from);
+    ASSERT_NE(at, std::string::npos) << text;
+    test::write_text(manifest, text.replace(at, from.size(), to));
+  };
+  const std::vector<std::pair<std::string, std::function<void()>>> damages = {
+      {"a truncated map", [&] { fs::resize_file(map, 100); }},
+      {"a map of the same size, one byte changed",
+       [&] {
+         std::string bytes = read_bytes(map);
+         bytes[bytes.size() / 2] ^= 1;
+         test::write_text(map, bytes);
+       }},
+      {"a map that is a symlink to a file outside",
+       [&] {
+         fs::remove(map);
+         fs::create_symlink(dir.file("secret"), map);
+       }},
+      {"a map that is a FIFO",
+       [&] {
+         fs::remove(map);
+         ASSERT_EQ(::mkfifo(map.c_str(), 0600), 0);
+       }},
+      {"a missing map", [&] { fs::remove(map); }},
+      {"a manifest naming a file outside", [&] { edit_manifest("\"o0_1001.png\"", "\"../../secret\""); }},
+      {"a manifest with a wrong type", [&] { edit_manifest("\"tile\": 1001", "\"tile\": \"x\""); }},
+      {"a manifest that is an array", [&] { test::write_text(manifest, "[1, 2]"); }},
+      {"a manifest without checksums (an older entry)",
+       [&] { edit_manifest("\"xxh3\"", "\"xxh3_\""); }},
+      {"an entry that is a file", [&] {
+         fs::remove_all(entry);
+         test::write_text(entry.string(), "x");
+       }},
+  };
+  for (const auto& [what, damage] : damages) {
+    SCOPED_TRACE(what);
+    fs::remove_all(entry);
+    fs::copy(dir.file("saved"), entry, fs::copy_options::recursive);
+    damage();
+    fs::remove(dir.file("out.png"));
+    r = test::run_command(bake_cmd);
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("warning: " + entry.string() + ": a bad cache entry"), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find("cached"), std::string::npos) << r.output;
+    EXPECT_TRUE(read_bytes(dir.file("out.png")) == good);
+    // The bake replaced the entry: the next one is served from it.
+    r = test::run_command(bake_cmd);
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("cached (key "), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find("warning"), std::string::npos) << r.output;
+    EXPECT_TRUE(read_bytes(dir.file("out.png")) == good);
+  }
+  EXPECT_EQ(read_bytes(dir.file("secret")), secret);
+  for (const auto& e : fs::directory_iterator(cache)) {
+    EXPECT_EQ(e.path().filename().string(), key) << "a temporary or moved-aside entry was left";
+  }
+}
+
+// A cache folder that cannot take the bake is an exit 2 before the bake,
+// naming the folder, with nothing written.
+TEST(TaskCache, UnwritableCacheFolderFailsBeforeTheBake) {
+  test::TempDir dir;
+  const BakeOptions o = sphere_bake(dir, 64, 64);
+  test::write_text(dir.file("a_file"), "x");
+  for (const std::string& cache : {dir.file("a_file"), dir.file("a_file") + "/cache"}) {
+    const test::CommandResult r =
+        test::run_command(test::cli_path() + " bake --low " + o.low_path + " --high " + o.high_path +
+                          " --size 64 --cache " + cache + " -o " + dir.file("out.png") + " --report " +
+                          dir.file("out.json") + " 2>&1");
+    EXPECT_EQ(r.exit_code, 2) << r.output;
+    EXPECT_NE(r.output.find(cache + ": the cache folder cannot be written"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(dir.file("out.png")));
+    EXPECT_FALSE(fs::exists(dir.file("out.json")));
+  }
 }
 
 // A plan of three bakes (one in tiles) run by Ninja: every map equals the

@@ -30,6 +30,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <memory>
 
@@ -43,6 +44,7 @@
 
 #include "bake/map_report_json.hpp"
 #include "nmbake/cleanup.hpp"
+#include "nmbake/image.hpp"
 #include "nmbake/preset.hpp"
 #include "nmbake/udim.hpp"
 
@@ -279,17 +281,36 @@ std::uint64_t tile_checksum(const std::string& header, const TileData& tile) {
   return XXH3_64bits_digest(state.get());
 }
 
+struct FdCloser {
+  int fd;
+  ~FdCloser() { ::close(fd); }
+};
+
+// Reads `n` bytes, or false at the end of the file or on an error.
+bool read_fully(int fd, void* out, std::uint64_t n) {
+  auto* at = static_cast<char*>(out);
+  while (n > 0) {
+    const ssize_t got =
+        ::read(fd, at, static_cast<std::size_t>(std::min<std::uint64_t>(n, std::uint64_t{1} << 30)));
+    if (got < 0 && errno == EINTR) continue;
+    if (got <= 0) return false;
+    at += got;
+    n -= static_cast<std::uint64_t>(got);
+  }
+  return true;
+}
+
 // Reads a tile file's header field by field; no read (and so no
 // allocation) is larger than what is left of the file. The bytes read are
 // kept for the checksum.
 class HeaderReader {
  public:
-  HeaderReader(std::ifstream& in, std::uint64_t file_size) : in_(in), left_(file_size) {}
+  HeaderReader(int fd, std::uint64_t file_size) : fd_(fd), left_(file_size) {}
   bool bytes(void* out, std::uint64_t n) {
     if (n > left_) return false;
     const std::size_t at = header.size();
     header.resize(at + n);
-    if (!in_.read(header.data() + at, static_cast<std::streamsize>(n))) return false;
+    if (!read_fully(fd_, header.data() + at, n)) return false;
     std::memcpy(out, header.data() + at, n);
     left_ -= n;
     return true;
@@ -307,9 +328,42 @@ class HeaderReader {
   std::string header;
 
  private:
-  std::ifstream& in_;
+  int fd_;
   std::uint64_t left_;
 };
+
+// Where `nmbake merge` without -o may write the maps a tile file names: a
+// tile file is data from another machine (or made to look like one), so
+// the path it carries must not pick any file of this one. A relative path
+// without a `..` component (it is relative to the current folder, as the
+// bake's was to its own), or an absolute one inside the current folder or
+// the tile file's folder (a plan's tiles lie beside their maps); either
+// with an image extension. Anything else needs -o.
+Status check_tile_output(const std::string& path, const std::string& tile_path) {
+  namespace fs = std::filesystem;
+  const auto refuse = [&](const char* why) {
+    return Status::bad_input(printable_text(tile_path) + ": the tile names the output '" +
+                             printable_text(path) + "', " + why + ": give -o to write the maps elsewhere");
+  };
+  PixelFormat format{};
+  if (path.empty() || !pixel_format_from_path(path, format)) return refuse("not an image file name");
+  const fs::path p(path);
+  for (const fs::path& part : p) {
+    if (part == "..") return refuse("which leaves its folder through `..`");
+  }
+  if (p.is_relative()) return Status::ok();
+  std::error_code ec;
+  const fs::path normal = p.lexically_normal();
+  const auto inside = [&](const fs::path& folder) {
+    const fs::path relative = normal.lexically_relative(folder.lexically_normal());
+    return !relative.empty() && *relative.begin() != "..";
+  };
+  const fs::path here = fs::current_path(ec);
+  if (!ec && inside(here)) return Status::ok();
+  const fs::path tile_folder = fs::absolute(tile_path, ec).parent_path();
+  if (!ec && inside(tile_folder)) return Status::ok();
+  return refuse("an absolute path outside the current folder and the tile file's folder");
+}
 
 bool finite_at_least_zero(float v) { return std::isfinite(v) && v >= 0.0f; }
 
@@ -383,13 +437,24 @@ Status write_tile(const std::string& path, const TileData& tile) {
 
 Status read_tile(const std::string& path, TileData& tile) {
   tile = TileData{};
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Status::bad_input(path + ": cannot open the tile file: " + std::strerror(errno));
-  in.seekg(0, std::ios::end);
-  const auto file_size = static_cast<std::uint64_t>(in.tellg());
-  in.seekg(0);
+  if (path.find('\0') != std::string::npos)
+    return Status::bad_input(path + ": cannot open the tile file: the path holds a NUL byte");
+  // A regular file only, as the mesh loaders take: O_NONBLOCK keeps the
+  // open of a FIFO from waiting for a writer, and fstat refuses it (and a
+  // device, which never ends) before a byte is read.
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) return Status::bad_input(path + ": cannot open the tile file: " + std::strerror(errno));
+  const FdCloser closer{fd};
+  struct stat info {};
+  if (::fstat(fd, &info) != 0)
+    return Status::bad_input(path + ": cannot open the tile file: " + std::strerror(errno));
+  if (!S_ISREG(info.st_mode)) {
+    return Status::bad_input(path + ": the tile file is not a regular file (a folder, FIFO or device)");
+  }
+  (void)::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
+  const auto file_size = static_cast<std::uint64_t>(info.st_size);
   const auto bad = [&](const std::string& why) { return Status::bad_input(path + ": not a complete nmbake tile file: " + why); };
-  HeaderReader r(in, file_size);
+  HeaderReader r(fd, file_size);
   char magic[sizeof kMagic];
   if (!r.bytes(magic, sizeof magic)) return bad("too short");
   if (std::memcmp(magic, kMagic, sizeof kMagic - 1) != 0) return bad("wrong magic bytes");
@@ -503,13 +568,12 @@ Status read_tile(const std::string& path, TileData& tile) {
   for (const MapKind map : m.maps) {
     std::vector<float>& t =
         tile.texels.emplace_back(texels * static_cast<std::uint64_t>(map_traits(map).channels));
-    in.read(reinterpret_cast<char*>(t.data()), static_cast<std::streamsize>(t.size() * sizeof(float)));
+    if (!read_fully(fd, t.data(), t.size() * sizeof(float))) return bad("too short");
   }
   tile.coverage.resize(texels);
   std::uint64_t check = 0;
-  in.read(reinterpret_cast<char*>(tile.coverage.data()), static_cast<std::streamsize>(texels));
-  in.read(reinterpret_cast<char*>(&check), sizeof check);
-  if (!in) return bad("too short");
+  if (!read_fully(fd, tile.coverage.data(), texels) || !read_fully(fd, &check, sizeof check))
+    return bad("too short");
   if (tile_checksum(r.header, tile) != check)
     return bad("its checksum does not match (a torn or altered file)");
   for (const std::uint8_t c : tile.coverage) {
@@ -563,6 +627,9 @@ Status merge_tiles(const std::vector<std::string>& tile_paths, const std::vector
   const std::vector<OutputSpec> named = first.outputs;
   const std::vector<OutputSpec>& targets = outputs.empty() ? named : outputs;
   if (targets.empty()) return Status::bad_input("merge: no output map given (-o) and the tiles name none");
+  if (outputs.empty()) {
+    for (const OutputSpec& out : named) NMBAKE_TRY(check_tile_output(out.path, tile_paths.front()));
+  }
   if (const Status tokens = check_map_tokens(targets, settings.maps); !tokens) {
     return Status::bad_input("merge: " + tokens.message());
   }

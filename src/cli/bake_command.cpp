@@ -3,6 +3,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <string>
 #include <vector>
@@ -202,6 +203,10 @@ Status write_text(const std::string& path, const std::string& text) {
 
 // A bake through the cache (cache.hpp): fetched when its key is there,
 // else baked and stored. Without a cache folder, or for a tile, just bake().
+// An entry that is there but does not verify is a miss: a warning says
+// which and why, and the new bake replaces it. A store that fails after the
+// bake (the folder was checked before it: check_cache_dir) only warns: the
+// maps are written and right, and the next bake bakes again.
 Status bake_or_fetch(const BakeJob& job, const std::string& cache_dir, BakeReport& report, const ProgressFn& listener,
                      bool& cached) {
   cached = false;
@@ -210,17 +215,29 @@ Status bake_or_fetch(const BakeJob& job, const std::string& cache_dir, BakeRepor
   NMBAKE_TRY(validate_options(job.options));
   NMBAKE_TRY(bake_key(job.options, key));
   std::vector<std::string> written;
-  NMBAKE_TRY(cache_fetch(cache_dir, key, job.options, job.report_path, cached, written));
-  if (cached) {
+  CacheLookup lookup;
+  NMBAKE_TRY(cache_fetch(cache_dir, key, job.options, job.report_path, lookup, written));
+  if (lookup.hit) {
+    cached = true;
     report = BakeReport{};
     report.key = key.hex();
     report.cached = true;
     report.outputs = written;
     return Status::ok();
   }
+  if (!lookup.bad_entry.empty()) {
+    std::fprintf(stderr, "nmbake: warning: %s: a bad cache entry (%s): baking again\n",
+                 printable_text((std::filesystem::path(cache_dir) / key.hex()).string()).c_str(),
+                 printable_text(lookup.bad_entry).c_str());
+  }
   NMBAKE_TRY(bake(job.options, report, listener));
   report.key = key.hex();
-  NMBAKE_TRY(cache_store(cache_dir, key, job.options, report, report.to_json()));
+  if (const Status stored =
+          cache_store(cache_dir, key, job.options, report, report.to_json(), !lookup.bad_entry.empty());
+      !stored) {
+    std::fprintf(stderr, "nmbake: warning: %s (the maps are written)\n",
+                 printable_text(stored.message()).c_str());
+  }
   return Status::ok();
 }
 
@@ -341,6 +358,10 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
   for (const BakeJob& job : jobs) {
     Status s = validate_options(job.options);
     if (s) s = check_bake_inputs(job.options);
+    // A cache that cannot take the bake is found now, not after it.
+    if (s && job.options.tile_count == 0) {
+      s = check_cache_dir(!flags.cache.empty() ? flags.cache : resolve_cache_dir(job.cache_dir));
+    }
     // An environment failure (the image module missing) stays internal. A
     // flag bake is named after its first output, which the message names
     // already: no name in front (it printed the path twice).

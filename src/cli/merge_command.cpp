@@ -24,7 +24,7 @@ int run_merge(const MergeFlags& f, const GlobalOptions& global) {
     out.format_given = !f.format.empty();  // else `.png` takes each map's own depth, as in the bake
     const bool ok = f.format.empty() ? pixel_format_from_path(path, out.format) : parse_word(f.format, out.format);
     if (!ok) {
-      std::fprintf(stderr, "nmbake: error: %s: unknown image extension or --format\n", path.c_str());
+      print_error(path + ": unknown image extension or --format");
       return kBadInput;
     }
     outputs.push_back(out);
@@ -32,21 +32,22 @@ int run_merge(const MergeFlags& f, const GlobalOptions& global) {
   MergeReport report;
   const Status s = merge_tiles(f.tiles, outputs, report);
   if (!s) {
-    std::fprintf(stderr, "nmbake: error: %s\n", s.message().c_str());
+    print_error(s.message());
     return s.code() == StatusCode::internal ? kInternal : kBadInput;
   }
   if (!f.report.empty()) {
     Status written = check_output_target(f.report);
     if (written) written = write_file_atomically(f.report, {report.to_json()}, "the report");
     if (!written) {
-      std::fprintf(stderr, "nmbake: error: %s\n", written.message().c_str());
+      print_error(written.message());
       return kBadInput;
     }
   }
   if (!global.quiet) {
     std::printf("merged %d tiles of %dx%d (key %s) into", report.tiles, report.width, report.height,
                 report.key.hex().c_str());
-    for (const std::string& o : report.outputs) std::printf(" %s", o.c_str());
+    // The paths may come from a tile file: no escape codes reach the terminal.
+    for (const std::string& o : report.outputs) std::printf(" %s", printable_text(o).c_str());
     std::printf(": read %.3f s, dilate %.3f s, write %.3f s\n", report.read_seconds, report.dilate_seconds,
                 report.write_seconds);
   }

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Writes the seed corpora of the fuzz harnesses (tests/fuzz/corpus/<harness>/):
 small files of every form each parser accepts, so the fuzzer starts from
-valid input. Images, tile files, .glb and .fbx come from nmbake and
+valid input. Images, tile files, cache entries, .glb and .fbx come from nmbake and
 nmbake-gen (pass the build folder):
     python3 tests/fuzz/make_corpus.py build
 tools/fuzz adds the small models of Debian's assimp-testmodels at run time.
@@ -138,6 +138,45 @@ def tile_seeds(nmbake):
                 put("tile", name, f.read()[:-8])
 
 
+def cache_seeds(nmbake):
+    # Cache entries in fuzz_cache.cpp's form (records split by a line
+    # "=====": the manifest, the report, then "name\nbytes" per file; bytes
+    # "->T" make a symlink to T): the entry nmbake stores for the quad with
+    # the harness's outputs (a.png, b_<UDIM>.exr), its key replaced by the
+    # harness's; and that entry with a symlinked map, a manifest naming a
+    # file outside the entry, and a manifest of an older nmbake.
+    sep = b"\n=====\n"
+    key = "0123456789abcdeffedcba9876543210"
+    with tempfile.TemporaryDirectory() as d:
+        low, high = quad_meshes(d)
+        subprocess.run([nmbake, "bake", "-q", "--low", low, "--high", high, "-o", "a.png", "-o", "b_<UDIM>.exr",
+                        "--size", "16", "--samples", "1", "--cache", "c"], check=True, cwd=d)
+        (entry,) = os.listdir(os.path.join(d, "c"))
+        folder = os.path.join(d, "c", entry)
+
+        def read(name):
+            with open(os.path.join(folder, name), "rb") as f:
+                return f.read()
+        manifest = json.loads(read("manifest.json"))
+        manifest["key"] = key
+        names = [f["file"] for f in manifest["files"]]
+
+        def entry_bytes(m, files):
+            return sep.join([json.dumps(m, indent=2).encode(), read("report.json")] +
+                            [name.encode() + b"\n" + data for name, data in files])
+        files = [(n, read(n)) for n in names]
+        put("cache", "whole", entry_bytes(manifest, files))
+        put("cache", "symlinked_map", entry_bytes(manifest, [(names[0], b"->../../secret")] + files[1:]))
+        outside = json.loads(json.dumps(manifest))
+        outside["files"][0]["file"] = "../../secret"
+        put("cache", "name_outside", entry_bytes(outside, files))
+        older = json.loads(json.dumps(manifest))
+        del older["report"]
+        for f in older["files"]:
+            del f["size"], f["xxh3"]
+        put("cache", "older_manifest", entry_bytes(older, files))
+
+
 def bake_seeds():
     # flags, counts, then coordinates (+ UVs) and indices of the low mesh,
     # then of the high mesh (see fuzz_bake.cpp).
@@ -223,4 +262,5 @@ if __name__ == "__main__":
             build = os.path.dirname(build)
         image_seeds(os.path.join(build, "nmbake"))
         tile_seeds(os.path.join(build, "nmbake"))
+        cache_seeds(os.path.join(build, "nmbake"))
         mesh_format_seeds(build)
