@@ -3,6 +3,7 @@
 #include "nmbake/budget.hpp"
 #include "nmbake/preset.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <set>
@@ -269,6 +270,13 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
       const toml::table* t = item.as_table();
       if (!t) return Status::bad_input(where(file, item) + ": group: expected a table with low = [..] and high = [..]");
       GroupSpec group;
+      // As match_parts() names them: the name, else "group N".
+      const auto label = [](const GroupSpec& spec, std::size_t number) {
+        const std::string name =
+            spec.name.empty() ? "group " + std::to_string(number) : printable_text(spec.name);
+        return std::string("'").append(name).append("'");
+      };
+      const std::size_t number = o.match.groups.size() + 1;
       for (const auto& [group_key, group_value] : *t) {
         const std::string k(group_key.str());
         if (k == "name") {
@@ -280,10 +288,15 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
           if (!names || names->empty()) {
             return Status::bad_input(where(file, group_value) + ": group: " + k + ": expected a non-empty list of part names");
           }
+          std::vector<std::string>& parts = k == "low" ? group.low : group.high;
           for (const toml::node& n : *names) {
             const auto name = n.value<std::string>();
             if (!name) return Status::bad_input(where(file, n) + ": group: " + k + ": expected part names (strings)");
-            (k == "low" ? group.low : group.high).push_back(*name);
+            if (std::find(parts.begin(), parts.end(), *name) != parts.end()) {
+              return Status::bad_input(where(file, n) + ": group " + label(group, number) + ": " + k +
+                                       " part '" + printable_text(*name) + "' is listed twice");
+            }
+            parts.push_back(*name);
           }
         } else {
           return Status::bad_input(where(file, group_value) + ": group: unknown key \"" + k + "\" (name, low, high)");
@@ -291,6 +304,18 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
       }
       if (group.low.empty() || group.high.empty()) {
         return Status::bad_input(where(file, item) + ": group needs low = [..] and high = [..]");
+      }
+      // A low part's rays search one group's high parts: one group a low
+      // part (a high part may serve several).
+      for (std::size_t e = 0; e < o.match.groups.size(); ++e) {
+        const GroupSpec& earlier = o.match.groups[e];
+        for (const std::string& name : group.low) {
+          if (std::find(earlier.low.begin(), earlier.low.end(), name) != earlier.low.end()) {
+            return Status::bad_input(where(file, item) + ": low part '" + printable_text(name) +
+                                     "' is in two groups (" + label(earlier, e + 1) + " and " +
+                                     label(group, number) + ")");
+          }
+        }
       }
       o.match.groups.push_back(std::move(group));
     }
