@@ -288,15 +288,10 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
           if (!names || names->empty()) {
             return Status::bad_input(where(file, group_value) + ": group: " + k + ": expected a non-empty list of part names");
           }
-          std::vector<std::string>& parts = k == "low" ? group.low : group.high;
           for (const toml::node& n : *names) {
             const auto name = n.value<std::string>();
             if (!name) return Status::bad_input(where(file, n) + ": group: " + k + ": expected part names (strings)");
-            if (std::find(parts.begin(), parts.end(), *name) != parts.end()) {
-              return Status::bad_input(where(file, n) + ": group " + label(group, number) + ": " + k +
-                                       " part '" + printable_text(*name) + "' is listed twice");
-            }
-            parts.push_back(*name);
+            (k == "low" ? group.low : group.high).push_back(*name);
           }
         } else {
           return Status::bad_input(where(file, group_value) + ": group: unknown key \"" + k + "\" (name, low, high)");
@@ -304,6 +299,16 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
       }
       if (group.low.empty() || group.high.empty()) {
         return Status::bad_input(where(file, item) + ": group needs low = [..] and high = [..]");
+      }
+      // Checked after the loop, which sees the keys in name order ("name"
+      // last), so that the message can name the group.
+      for (const auto& [k, parts] : {std::pair{"low", &group.low}, std::pair{"high", &group.high}}) {
+        for (auto it = parts->begin(); it != parts->end(); ++it) {
+          if (std::find(parts->begin(), it, *it) != it) {
+            return Status::bad_input(where(file, item) + ": group " + label(group, number) + ": " + k +
+                                     " part '" + printable_text(*it) + "' is listed twice");
+          }
+        }
       }
       // A low part's rays search one group's high parts: one group a low
       // part (a high part may serve several).
