@@ -598,8 +598,9 @@ std::string quad_gltf(const std::string& uri = "", const std::string& payload = 
     base64 += i + 2 < bytes.size() ? kAlphabet[v & 63] : '=';
   }
   const std::string buffer_uri = uri.empty() ? "data:application/octet-stream;base64," + base64 : uri;
-  return R"({"asset":{"version":"2.0"},"buffers":[{"byteLength":)" + std::to_string(bytes.size()) + R"(,"uri":")" +
-         buffer_uri + R"("}],"bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":48},)"
+  return R"({"asset":{"version":"2.0"},"buffers":[{"byteLength":)" + std::to_string(bytes.size()) +
+         R"(,"uri":")" + buffer_uri +
+         R"("}],"bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":48},)"
          R"({"buffer":0,"byteOffset":48,"byteLength":32},{"buffer":0,"byteOffset":80,"byteLength":24}],)"
          R"("accessors":[{"bufferView":0,"componentType":5126,"type":"VEC3","count":4},)"
          R"({"bufferView":1,"componentType":5126,"type":"VEC2","count":4},)"
@@ -623,7 +624,8 @@ TEST(Hostile, GltfBufferUriNamingAFolderIsExit2ForEveryInput) {
     const std::string named = bad + ": buffer 0 (uri '" + uri + "')";
     const std::string commands[] = {
         s.bake(bad, out, "--size 16"),
-        cli() + " bake --low " + quoted(s.low) + " --high " + quoted(bad) + " -o " + quoted(out) + " --size 16",
+        cli() + " bake --low " + quoted(s.low) + " --high " + quoted(bad) + " -o " + quoted(out) +
+            " --size 16",
         s.bake(s.dir.file("quad.gltf"), out, "--size 16 --cage " + quoted(bad)),
     };
     for (const std::string& command : commands) {
@@ -632,7 +634,8 @@ TEST(Hostile, GltfBufferUriNamingAFolderIsExit2ForEveryInput) {
       EXPECT_TRUE(contains(r.output, named)) << r.output;
       EXPECT_FALSE(fs::exists(out));
     }
-    write_text(s.dir.file("job.toml"), job_bake("first", "low.obj", "first.png") + job_bake("second", "bad.gltf", "out.png"));
+    write_text(s.dir.file("job.toml"),
+               job_bake("first", "low.obj", "first.png") + job_bake("second", "bad.gltf", "out.png"));
     const test::CommandResult job = run_command(cli() + " bake " + quoted(s.dir.file("job.toml")));
     EXPECT_EQ(job.exit_code, 2) << job.output;
     EXPECT_TRUE(contains(job.output, named)) << job.output;

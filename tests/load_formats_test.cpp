@@ -494,10 +494,12 @@ TEST(LoadGltf, RejectsBrokenFilesNamingFilePartAndReason) {
 TEST(LoadGltf, HostileIndicesTransformsAndVersionsAreRefusedByName) {
   TempDir dir;
   const std::string path = dir.file("broken.gltf");
-  for (const json& mesh : {json(-1), json(std::numeric_limits<std::int32_t>::min()), json(std::uint64_t{1} << 31),
-                          json(std::uint64_t{1} << 40), json(0.5), json("0")}) {
-    expect_bad_input(load_broken(dir, [&](GltfFile& f, const Triangle&) { f.doc()["nodes"][0]["mesh"] = mesh; }),
-                     path, {"node 0: mesh is ", "not an index"});
+  for (const json& mesh :
+       {json(-1), json(std::numeric_limits<std::int32_t>::min()), json(std::uint64_t{1} << 31),
+        json(std::uint64_t{1} << 40), json(0.5), json("0")}) {
+    expect_bad_input(
+        load_broken(dir, [&](GltfFile& f, const Triangle&) { f.doc()["nodes"][0]["mesh"] = mesh; }), path,
+        {"node 0: mesh is ", "not an index"});
   }
   // Another node's bad index is refused though the first node loads.
   expect_bad_input(load_broken(dir,
@@ -507,7 +509,8 @@ TEST(LoadGltf, HostileIndicesTransformsAndVersionsAreRefusedByName) {
                                }),
                    path, {"node 1: mesh is -1"});
   expect_bad_input(
-      load_broken(dir, [](GltfFile& f, const Triangle&) { f.doc()["nodes"][0]["children"] = {(1ull << 32) + 1}; }),
+      load_broken(dir,
+                  [](GltfFile& f, const Triangle&) { f.doc()["nodes"][0]["children"] = {(1ull << 32) + 1}; }),
       path, {"node 0: children[0] is 4294967297"});
   expect_bad_input(load_broken(dir,
                                [](GltfFile& f, const Triangle&) {
@@ -521,19 +524,22 @@ TEST(LoadGltf, HostileIndicesTransformsAndVersionsAreRefusedByName) {
 
   const json zero = json::array({0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0});
   const json projective = json::array({1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0.5, 0, 0, 0, 1});
-  expect_bad_input(load_broken(dir, [&](GltfFile& f, const Triangle&) { f.doc()["nodes"][0]["matrix"] = zero; }),
-                   path, {"node 0 ('body')", "last row 0 0 0 0", "not affine"});
   expect_bad_input(
-      load_broken(dir, [&](GltfFile& f, const Triangle&) { f.doc()["nodes"][0]["matrix"] = projective; }), path,
-      {"node 0 ('body')", "last row 0 0 0.5 1"});
+      load_broken(dir, [&](GltfFile& f, const Triangle&) { f.doc()["nodes"][0]["matrix"] = zero; }), path,
+      {"node 0 ('body')", "last row 0 0 0 0", "not affine"});
+  expect_bad_input(
+      load_broken(dir, [&](GltfFile& f, const Triangle&) { f.doc()["nodes"][0]["matrix"] = projective; }),
+      path, {"node 0 ('body')", "last row 0 0 0.5 1"});
   expect_bad_input(load_broken(dir,
                                [](GltfFile& f, const Triangle&) {
                                  f.doc()["nodes"][0]["matrix"] = {1, 0, 0, 0, 1};
                                }),
                    path, {"node 0 ('body')", "matrix has 5 numbers"});
-  expect_bad_input(
-      load_broken(dir, [](GltfFile& f, const Triangle&) { f.doc()["nodes"][0]["rotation"] = {0, 0, 0, 0}; }), path,
-      {"node 0 ('body')", "zero quaternion"});
+  expect_bad_input(load_broken(dir,
+                               [](GltfFile& f, const Triangle&) {
+                                 f.doc()["nodes"][0]["rotation"] = {0, 0, 0, 0};
+                               }),
+                   path, {"node 0 ('body')", "zero quaternion"});
   // A translation-only matrix and a zero scale (a flattened part) still load.
   ASSERT_TRUE(load_broken(dir, [](GltfFile& f, const Triangle&) {
                 f.doc()["nodes"][0]["matrix"] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 5, 6, 7, 1};
@@ -572,7 +578,9 @@ TEST(LoadGltf, BufferUrisStayUnderTheGltfsFolder) {
   fs::create_directories(dir.file("sub/deeper"));
   fs::create_directories(dir.file("elsewhere"));
   // broken.gltf and broken.bin beside it; then the uri changed to `uri`.
-  ASSERT_TRUE(load_broken(dir, [](GltfFile&, const Triangle&) {}, {}, true).status.is_ok());
+  ASSERT_TRUE(load_broken(
+                  dir, [](GltfFile&, const Triangle&) {}, {}, true)
+                  .status.is_ok());
   const std::string document = [&] {
     std::ifstream in(path);
     return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
@@ -587,7 +595,8 @@ TEST(LoadGltf, BufferUrisStayUnderTheGltfsFolder) {
   fs::copy_file(dir.file("broken.bin"), dir.file("sub/buffer.bin"));
   fs::copy_file(dir.file("broken.bin"), dir.file("elsewhere/buffer.bin"));
   ASSERT_EQ(::mkfifo(dir.file("sub/pipe.bin").c_str(), 0600), 0);
-  for (const std::string uri : {"sub/buffer.bin", "sub/deeper/../buffer.bin", "./sub/buffer.bin", "sub%2Fbuffer.bin"}) {
+  for (const std::string uri :
+       {"sub/buffer.bin", "sub/deeper/../buffer.bin", "./sub/buffer.bin", "sub%2Fbuffer.bin"}) {
     const Loaded r = load_uri(uri);
     EXPECT_TRUE(r.status.is_ok()) << uri << ": " << r.status.message();
   }

@@ -352,7 +352,8 @@ TEST(MatchParts, PartListedTwiceInOneGroupIsRefused) {
   Status s = match_parts(low, high, low_twice, "l.obj", "h.obj", g);
   ASSERT_FALSE(s.is_ok());
   EXPECT_EQ(s.code(), StatusCode::bad_input);
-  EXPECT_NE(s.message().find("l.obj: group 'main' lists low part 'body' twice"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("l.obj: group 'main' lists low part 'body' twice"), std::string::npos)
+      << s.message();
   MatchOptions high_twice;
   high_twice.groups = {{"main", {"body"}, {"body_hi", "body_hi"}}, {"", {"mag"}, {"mag_hi"}}};
   s = match_parts(low, high, high_twice, "l.obj", "h.obj", g);
@@ -384,9 +385,9 @@ TEST(JobGroups, PartListedTwiceOrLowPartInTwoGroupsNamesJobGroupAndPart) {
     EXPECT_NE(s.message().find(message), std::string::npos) << s.message();
   }
   // A high part in two groups is allowed (bolts baked onto both).
-  test::write_text(dir.file("job.toml"),
-                   head + "[[bake.group]]\nlow = [\"a\"]\nhigh = [\"a_hi\", \"bolts\"]\n"
-                          "[[bake.group]]\nlow = [\"b\"]\nhigh = [\"b_hi\", \"bolts\"]\n");
+  test::write_text(dir.file("job.toml"), head +
+                                             "[[bake.group]]\nlow = [\"a\"]\nhigh = [\"a_hi\", \"bolts\"]\n"
+                                             "[[bake.group]]\nlow = [\"b\"]\nhigh = [\"b_hi\", \"bolts\"]\n");
   std::vector<BakeJob> jobs;
   const Status ok = load_job_file(dir.file("job.toml"), jobs);
   EXPECT_TRUE(ok.is_ok()) << ok.message();
