@@ -568,6 +568,22 @@ TEST(LoadGltf, HostileIndicesTransformsAndVersionsAreRefusedByName) {
   }
 }
 
+// A GLB whose buffer has a byteLength of 0 made tinygltf throw
+// std::out_of_range (vector::at(0) of the empty buffer): exit 3, found by
+// fuzz_gltf. Now bad input naming the file.
+TEST(LoadGltf, ExceptionsInsideTinygltfAreBadInput) {
+  TempDir dir;
+  std::string json_chunk = R"({"asset":{"version":"2.0"},"buffers":[{"byteLength":0}]})";
+  while (json_chunk.size() % 4 != 0) json_chunk += ' ';
+  const auto u32 = [](std::uint32_t v) { return std::string(reinterpret_cast<const char*>(&v), 4); };
+  const std::string bin(4, '\0');
+  const std::string glb = "glTF" + u32(2) + u32(static_cast<std::uint32_t>(28 + json_chunk.size() + bin.size())) +
+                          u32(static_cast<std::uint32_t>(json_chunk.size())) + "JSON" + json_chunk +
+                          u32(static_cast<std::uint32_t>(bin.size())) + std::string("BIN\0", 4) + bin;
+  write_text(dir.file("zero.glb"), glb);
+  expect_bad_input(load(dir.file("zero.glb")), dir.file("zero.glb"), {"glTF: the file is broken (tinygltf: "});
+}
+
 // A buffer's uri is read only from a regular file under the glTF's folder:
 // "." and "/" were opened as files (std::bad_alloc), "../../etc/passwd" was
 // read, a FIFO blocked, and a name missing from the folder was looked up in

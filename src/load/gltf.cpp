@@ -23,6 +23,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <tuple>
@@ -1191,10 +1192,18 @@ Status load_gltf(const std::string& path, const LoadOptions& options, Mesh& out,
   std::string warning_text;
   const auto size = static_cast<unsigned int>(bytes.size());
   const auto* text = reinterpret_cast<const char*>(bytes.data());
-  const bool loaded = binary ? parser.LoadBinaryFromMemory(&model, &error_text, &warning_text, bytes.data(),
-                                                           size, buffer_files.folder)
-                             : parser.LoadASCIIFromString(&model, &error_text, &warning_text, text, size,
-                                                          buffer_files.folder);
+  bool loaded = false;
+  try {
+    loaded = binary ? parser.LoadBinaryFromMemory(&model, &error_text, &warning_text, bytes.data(), size,
+                                                  buffer_files.folder)
+                    : parser.LoadASCIIFromString(&model, &error_text, &warning_text, text, size,
+                                                 buffer_files.folder);
+  } catch (const std::exception& e) {
+    // tinygltf throws on some broken files (a GLB buffer of byteLength 0:
+    // std::out_of_range from vector::at, found by fuzz_gltf): the file's
+    // fault, not ours.
+    return Status::bad_input(path + ": glTF: the file is broken (tinygltf: " + first_line(e.what()) + ")");
+  }
   if (!loaded) {
     if (!buffer_files.refused.empty()) return Status::bad_input(path + ": " + buffer_files.refused);
     if (error_text.empty()) error_text = "cannot be read as glTF";
