@@ -574,6 +574,91 @@ TEST(Hostile, JobInputsAreCheckedBeforeTheFirstBake) {
   }
 }
 
+// A one-triangle-pair glTF (the low quad) whose buffer is a data: URI, or
+// the file named `uri` when given.
+std::string quad_gltf(const std::string& uri = "", const std::string& payload = "") {
+  // Positions, UVs and indices of kLowQuadObj, as glTF stores them (v flipped).
+  const float positions[] = {-1, -1, 0, 1, -1, 0, 1, 1, 0, -1, 1, 0};
+  const float uvs[] = {0, 1, 1, 1, 1, 0, 0, 0};
+  const std::uint32_t indices[] = {0, 1, 2, 0, 2, 3};
+  std::string bytes(reinterpret_cast<const char*>(positions), sizeof positions);
+  bytes.append(reinterpret_cast<const char*>(uvs), sizeof uvs);
+  bytes.append(reinterpret_cast<const char*>(indices), sizeof indices);
+  bytes += payload;
+  static const char* const kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string base64;
+  base64.reserve(bytes.size() / 3 * 4 + 4);
+  for (std::size_t i = 0; i < bytes.size(); i += 3) {
+    unsigned v = static_cast<unsigned char>(bytes[i]) << 16;
+    if (i + 1 < bytes.size()) v |= static_cast<unsigned char>(bytes[i + 1]) << 8;
+    if (i + 2 < bytes.size()) v |= static_cast<unsigned char>(bytes[i + 2]);
+    base64 += kAlphabet[(v >> 18) & 63];
+    base64 += kAlphabet[(v >> 12) & 63];
+    base64 += i + 1 < bytes.size() ? kAlphabet[(v >> 6) & 63] : '=';
+    base64 += i + 2 < bytes.size() ? kAlphabet[v & 63] : '=';
+  }
+  const std::string buffer_uri = uri.empty() ? "data:application/octet-stream;base64," + base64 : uri;
+  return R"({"asset":{"version":"2.0"},"buffers":[{"byteLength":)" + std::to_string(bytes.size()) +
+         R"(,"uri":")" + buffer_uri +
+         R"("}],"bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":48},)"
+         R"({"buffer":0,"byteOffset":48,"byteLength":32},{"buffer":0,"byteOffset":80,"byteLength":24}],)"
+         R"("accessors":[{"bufferView":0,"componentType":5126,"type":"VEC3","count":4},)"
+         R"({"bufferView":1,"componentType":5126,"type":"VEC2","count":4},)"
+         R"({"bufferView":2,"componentType":5125,"type":"SCALAR","count":6}],)"
+         R"("meshes":[{"primitives":[{"attributes":{"POSITION":0,"TEXCOORD_0":1},"indices":2}]}],)"
+         R"("nodes":[{"name":"quad","mesh":0}],"scenes":[{"nodes":[0]}],"scene":0})";
+}
+
+// A buffer uri naming a folder ("." or "/") made tinygltf open it as a file
+// and size a vector from it: std::bad_alloc, exit 3, as the low, the high
+// and the cage mesh and through a job.
+TEST(Hostile, GltfBufferUriNamingAFolderIsExit2ForEveryInput) {
+  const Scene s;
+  write_text(s.dir.file("quad.gltf"), quad_gltf());
+  const std::string out = s.dir.file("out.png");
+  ASSERT_EQ(run_command(s.bake(s.dir.file("quad.gltf"), out, "--size 16 -q")).exit_code, 0);
+  fs::remove(out);
+  for (const std::string uri : {".", "/", "..", "../../etc/passwd"}) {
+    const std::string bad = s.dir.file("bad.gltf");
+    write_text(bad, quad_gltf(uri));
+    const std::string named = bad + ": buffer 0 (uri '" + uri + "')";
+    const std::string commands[] = {
+        s.bake(bad, out, "--size 16"),
+        cli() + " bake --low " + quoted(s.low) + " --high " + quoted(bad) + " -o " + quoted(out) +
+            " --size 16",
+        s.bake(s.dir.file("quad.gltf"), out, "--size 16 --cage " + quoted(bad)),
+    };
+    for (const std::string& command : commands) {
+      const test::CommandResult r = run_command(command);
+      EXPECT_EQ(r.exit_code, 2) << command << "\n" << r.output;
+      EXPECT_TRUE(contains(r.output, named)) << r.output;
+      EXPECT_FALSE(fs::exists(out));
+    }
+    write_text(s.dir.file("job.toml"),
+               job_bake("first", "low.obj", "first.png") + job_bake("second", "bad.gltf", "out.png"));
+    const test::CommandResult job = run_command(cli() + " bake " + quoted(s.dir.file("job.toml")));
+    EXPECT_EQ(job.exit_code, 2) << job.output;
+    EXPECT_TRUE(contains(job.output, named)) << job.output;
+    EXPECT_FALSE(fs::exists(out));
+  }
+}
+
+// A .gltf of data: URIs takes about 5 times its size to read (tinygltf's
+// JSON document, the URI's text and the decoded buffer at once): refused up
+// front when that does not fit, instead of std::bad_alloc (exit 3) halfway.
+TEST(Hostile, HugeDataUriIsRefusedWithinTheMemoryBudget) {
+  if (kSanitized) GTEST_SKIP() << "the budget is RLIMIT_AS, which sanitizer builds cannot set";
+  Scene s;
+  const std::string big = s.dir.file("big.gltf");
+  write_text(big, quad_gltf("", std::string(std::size_t{45} << 20, '\0')));  // a 60 MB file
+  const std::string out = s.dir.file("out.png");
+  const test::CommandResult r = run_command(memory_limit(300000) + s.bake(big, out, "--size 16"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(contains(r.output, big + ": reading this ")) << r.output;
+  EXPECT_TRUE(contains(r.output, " glTF file takes about ")) << r.output;
+  EXPECT_FALSE(fs::exists(out));
+}
+
 // A failure that only shows during a bake (a mesh broken halfway) stops the
 // job, saying which bakes finished and what they wrote; --keep-going runs the
 // rest; --job-report lists every bake's status.

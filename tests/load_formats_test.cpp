@@ -3,6 +3,8 @@
 // buffers, every rejection), files no one here wrote (Debian's
 // assimp-testmodels), FBX files made with Assimp's exporter, the glTF writer
 // round trip, and bakes of the same asset as OBJ and as glTF.
+#include <sys/stat.h>
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -13,6 +15,7 @@
 #include <fstream>
 #include <functional>
 #include <iterator>
+#include <limits>
 #include <numbers>
 #include <set>
 #include <string>
@@ -483,6 +486,158 @@ TEST(LoadGltf, RejectsBrokenFilesNamingFilePartAndReason) {
   // OBJ and PLY have one UV set.
   write_text(dir.file("one.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
   expect_bad_input(load(dir.file("one.obj"), second_set), dir.file("one.obj"), {"one UV set"});
+}
+
+// tinygltf casts every index to int: a mesh index of 2^40 became mesh 0,
+// 2^31 and any negative one "no mesh", and a child of 2^32 + 1 node 1. Each
+// is refused by name, as are transforms that place no mesh and glTF 1.0.
+TEST(LoadGltf, HostileIndicesTransformsAndVersionsAreRefusedByName) {
+  TempDir dir;
+  const std::string path = dir.file("broken.gltf");
+  for (const json& mesh :
+       {json(-1), json(std::numeric_limits<std::int32_t>::min()), json(std::uint64_t{1} << 31),
+        json(std::uint64_t{1} << 40), json(0.5), json("0")}) {
+    expect_bad_input(
+        load_broken(dir, [&](GltfFile& f, const Triangle&) { f.doc()["nodes"][0]["mesh"] = mesh; }), path,
+        {"node 0: mesh is ", "not an index"});
+  }
+  // Another node's bad index is refused though the first node loads.
+  expect_bad_input(load_broken(dir,
+                               [](GltfFile& f, const Triangle&) {
+                                 f.node({{"name", "other"}, {"mesh", -1}});
+                                 f.scene({0, 1});
+                               }),
+                   path, {"node 1: mesh is -1"});
+  expect_bad_input(
+      load_broken(dir,
+                  [](GltfFile& f, const Triangle&) { f.doc()["nodes"][0]["children"] = {(1ull << 32) + 1}; }),
+      path, {"node 0: children[0] is 4294967297"});
+  expect_bad_input(load_broken(dir,
+                               [](GltfFile& f, const Triangle&) {
+                                 f.doc()["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = 1ull << 40;
+                               }),
+                   path, {"mesh 0: primitives[0].attributes.POSITION is 1099511627776"});
+  // Indices inside extras are the application's, not glTF's.
+  ASSERT_TRUE(load_broken(dir, [](GltfFile& f, const Triangle&) {
+                f.doc()["nodes"][0]["extras"] = {{"mesh", -1}, {"children", {-5}}};
+              }).status.is_ok());
+
+  const json zero = json::array({0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0});
+  const json projective = json::array({1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0.5, 0, 0, 0, 1});
+  expect_bad_input(
+      load_broken(dir, [&](GltfFile& f, const Triangle&) { f.doc()["nodes"][0]["matrix"] = zero; }), path,
+      {"node 0 ('body')", "last row 0 0 0 0", "not affine"});
+  expect_bad_input(
+      load_broken(dir, [&](GltfFile& f, const Triangle&) { f.doc()["nodes"][0]["matrix"] = projective; }),
+      path, {"node 0 ('body')", "last row 0 0 0.5 1"});
+  expect_bad_input(load_broken(dir,
+                               [](GltfFile& f, const Triangle&) {
+                                 f.doc()["nodes"][0]["matrix"] = {1, 0, 0, 0, 1};
+                               }),
+                   path, {"node 0 ('body')", "matrix has 5 numbers"});
+  expect_bad_input(load_broken(dir,
+                               [](GltfFile& f, const Triangle&) {
+                                 f.doc()["nodes"][0]["rotation"] = {0, 0, 0, 0};
+                               }),
+                   path, {"node 0 ('body')", "zero quaternion"});
+  // A translation-only matrix and a zero scale (a flattened part) still load.
+  ASSERT_TRUE(load_broken(dir, [](GltfFile& f, const Triangle&) {
+                f.doc()["nodes"][0]["matrix"] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 5, 6, 7, 1};
+              }).status.is_ok());
+
+  expect_bad_input(
+      load_broken(dir, [](GltfFile& f, const Triangle&) { f.doc()["asset"]["version"] = "1.0"; }), path,
+      {"asset version '1.0'", "only glTF 2.0"});
+  // A GLB whose header says version 1 (glTF 1.0's binary container).
+  {
+    GltfFile file;
+    const Triangle t = add_triangle(file);
+    file.mesh({{"POSITION", t.positions}}, t.indices, "tri");
+    file.node({{"name", "body"}, {"mesh", 0}});
+    file.scene({0});
+    file.write_gltf(dir, "one.gltf");
+    const Loaded gltf = load(dir.file("one.gltf"));
+    ASSERT_TRUE(gltf.status.is_ok()) << gltf.status.message();
+    ASSERT_TRUE(save_mesh(dir.file("one.glb"), gltf.mesh).is_ok());
+    ASSERT_TRUE(load(dir.file("one.glb")).status.is_ok());
+    std::fstream glb(dir.file("one.glb"), std::ios::in | std::ios::out | std::ios::binary);
+    glb.seekp(4);
+    glb.put('\1');
+    glb.close();
+    expect_bad_input(load(dir.file("one.glb")), dir.file("one.glb"), {"GLB version 1", "only version 2"});
+  }
+}
+
+// A GLB whose buffer has a byteLength of 0 made tinygltf throw
+// std::out_of_range (vector::at(0) of the empty buffer): exit 3, found by
+// fuzz_gltf. Now bad input naming the file.
+TEST(LoadGltf, ExceptionsInsideTinygltfAreBadInput) {
+  TempDir dir;
+  std::string json_chunk = R"({"asset":{"version":"2.0"},"buffers":[{"byteLength":0}]})";
+  while (json_chunk.size() % 4 != 0) json_chunk += ' ';
+  const auto u32 = [](std::uint32_t v) { return std::string(reinterpret_cast<const char*>(&v), 4); };
+  const std::string bin(4, '\0');
+  const std::string glb = "glTF" + u32(2) + u32(static_cast<std::uint32_t>(28 + json_chunk.size() + bin.size())) +
+                          u32(static_cast<std::uint32_t>(json_chunk.size())) + "JSON" + json_chunk +
+                          u32(static_cast<std::uint32_t>(bin.size())) + std::string("BIN\0", 4) + bin;
+  write_text(dir.file("zero.glb"), glb);
+  expect_bad_input(load(dir.file("zero.glb")), dir.file("zero.glb"), {"glTF: the file is broken (tinygltf: "});
+}
+
+// A buffer's uri is read only from a regular file under the glTF's folder:
+// "." and "/" were opened as files (std::bad_alloc), "../../etc/passwd" was
+// read, a FIFO blocked, and a name missing from the folder was looked up in
+// the working folder.
+TEST(LoadGltf, BufferUrisStayUnderTheGltfsFolder) {
+  TempDir dir;
+  const std::string path = dir.file("broken.gltf");
+  fs::create_directories(dir.file("sub/deeper"));
+  fs::create_directories(dir.file("elsewhere"));
+  // broken.gltf and broken.bin beside it; then the uri changed to `uri`.
+  ASSERT_TRUE(load_broken(
+                  dir, [](GltfFile&, const Triangle&) {}, {}, true)
+                  .status.is_ok());
+  const std::string document = [&] {
+    std::ifstream in(path);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }();
+  const auto load_uri = [&](const std::string& uri) {
+    json doc = json::parse(document);
+    doc["buffers"][0]["uri"] = uri;
+    write_text(path, doc.dump());
+    return load(path);
+  };
+  // The same bytes under other names.
+  fs::copy_file(dir.file("broken.bin"), dir.file("sub/buffer.bin"));
+  fs::copy_file(dir.file("broken.bin"), dir.file("elsewhere/buffer.bin"));
+  ASSERT_EQ(::mkfifo(dir.file("sub/pipe.bin").c_str(), 0600), 0);
+  for (const std::string uri :
+       {"sub/buffer.bin", "sub/deeper/../buffer.bin", "./sub/buffer.bin", "sub%2Fbuffer.bin"}) {
+    const Loaded r = load_uri(uri);
+    EXPECT_TRUE(r.status.is_ok()) << uri << ": " << r.status.message();
+  }
+  const std::pair<std::string, std::string> refused[] = {
+      {".", "names a folder"},
+      {"sub", "names a folder"},
+      {"..", "leaves the glTF's folder"},
+      {"/", "absolute path"},
+      {"/etc/passwd", "absolute path"},
+      {"../../etc/passwd", "leaves the glTF's folder"},
+      {"sub/../../elsewhere/buffer.bin", "leaves the glTF's folder"},
+      {"%2e%2e/elsewhere/buffer.bin", "leaves the glTF's folder"},
+      {"sub/pipe.bin", "no regular file"},
+      {"missing.bin", "cannot open it"},
+  };
+  for (const auto& [uri, reason] : refused) {
+    expect_bad_input(load_uri(uri), path, {"buffer 0 (uri '" + uri + "')", reason});
+  }
+  // Not in the glTF's folder but in the working folder: tinygltf's second
+  // place to look, not ours.
+  const fs::path cwd = fs::current_path();
+  fs::current_path(dir.file("elsewhere"));
+  const Loaded in_cwd = load_uri("buffer.bin");
+  fs::current_path(cwd);
+  expect_bad_input(in_cwd, path, {"buffer 0 (uri 'buffer.bin')", "cannot open it"});
 }
 
 // Each primitive's material names its triangles: the material's name,

@@ -264,9 +264,10 @@ std::vector<PacketRay> packet_rays(const LowSurface& surface, const TexelSamples
 struct DistanceEstimate {
   float front = 0.0f;
   float back = 0.0f;
-  // With a grouped scene: per group, from that group's probes alone (a group
-  // without a found probe gets the floor distance); front/back above are the
-  // estimate over all probes.
+  // Per group of the scene (one entry for an ungrouped scene or a scene of
+  // one group: the estimate over all probes), from that group's probes alone
+  // (a group without a found probe gets the floor distance); front/back above
+  // are the estimate over all probes.
   std::vector<GroupDistances> groups;
   std::uint64_t probes = 0;
   std::uint64_t probe_misses = 0;  // probe points with no high surface within reach

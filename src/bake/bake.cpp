@@ -879,6 +879,10 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   r.retry_reach = rays.retry_reach;
   r.front = rays.front;
   r.back = rays.back;
+  if (need_estimate) {
+    NMBAKE_CHECK(estimate.groups.size() == std::max<std::size_t>(groups.groups.size(), 1),
+                 "an estimate per group");
+  }
   for (std::size_t g = 0; g < groups.groups.size(); ++g) {
     const GroupDistances e = need_estimate ? estimate.groups[g] : GroupDistances{};
     rays.groups.push_back({resolve(o.front, r.low_diagonal, e.front), resolve(o.back, r.low_diagonal, e.back)});

@@ -3,6 +3,7 @@
 #include "nmbake/budget.hpp"
 #include "nmbake/preset.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <set>
@@ -200,6 +201,13 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
       const toml::table* t = item.as_table();
       if (!t) return Status::bad_input(where(file, item) + ": group: expected a table with low = [..] and high = [..]");
       GroupSpec group;
+      // As match_parts() names them: the name, else "group N".
+      const auto label = [](const GroupSpec& spec, std::size_t number) {
+        const std::string name =
+            spec.name.empty() ? "group " + std::to_string(number) : printable_text(spec.name);
+        return std::string("'").append(name).append("'");
+      };
+      const std::size_t number = o.match.groups.size() + 1;
       for (const auto& [group_key, group_value] : *t) {
         const std::string k(group_key.str());
         if (k == "name") {
@@ -222,6 +230,28 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
       }
       if (group.low.empty() || group.high.empty()) {
         return Status::bad_input(where(file, item) + ": group needs low = [..] and high = [..]");
+      }
+      // Checked after the loop, which sees the keys in name order ("name"
+      // last), so that the message can name the group.
+      for (const auto& [k, parts] : {std::pair{"low", &group.low}, std::pair{"high", &group.high}}) {
+        for (auto it = parts->begin(); it != parts->end(); ++it) {
+          if (std::find(parts->begin(), it, *it) != it) {
+            return Status::bad_input(where(file, item) + ": group " + label(group, number) + ": " + k +
+                                     " part '" + printable_text(*it) + "' is listed twice");
+          }
+        }
+      }
+      // A low part's rays search one group's high parts: one group a low
+      // part (a high part may serve several).
+      for (std::size_t e = 0; e < o.match.groups.size(); ++e) {
+        const GroupSpec& earlier = o.match.groups[e];
+        for (const std::string& name : group.low) {
+          if (std::find(earlier.low.begin(), earlier.low.end(), name) != earlier.low.end()) {
+            return Status::bad_input(where(file, item) + ": low part '" + printable_text(name) +
+                                     "' is in two groups (" + label(earlier, e + 1) + " and " +
+                                     label(group, number) + ")");
+          }
+        }
       }
       o.match.groups.push_back(std::move(group));
     }

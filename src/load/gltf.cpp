@@ -11,13 +11,22 @@
 // scene (the default scene, else scene 0, else every root node), in
 // depth-first order, with its world matrix applied; one MeshPart per node,
 // and a material range per primitive (its material's name).
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <stdexcept>
 #include <string>
+#include <string_view>
+#include <tuple>
 #include <vector>
 
 #include <glm/gtc/matrix_inverse.hpp>
@@ -25,15 +34,24 @@
 #include <glm/gtc/type_ptr.hpp>
 #include <glm/mat3x3.hpp>
 #include <glm/mat4x4.hpp>
+#include <nlohmann/json.hpp>
 
 #include "load/parsers.hpp"
 #include "load/tinygltf.hpp"
+#include "nmbake/budget.hpp"
 
 namespace nmbake::load_detail {
 
 namespace {
 
 constexpr int kModeTriangles = TINYGLTF_MODE_TRIANGLES;
+
+// Peak memory of reading a glTF file per byte of it (the whole process,
+// measured with /usr/bin/time, rounded up): a 200 MB .gltf holding one data:
+// URI peaked at 1.04 GB (5.2 x), a 150 MB .glb at 306 MB (2.0 x: the file,
+// and its BIN chunk copied into the buffer).
+constexpr std::uint64_t kGltfParseBytesPerByte = 6;
+constexpr std::uint64_t kGlbParseBytesPerByte = 3;
 
 // The world-space transform of one node, with what normals and tangents need.
 struct NodeTransform {
@@ -68,6 +86,12 @@ glm::dmat4 local_matrix(const tinygltf::Node& node) {
   }
   if (node.scale.size() == 3) m = glm::scale(m, glm::dvec3(node.scale[0], node.scale[1], node.scale[2]));
   return m;
+}
+
+std::string number_text(double value) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", value);
+  return text;
 }
 
 std::size_t component_bytes(int component_type) {
@@ -445,9 +469,54 @@ class GltfReader {
       }
       visited[n] = true;
       const tinygltf::Node& node = model_.nodes[n];
+      NMBAKE_TRY(check_transform(entry.node, node));
       const glm::dmat4 world = entry.parent * local_matrix(node);
       if (node.mesh >= 0) NMBAKE_TRY(read_node_mesh(entry.node, make_transform(world)));
       for (auto it = node.children.rbegin(); it != node.children.rend(); ++it) stack.push_back({*it, world});
+    }
+    return Status::ok();
+  }
+
+  // A node's own transform must be a finite affine one: a projective matrix
+  // (a last row other than 0 0 0 1, the all-zero matrix among them) has no
+  // meaning for a mesh's positions and divides nothing here, a rotation of
+  // length 0 cannot be normalised, and tinygltf ignores a matrix of the
+  // wrong length silently.
+  Status check_transform(int node_index, const tinygltf::Node& node) const {
+    const auto refuse = [&](const std::string& reason) {
+      return Status::bad_input(path_ + ": node " + std::to_string(node_index) +
+                               (node.name.empty() ? "" : " ('" + printable_text(node.name) + "')") + ": " +
+                               reason);
+    };
+    const auto finite = [](const std::vector<double>& v) {
+      return std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); });
+    };
+    if (!node.matrix.empty()) {
+      if (node.matrix.size() != 16) {
+        return refuse("its matrix has " + std::to_string(node.matrix.size()) + " numbers, not 16");
+      }
+      if (!finite(node.matrix)) return refuse("its matrix holds a number that is not finite");
+      // Column-major: the last row is elements 3, 7, 11 and 15.
+      const std::vector<double>& m = node.matrix;
+      if (m[3] != 0.0 || m[7] != 0.0 || m[11] != 0.0 || m[15] != 1.0) {
+        return refuse("its matrix is not affine (last row " + number_text(m[3]) + " " + number_text(m[7]) +
+                      " " + number_text(m[11]) + " " + number_text(m[15]) +
+                      ", expected 0 0 0 1): a zero or projective matrix places no mesh");
+      }
+    }
+    for (const auto& [values, count, what] : {std::tuple{&node.translation, std::size_t{3}, "translation"},
+                                              std::tuple{&node.rotation, std::size_t{4}, "rotation"},
+                                              std::tuple{&node.scale, std::size_t{3}, "scale"}}) {
+      if (values->empty()) continue;
+      if (values->size() != count) {
+        return refuse(std::string("its ") + what + " has " + std::to_string(values->size()) +
+                      " numbers, not " + std::to_string(count));
+      }
+      if (!finite(*values)) return refuse(std::string("its ") + what + " holds a number that is not finite");
+    }
+    if (node.rotation.size() == 4 && node.rotation[0] == 0.0 && node.rotation[1] == 0.0 &&
+        node.rotation[2] == 0.0 && node.rotation[3] == 0.0) {
+      return refuse("its rotation is the zero quaternion, which is no rotation");
     }
     return Status::ok();
   }
@@ -761,25 +830,304 @@ bool skip_image(tinygltf::Image*, const int, std::string*, std::string*, int, in
 }
 
 // Whether the JSON of a file tinygltf refused names the Draco extension: the
-// first 16 MiB (a .glb's JSON chunk comes first) are searched. The buffer is
-// the file's size, not 16 MiB: zeroing that on every refused file cost more
-// than the parse (fuzz_gltf ran at 17 inputs a second).
-bool mentions_draco(const std::string& path) {
-  std::error_code ec;
-  const std::uintmax_t size = std::filesystem::file_size(path, ec);
-  if (ec) return false;
-  std::ifstream in(path, std::ios::binary);
-  std::string head(static_cast<std::size_t>(std::min<std::uintmax_t>(size, std::uintmax_t{16} << 20)), '\0');
-  in.read(head.data(), static_cast<std::streamsize>(head.size()));
-  head.resize(static_cast<std::size_t>(in.gcount()));
-  return head.find("\"KHR_draco_mesh_compression\"") != std::string::npos;
+// first 16 MiB (a .glb's JSON chunk comes first) are searched.
+bool mentions_draco(const std::vector<unsigned char>& bytes) {
+  const std::string_view head(reinterpret_cast<const char*>(bytes.data()),
+                              std::min<std::size_t>(bytes.size(), std::size_t{16} << 20));
+  return head.find("\"KHR_draco_mesh_compression\"") != std::string_view::npos;
 }
 
+// tinygltf's error text on one line and of a readable length: it quotes a
+// data: URI it could not decode whole (a 200 MB file gave a 200 MB message).
 std::string first_line(std::string text) {
+  constexpr std::size_t kMaxMessageBytes = 400;
+  if (text.size() > kMaxMessageBytes) text = text.substr(0, kMaxMessageBytes) + " [...]";
   while (!text.empty() && (text.back() == '\n' || text.back() == '\r')) text.pop_back();
   std::replace(text.begin(), text.end(), '\n', ';');
   return text;
 }
+
+// ------------------------------------------------------------ buffer files
+//
+// A buffer's uri is a path relative to the glTF's folder, and tinygltf
+// opens whatever it names: "../../etc/passwd", "/etc/passwd", the folder "."
+// (a directory opened as a file: a size of 2^63, std::bad_alloc), a FIFO
+// (blocks), and, when the folder has no such file, the same name in the
+// working folder. nmbake reads a buffer only from a regular file under the
+// glTF's folder: a relative path that does not leave it (checked on the
+// path's text; a symbolic link inside the folder is followed, being the
+// folder owner's choice, not the file's).
+
+// tinygltf's decoding of a buffer uri (dlib's urldecode: %XX, '+' a space),
+// so that the check sees the path tinygltf opens.
+std::string decode_uri(const std::string& uri) {
+  const auto hex = [](char c) -> int {
+    if (c >= '0' && c <= '9') return c - '0';
+    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+    return 0;  // as dlib's from_hex
+  };
+  std::string out;
+  for (std::size_t i = 0; i < uri.size(); ++i) {
+    if (uri[i] == '+') {
+      out += ' ';
+    } else if (uri[i] == '%' && uri.size() > i + 2) {
+      out += static_cast<char>((hex(uri[i + 1]) << 4) | hex(uri[i + 2]));
+      i += 2;
+    } else {
+      out += uri[i];
+    }
+  }
+  return out;
+}
+
+// Empty when `relative` (a decoded uri) names a regular file under `folder`,
+// else why it may not be read.
+std::string buffer_file_problem(const std::string& folder, const std::string& relative) {
+  namespace fs = std::filesystem;
+  if (relative.empty()) return "the uri is empty";
+  if (relative.find('\0') != std::string::npos) return "the uri holds a NUL byte";
+  if (relative.front() == '/') {
+    return "the uri is an absolute path (buffers are read only from files under the glTF's folder)";
+  }
+  // "a/../../x" leaves the folder as surely as "../x" does.
+  const fs::path normal = fs::path(relative).lexically_normal();
+  if (!normal.empty() && *normal.begin() == "..") {
+    return "the uri leaves the glTF's folder (buffers are read only from files under it)";
+  }
+  struct stat st {};
+  if (::stat((fs::path(folder) / normal).c_str(), &st) != 0) {
+    return std::string("cannot open it: ") + std::strerror(errno);
+  }
+  if (S_ISDIR(st.st_mode)) return "the uri names a folder, not a file";
+  if (!S_ISREG(st.st_mode)) return "the uri names no regular file (a FIFO, socket or device)";
+  return {};
+}
+
+// tinygltf's file system (its FsCallbacks), confined to the glTF's folder.
+struct BufferFiles {
+  std::string folder;   // absolute; tinygltf joins it and the uri with a '/'
+  std::string refused;  // the first uri refused and why, for the message
+};
+
+bool buffer_file_exists(const std::string& candidate, void* user) {
+  BufferFiles& files = *static_cast<BufferFiles*>(user);
+  const std::string prefix = files.folder.back() == '/' ? files.folder : files.folder + "/";
+  // tinygltf tries the glTF's folder, then "./uri" (the working folder):
+  // only the first is where a buffer may be.
+  if (candidate.compare(0, prefix.size(), prefix) != 0) return false;
+  const std::string relative = candidate.substr(prefix.size());
+  const std::string problem = buffer_file_problem(files.folder, relative);
+  if (problem.empty()) return true;
+  if (files.refused.empty()) files.refused = "buffer uri '" + printable_text(relative) + "': " + problem;
+  return false;
+}
+
+std::string keep_path(const std::string& path, void*) { return path; }  // no ~ or $VAR expansion
+
+// Reads a whole buffer file; a FIFO or device put in the file's place after
+// the check is refused by what was opened (O_NONBLOCK: opening a FIFO does
+// not wait for a writer).
+bool read_buffer_file(std::vector<unsigned char>* out, std::string* err, const std::string& path, void*) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
+  if (fd < 0) {
+    *err = std::strerror(errno);
+    return false;
+  }
+  struct stat st {};
+  bool ok = ::fstat(fd, &st) == 0 && S_ISREG(st.st_mode);
+  if (!ok) *err = "not a regular file";
+  const auto size = static_cast<std::uint64_t>(ok ? st.st_size : 0);
+  if (const MemoryLimit limit = available_memory(); ok && limit.bytes != 0 && size > limit.bytes) {
+    *err = "a " + memory_text(size) + " buffer; " + memory_text(limit.bytes) + " are available (" +
+           limit.source + ")";
+    ok = false;
+  }
+  if (ok) {
+    out->resize(static_cast<std::size_t>(size));
+    std::size_t done = 0;
+    while (done < out->size()) {
+      const ssize_t got = ::read(fd, out->data() + done, out->size() - done);
+      if (got < 0 && errno == EINTR) continue;
+      if (got <= 0) break;
+      done += static_cast<std::size_t>(got);
+    }
+    out->resize(done);  // a file that shrank: tinygltf's byteLength check says so
+  }
+  ::close(fd);
+  return ok;
+}
+
+bool write_nothing(std::string* err, const std::string&, const std::vector<unsigned char>&, void*) {
+  *err = "the loader writes no file";
+  return false;
+}
+
+// ------------------------------------------------------------ JSON scan
+//
+// One pass over the JSON (nlohmann's SAX parser: nothing is kept but a
+// little state) for what tinygltf reads lossily or not at all: it casts
+// every index to int, so 2^40 becomes 0 (another mesh, silently) and 2^31 or
+// any negative value means "none"; a float or a string is "none" too. An
+// index here must be a whole number in [0, 2^31). The scan also checks the
+// buffers' uris (above) before anything is read, naming the buffer, and the
+// asset version (glTF 1.0 is another format).
+class JsonScan : public nlohmann::json_sax<nlohmann::json> {
+ public:
+  explicit JsonScan(std::string folder) : folder_(std::move(folder)) {}
+  const std::string& problem() const { return problem_; }
+
+  bool null() override { return scalar("null", false); }
+  bool boolean(bool value) override { return scalar(value ? "true" : "false", false); }
+  bool number_integer(number_integer_t value) override {
+    return scalar(std::to_string(value), value >= 0 && value <= kMaxIndex);
+  }
+  bool number_unsigned(number_unsigned_t value) override {
+    return scalar(std::to_string(value), value <= static_cast<number_unsigned_t>(kMaxIndex));
+  }
+  bool number_float(number_float_t, const string_t& text) override { return scalar(text, false); }
+  bool string(string_t& value) override {
+    if (skipping()) return true;
+    const std::size_t depth = frames_.size();
+    if (depth == 2 && top_key() == "asset" && frames_[1].key == "version" && value.rfind("2.", 0) != 0) {
+      return fail("asset version '" + printable_text(value) + "': only glTF 2.0 is read");
+    }
+    if (depth == 3 && top_key() == "buffers" && frames_[2].key == "uri" && value.rfind("data:", 0) != 0) {
+      if (std::string p = buffer_file_problem(folder_, decode_uri(value)); !p.empty()) {
+        return fail("buffer " + std::to_string(frames_[1].items - 1) + " (uri '" + printable_text(value) +
+                    "'): " + p);
+      }
+    }
+    return scalar("a string", false);
+  }
+  bool binary(binary_t&) override { return true; }
+  bool start_object(std::size_t) override { return open(false); }
+  bool end_object() override { return close(); }
+  bool start_array(std::size_t) override { return open(true); }
+  bool end_array() override { return close(); }
+  bool key(string_t& name) override {
+    frames_.back().key = name;
+    return true;
+  }
+  // A syntax error is tinygltf's to report, in its words.
+  bool parse_error(std::size_t, const std::string&, const nlohmann::detail::exception&) override {
+    return false;
+  }
+
+ private:
+  static constexpr std::int64_t kMaxIndex = 0x7fffffff;
+
+  struct Frame {
+    bool array = false;
+    std::string key;        // objects: the current key
+    std::size_t items = 0;  // arrays: elements opened so far
+  };
+
+  const std::string& top_key() const { return frames_[0].key; }
+  // Inside "extensions" or "extras": anything goes.
+  bool skipping() const { return skip_depth_ != 0 && frames_.size() >= skip_depth_; }
+
+  bool open(bool array) {
+    if (!frames_.empty() && frames_.back().array) ++frames_.back().items;
+    if (!skipping() && !frames_.empty() && !frames_.back().array &&
+        (frames_.back().key == "extensions" || frames_.back().key == "extras")) {
+      skip_depth_ = frames_.size() + 1;
+    }
+    frames_.push_back(Frame{array, {}, 0});
+    return true;
+  }
+  bool close() {
+    frames_.pop_back();
+    if (skip_depth_ != 0 && frames_.size() < skip_depth_) skip_depth_ = 0;
+    return true;
+  }
+  bool fail(const std::string& problem) {
+    problem_ = problem;
+    return false;  // stops the parse
+  }
+
+  // The key a value is under: its object's key, or, in an array, the key of
+  // the object holding the array ("children": [1, 2]).
+  const std::string* field() const {
+    for (auto it = frames_.rbegin(); it != frames_.rend(); ++it) {
+      if (!it->array) return &it->key;
+    }
+    return nullptr;
+  }
+
+  // Where a value is, for the message: "node 3: mesh", "mesh 0: primitives[0].indices".
+  std::string location() const {
+    static const std::map<std::string, std::string> kSingular = {
+        {"nodes", "node"},         {"meshes", "mesh"},
+        {"accessors", "accessor"}, {"bufferViews", "buffer view"},
+        {"buffers", "buffer"},     {"scenes", "scene"},
+        {"materials", "material"}, {"textures", "texture"},
+        {"skins", "skin"},         {"animations", "animation"}};
+    std::string text;
+    for (std::size_t d = 0; d < frames_.size(); ++d) {
+      const Frame& f = frames_[d];
+      if (f.array) {
+        // The element being read is the last one opened.
+        const std::string index = std::to_string(f.items == 0 ? 0 : f.items - 1);
+        if (d == 1 && kSingular.count(frames_[0].key) != 0) {
+          text = kSingular.at(frames_[0].key) + " " + index;
+        } else {
+          text += "[" + index + "]";
+        }
+      } else if (d + 1 < frames_.size() || !f.key.empty()) {
+        if (d == 0) {
+          text = f.key;
+        } else {
+          text += (d == 2 && frames_[1].array && kSingular.count(frames_[0].key) != 0 ? ": " : ".") + f.key;
+        }
+      }
+    }
+    return text;
+  }
+
+  bool scalar(const std::string& text, bool is_index) {
+    if (frames_.empty() || skipping()) return true;
+    if (frames_.back().array) ++frames_.back().items;
+    const std::string* key = field();
+    if (key == nullptr) return true;
+    // The keys tinygltf reads as an int index (glTF 2.0's "glTFid"s), and
+    // the attribute maps, whose values are accessor indices.
+    static const char* const kIndexKeys[] = {"scene",
+                                             "nodes",
+                                             "children",
+                                             "mesh",
+                                             "skin",
+                                             "camera",
+                                             "indices",
+                                             "material",
+                                             "bufferView",
+                                             "buffer",
+                                             "sampler",
+                                             "source",
+                                             "index",
+                                             "node",
+                                             "joints",
+                                             "skeleton",
+                                             "inverseBindMatrices",
+                                             "input",
+                                             "output"};
+    bool index_field = std::find(std::begin(kIndexKeys), std::end(kIndexKeys), *key) != std::end(kIndexKeys);
+    if (!frames_.back().array && frames_.size() >= 2) {
+      const Frame& holder = frames_[frames_.size() - 2];
+      if (!holder.array && holder.key == "attributes") index_field = true;
+    }
+    // Top-level "nodes" holds objects; a scalar there is tinygltf's to refuse.
+    if (!index_field || is_index || (frames_.size() == 2 && frames_[1].array)) return true;
+    const std::string what = location();
+    return fail(what + " is " + printable_text(text) +
+                ", not an index (a whole number from 0 to 2147483647)");
+  }
+
+  std::string folder_;
+  std::vector<Frame> frames_;
+  std::size_t skip_depth_ = 0;
+  std::string problem_;
+};
 
 }  // namespace
 
@@ -789,25 +1137,86 @@ Status load_gltf(const std::string& path, const LoadOptions& options, Mesh& out,
   if (!fs::is_regular_file(path, ec)) {
     return Status::bad_input(path + ": cannot open: " + (fs::exists(path, ec) ? "not a regular file" : "no such file"));
   }
+  const bool binary = lower_extension(path) == ".glb";
+  const std::uint64_t file_bytes = fs::file_size(path, ec);
+  if (ec) return Status::bad_input(path + ": cannot open: " + ec.message());
+  // tinygltf takes the file's length as 32 bits (and a .glb's header says
+  // it in 32 bits).
+  if (file_bytes > 0xffffffffu) {
+    return Status::bad_input(path + ": larger than 4 GiB, the most a glTF file can be read");
+  }
+  // tinygltf holds the file, its JSON document (a data: URI's text a second
+  // time, and a third while it is lexed) and the decoded buffers at once:
+  // a 200 MB .gltf of data: URIs peaked at 1.3 GB. Refused up front when that
+  // cannot fit, rather than dying in std::bad_alloc halfway.
+  const std::uint64_t parse_bytes = file_bytes * (binary ? kGlbParseBytesPerByte : kGltfParseBytesPerByte);
+  if (const MemoryLimit limit = available_memory(); limit.bytes != 0 && parse_bytes > limit.bytes) {
+    return Status::bad_input(path + ": reading this " + memory_text(file_bytes) + " glTF file takes about " +
+                             memory_text(parse_bytes) + " (its JSON, data: URIs and buffers at once); " +
+                             memory_text(limit.bytes) + " are available (" + limit.source + ")");
+  }
+  std::vector<unsigned char> bytes;
+  std::string read_error;
+  if (!read_buffer_file(&bytes, &read_error, path, nullptr)) {
+    return Status::bad_input(path + ": cannot read: " + read_error);
+  }
+  if (bytes.empty()) return Status::bad_input(path + ": the file is empty");
+
+  // The JSON: the whole .gltf, or a .glb's first chunk (tinygltf checks the
+  // chunk layout; the version it does not: a GLB 1 file is glTF 1.0).
+  std::string_view json(reinterpret_cast<const char*>(bytes.data()), bytes.size());
+  if (binary && bytes.size() >= 20 && json.substr(0, 4) == "glTF") {
+    std::uint32_t version = 0;
+    std::uint32_t json_bytes = 0;
+    std::memcpy(&version, bytes.data() + 4, 4);
+    std::memcpy(&json_bytes, bytes.data() + 12, 4);
+    if (version != 2) {
+      return Status::bad_input(path + ": GLB version " + std::to_string(version) +
+                               ": only version 2 (glTF 2.0) is read");
+    }
+    json = json.substr(20, std::min<std::size_t>(json_bytes, bytes.size() - 20));
+  }
+  BufferFiles buffer_files{fs::absolute(path, ec).parent_path().lexically_normal().string(), {}};
+  if (ec || buffer_files.folder.empty())
+    return Status::bad_input(path + ": cannot find its folder: " + ec.message());
+  JsonScan scan(buffer_files.folder);
+  nlohmann::json::sax_parse(json, &scan);
+  if (!scan.problem().empty()) return Status::bad_input(path + ": " + scan.problem());
+
   tinygltf::TinyGLTF parser;
   parser.SetImageLoader(skip_image, nullptr);
+  parser.SetFsCallbacks(
+      tinygltf::FsCallbacks{buffer_file_exists, keep_path, read_buffer_file, write_nothing, &buffer_files});
   tinygltf::Model model;
   std::string error_text;
   std::string warning_text;
-  const bool binary = lower_extension(path) == ".glb";
-  const bool loaded = binary ? parser.LoadBinaryFromFile(&model, &error_text, &warning_text, path)
-                             : parser.LoadASCIIFromFile(&model, &error_text, &warning_text, path);
+  const auto size = static_cast<unsigned int>(bytes.size());
+  const auto* text = reinterpret_cast<const char*>(bytes.data());
+  bool loaded = false;
+  try {
+    loaded = binary ? parser.LoadBinaryFromMemory(&model, &error_text, &warning_text, bytes.data(), size,
+                                                  buffer_files.folder)
+                    : parser.LoadASCIIFromString(&model, &error_text, &warning_text, text, size,
+                                                 buffer_files.folder);
+  } catch (const std::exception& e) {
+    // tinygltf throws on some broken files (a GLB buffer of byteLength 0:
+    // std::out_of_range from vector::at, found by fuzz_gltf): the file's
+    // fault, not ours.
+    return Status::bad_input(path + ": glTF: the file is broken (tinygltf: " + first_line(e.what()) + ")");
+  }
   if (!loaded) {
+    if (!buffer_files.refused.empty()) return Status::bad_input(path + ": " + buffer_files.refused);
     if (error_text.empty()) error_text = "cannot be read as glTF";
     // tinygltf (built without Draco) stops at a Draco file's accessors,
     // which have no buffer view; say what the file really is.
-    if (mentions_draco(path)) {
+    if (mentions_draco(bytes)) {
       return Status::bad_input(path + ": the file uses KHR_draco_mesh_compression: Draco-compressed meshes are not supported");
     }
     return Status::bad_input(path + ": glTF: " + first_line(error_text));
   }
+  bytes = {};               // the model holds what it needs
   stats.unit_meters = 1.0;  // glTF positions are metres by definition
-  stats.bytes = static_cast<std::uint64_t>(fs::file_size(path, ec));
+  stats.bytes = file_bytes;
   for (const tinygltf::Buffer& buffer : model.buffers) {
     // External buffers count into the bytes read; a .glb's own and data:
     // URIs are inside the file already.

@@ -90,6 +90,12 @@ Status match_parts(const Mesh& low, const Mesh& high, const MatchOptions& option
                                    "', which the file does not have (parts: " + quoted_list(low_names) + ")");
         }
         if (const auto it = low_to_group.find(name); it != low_to_group.end()) {
+          // This group is not in `groups` yet: a part listed twice in it
+          // must not be looked up there.
+          if (it->second == g) {
+            return Status::bad_input(low_path + ": group '" + group.name + "' lists low part '" + name +
+                                     "' twice");
+          }
           return Status::bad_input(low_path + ": low part '" + name + "' is in two groups ('" +
                                    groups[it->second].name + "' and '" + group.name + "')");
         }
@@ -101,11 +107,14 @@ Status match_parts(const Mesh& low, const Mesh& high, const MatchOptions& option
           return Status::bad_input(high_path + ": group '" + group.name + "' names high part '" + name +
                                    "', which the file does not have (parts: " + quoted_list(high_names) + ")");
         }
+        // A high part may serve several groups, but once each.
         std::vector<std::uint32_t>& in = high_to_groups[name];
-        if (std::find(in.begin(), in.end(), g) == in.end()) {
-          in.push_back(g);
-          group.high_parts.push_back(name);
+        if (std::find(in.begin(), in.end(), g) != in.end()) {
+          return Status::bad_input(high_path + ": group '" + group.name + "' lists high part '" + name +
+                                   "' twice");
         }
+        in.push_back(g);
+        group.high_parts.push_back(name);
       }
       groups.push_back(std::move(group));
     }

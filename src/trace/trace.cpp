@@ -1037,9 +1037,17 @@ DistanceEstimate estimate_distances(const HighScene& scene, const LowSurface& su
   estimate(0, all);
   e.front = all.front;
   e.back = all.back;
-  if (grouped) {
-    e.groups.resize(static_cast<std::size_t>(group_count));
-    for (int g = 0; g < group_count; ++g) estimate(static_cast<std::size_t>(g) + 1, e.groups[g]);
+  // One entry per group of the scene, always: a scene of one group (one low
+  // part matched while other high parts are left out) is traced like an
+  // ungrouped one, and its group's estimate is that of all probes. It once
+  // got no entry, and the bake read past the empty list (SIGSEGV).
+  e.groups.resize(static_cast<std::size_t>(group_count));
+  for (std::size_t g = 0; g < e.groups.size(); ++g) {
+    if (grouped) {
+      estimate(g + 1, e.groups[g]);
+    } else {
+      e.groups[g] = all;
+    }
   }
   return e;
 }
