@@ -551,9 +551,10 @@ TEST(Hostile, EndlessLineIsCapped) {
 
 // ---------------------------------------------------------------- jobs
 
-std::string job_bake(const std::string& name, const std::string& low, const std::string& output) {
-  return "[[bake]]\nname = \"" + name + "\"\nlow = \"" + low + "\"\nhigh = \"high.obj\"\noutputs = [\"" + output +
-         "\"]\nsize = 32\n";
+std::string job_bake(const std::string& name, const std::string& low, const std::string& output,
+                     const std::string& high = "high.obj") {
+  return "[[bake]]\nname = \"" + name + "\"\nlow = \"" + low + "\"\nhigh = \"" + high + "\"\noutputs = [\"" +
+         output + "\"]\nsize = 32\n";
 }
 
 // A later bake's missing, empty, ill-named or NUL-holding mesh path is found
@@ -587,21 +588,70 @@ TEST(Hostile, JobInputsAreCheckedBeforeTheFirstBake) {
   }
 }
 
+// What the low mesh of a later bake decides (its part names against the
+// groups, UVs outside [0, 1]^2 without <UDIM>, a glTF UV set it lacks) was
+// found only when that bake ran, after the first bake wrote its map; now
+// before the first bake, naming the bake and the file.
+TEST(Hostile, JobLowMeshMistakesAreFoundBeforeTheFirstBake) {
+  Scene s;
+  // The quad of low.obj as part `body_low`, and with its UVs in tile 1002.
+  write_text(s.dir.file("named.obj"), std::string("o body_low\n") + kLowQuadObj);
+  write_text(s.dir.file("udim.obj"),
+             "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvt 1 0\nvt 2 0\nvt 2 1\nvt 1 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n");
+  Mesh quad;
+  quad.positions = {{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}};
+  quad.uvs = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+  quad.indices = {0, 1, 2, 0, 2, 3};
+  ASSERT_TRUE(save_mesh(s.dir.file("quad.glb"), quad).is_ok());  // TEXCOORD_0 only
+  struct Case {
+    std::string second;  // the second bake's table
+    std::string low;
+    std::string message;
+  };
+  const Case cases[] = {
+      {job_bake("second", "named.obj", "second.png") + "[[bake.group]]\nname = \"g\"\nlow = [\"bdy_low\"]\nhigh = [\"x\"]\n",
+       "named.obj", ": group 'g' names low part 'bdy_low', which the file does not have (parts: 'body_low')"},
+      {job_bake("second", "named.obj", "second.png") + "match = \"name\"\nlow_suffix = \"_lp\"\n", "named.obj",
+       ": --match name: no low part ends in '_lp' (parts: 'body_low')"},
+      {job_bake("second", "udim.obj", "second.png"), "udim.obj",
+       ": UVs lie outside [0, 1]^2 (UDIM tiles 1002): put <UDIM> in the output path"},
+      {job_bake("second", "quad.glb", "second.png") + "uv_set = 1\n", "quad.glb", "(TEXCOORD_1) is missing"},
+  };
+  const std::string job = s.dir.file("job.toml");
+  for (const Case& c : cases) {
+    write_text(job, job_bake("first", "low.obj", "first.png") + c.second);
+    const test::CommandResult r = run_command(cli() + " bake -q " + quoted(job));
+    EXPECT_EQ(r.exit_code, 2) << c.second << "\n" << r.output;
+    EXPECT_TRUE(contains(r.output, "second: " + s.dir.file(c.low))) << c.second << "\n" << r.output;
+    EXPECT_TRUE(contains(r.output, c.message)) << c.second << "\n" << r.output;
+    EXPECT_FALSE(fs::exists(s.dir.file("first.png"))) << c.second;
+    EXPECT_FALSE(fs::exists(s.dir.file("second.png"))) << c.second;
+  }
+  // The same second bake fixed: both maps.
+  write_text(job, job_bake("first", "low.obj", "first.png") + job_bake("second", "udim.obj", "second.<UDIM>.png"));
+  const test::CommandResult r = run_command(cli() + " bake -q " + quoted(job));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(s.dir.file("first.png")));
+  EXPECT_TRUE(fs::exists(s.dir.file("second.1002.png")));
+}
+
 // A failure that only shows during a bake (a mesh broken halfway) stops the
 // job, saying which bakes finished and what they wrote; --keep-going runs the
 // rest; --job-report lists every bake's status.
 TEST(Hostile, FailedBakeStopsTheJobAndSaysWhatFinished) {
   Scene s;
-  std::string broken = kLowQuadObj;
-  broken += "f 1/1 2/2 99/3\n";  // passes the up-front sniff, fails in the load
+  // A high mesh: a job reads it only when its bake runs (a low mesh is
+  // loaded up front, so a broken one stops the job before it starts).
+  std::string broken = high_plane_obj();
+  broken += "f 1 2 999\n";  // passes the up-front sniff, fails in the load
   write_text(s.dir.file("broken.obj"), broken);
   const std::string job = s.dir.file("job.toml");
-  write_text(job, job_bake("one", "low.obj", "one.png") + job_bake("two", "broken.obj", "two.png") +
+  write_text(job, job_bake("one", "low.obj", "one.png") + job_bake("two", "low.obj", "two.png", "broken.obj") +
                       job_bake("three", "low.obj", "three.png"));
   const std::string report = s.dir.file("job.json");
   test::CommandResult r = run_command(cli() + " bake -q " + quoted(job) + " --job-report " + quoted(report));
   EXPECT_EQ(r.exit_code, 2) << r.output;
-  EXPECT_TRUE(contains(r.output, "two: " + s.dir.file("broken.obj") + ":11:")) << r.output;
+  EXPECT_TRUE(contains(r.output, "two: " + s.dir.file("broken.obj") + ":210:")) << r.output;
   EXPECT_TRUE(contains(r.output, "one: done, wrote " + s.dir.file("one.png"))) << r.output;
   EXPECT_TRUE(contains(r.output, "two: failed: ")) << r.output;
   EXPECT_TRUE(contains(r.output, "three: not run")) << r.output;
