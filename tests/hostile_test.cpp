@@ -597,7 +597,9 @@ TEST(Hostile, JobLowMeshMistakesAreFoundBeforeTheFirstBake) {
   // The quad of low.obj as part `body_low`, and with its UVs in tile 1002.
   write_text(s.dir.file("named.obj"), std::string("o body_low\n") + kLowQuadObj);
   write_text(s.dir.file("udim.obj"),
-             "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvt 1 0\nvt 2 0\nvt 2 1\nvt 1 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n");
+             "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n"
+             "vt 1 0\nvt 2 0\nvt 2 1\nvt 1 1\n"
+             "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n");
   Mesh quad;
   quad.positions = {{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}};
   quad.uvs = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
@@ -609,7 +611,8 @@ TEST(Hostile, JobLowMeshMistakesAreFoundBeforeTheFirstBake) {
     std::string message;
   };
   const Case cases[] = {
-      {job_bake("second", "named.obj", "second.png") + "[[bake.group]]\nname = \"g\"\nlow = [\"bdy_low\"]\nhigh = [\"x\"]\n",
+      {job_bake("second", "named.obj", "second.png") +
+           "[[bake.group]]\nname = \"g\"\nlow = [\"bdy_low\"]\nhigh = [\"x\"]\n",
        "named.obj", ": group 'g' names low part 'bdy_low', which the file does not have (parts: 'body_low')"},
       {job_bake("second", "named.obj", "second.png") + "match = \"name\"\nlow_suffix = \"_lp\"\n", "named.obj",
        ": --match name: no low part ends in '_lp' (parts: 'body_low')"},
