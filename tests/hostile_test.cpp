@@ -8,6 +8,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -16,6 +17,7 @@
 #include <fstream>
 #include <iterator>
 #include <thread>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <glm/geometric.hpp>
@@ -181,12 +183,12 @@ TEST(Hostile, NeedleChartDoesNotEatMemory) {
   const std::string low = s.dir.file("needle.obj");
   write_text(low, "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nv 1e6 1 0\nv 1e6 1.001 0\nf 1 2 3\nf 1 3 4\nf 3 5 6\n");
   const std::string out = s.dir.file("needle.png");
-  const auto begin = std::chrono::steady_clock::now();
+  // No bound on the time it takes (that depends on the machine and its
+  // load): the reason proves the chart was refused before it was
+  // rasterized, and under the memory limit the old packer ended in bad_alloc.
   const test::CommandResult r = run_command(memory_limit(2000000) + s.bake(low, out));
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_TRUE(contains(r.output, low + ": the low mesh has no UVs; unwrap: 2 charts do not fit")) << r.output;
-  EXPECT_LT(seconds, 30.0);
   EXPECT_FALSE(fs::exists(out));
 }
 
@@ -267,20 +269,28 @@ TEST(Hostile, AssimpCrashesCountsAndLoopsAreErrors) {
   // The CPU cap (2 s of CPU time), or on a starved machine the wall-clock
   // deadline (20 s) before it: both end the child with this reason.
   constexpr const char* kTimeLimit = "Assimp did not finish reading the file within ";
+  constexpr const char* kMemoryLimit = "a count in the file asks for more memory than there is";
+  constexpr const char* kSanitizedStop = "Assimp stopped (exit 1) reading the file";  // ASan's report, exit 1
   struct Case {
     const char* input;
     const char* extension;
-    const char* reason;
-    const char* sanitized_reason;  // under ASan a crash or failed allocation is its report and exit 1
+    // Each is the contract (exit 2 naming the file, nothing written); which
+    // one a file meets can depend on how fast and how busy the machine is.
+    std::vector<const char*> reasons;
+    // Under ASan a crash or a failed allocation is its report and exit 1.
+    std::vector<const char*> sanitized_reasons;
   };
   const Case cases[] = {
-      {"dae-segv-in-assimp.bin", ".dae", "Assimp crashed (signal 11", "Assimp stopped (exit 1) reading the file"},
-      {"3ds-count-103gb.bin", ".3ds", "a count in the file asks for more memory than there is",
-       "Assimp stopped (exit 1) reading the file"},
-      // Filling 2.4 GB a value at a time took 10.7 s under `ulimit -v 3000000`
-      // before std::bad_alloc (unlimited: 9.4 GB and 45 s).
-      {"dae-count-2400mb.bin", ".dae", kTimeLimit, kTimeLimit},
-      {"dae-count-busy-60s.bin", ".dae", kTimeLimit, kTimeLimit},
+      {"dae-segv-in-assimp.bin", ".dae", {"Assimp crashed (signal 11"}, {kSanitizedStop}},
+      {"3ds-count-103gb.bin", ".3ds", {kMemoryLimit}, {kSanitizedStop}},
+      // These two grow memory as they run: the child's CPU cap and its
+      // address-space cap race, and which fires first depends on the
+      // machine's speed and load (the memory cap won 2 runs of 3 on an idle
+      // machine, 6 of 6 beside another bake). Filling 2.4 GB a value at a time
+      // took 10.7 s under `ulimit -v 3000000` before std::bad_alloc
+      // (unlimited: 9.4 GB and 45 s).
+      {"dae-count-2400mb.bin", ".dae", {kTimeLimit, kMemoryLimit}, {kTimeLimit, kSanitizedStop}},
+      {"dae-count-busy-60s.bin", ".dae", {kTimeLimit, kMemoryLimit}, {kTimeLimit, kSanitizedStop}},
   };
   for (const Case& c : cases) {
     const std::string input = read_bytes(regressions + c.input);
@@ -295,7 +305,10 @@ TEST(Hostile, AssimpCrashesCountsAndLoopsAreErrors) {
                                               "' --high '" + mesh + "' -o '" + out + "'");
     EXPECT_EQ(r.exit_code, 2) << c.input << ": " << r.output;
     EXPECT_TRUE(contains(r.output, mesh + ": ")) << r.output;
-    EXPECT_TRUE(contains(r.output, kSanitized ? c.sanitized_reason : c.reason)) << c.input << ": " << r.output;
+    const std::vector<const char*>& reasons = kSanitized ? c.sanitized_reasons : c.reasons;
+    EXPECT_TRUE(std::any_of(reasons.begin(), reasons.end(),
+                            [&](const char* reason) { return contains(r.output, reason); }))
+        << c.input << ": " << r.output;
     EXPECT_FALSE(fs::exists(out));
     for (const auto& entry : fs::directory_iterator(s.dir.path()))
       EXPECT_NE(entry.path().filename().string().rfind("core", 0), 0u) << c.input << " left " << entry.path();
@@ -538,9 +551,10 @@ TEST(Hostile, EndlessLineIsCapped) {
 
 // ---------------------------------------------------------------- jobs
 
-std::string job_bake(const std::string& name, const std::string& low, const std::string& output) {
-  return "[[bake]]\nname = \"" + name + "\"\nlow = \"" + low + "\"\nhigh = \"high.obj\"\noutputs = [\"" + output +
-         "\"]\nsize = 32\n";
+std::string job_bake(const std::string& name, const std::string& low, const std::string& output,
+                     const std::string& high = "high.obj") {
+  return "[[bake]]\nname = \"" + name + "\"\nlow = \"" + low + "\"\nhigh = \"" + high + "\"\noutputs = [\"" +
+         output + "\"]\nsize = 32\n";
 }
 
 // A later bake's missing, empty, ill-named or NUL-holding mesh path is found
@@ -659,21 +673,73 @@ TEST(Hostile, HugeDataUriIsRefusedWithinTheMemoryBudget) {
   EXPECT_FALSE(fs::exists(out));
 }
 
+// What the low mesh of a later bake decides (its part names against the
+// groups, UVs outside [0, 1]^2 without <UDIM>, a glTF UV set it lacks) was
+// found only when that bake ran, after the first bake wrote its map; now
+// before the first bake, naming the bake and the file.
+TEST(Hostile, JobLowMeshMistakesAreFoundBeforeTheFirstBake) {
+  Scene s;
+  // The quad of low.obj as part `body_low`, and with its UVs in tile 1002.
+  write_text(s.dir.file("named.obj"), std::string("o body_low\n") + kLowQuadObj);
+  write_text(s.dir.file("udim.obj"),
+             "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n"
+             "vt 1 0\nvt 2 0\nvt 2 1\nvt 1 1\n"
+             "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n");
+  Mesh quad;
+  quad.positions = {{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}};
+  quad.uvs = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+  quad.indices = {0, 1, 2, 0, 2, 3};
+  ASSERT_TRUE(save_mesh(s.dir.file("quad.glb"), quad).is_ok());  // TEXCOORD_0 only
+  struct Case {
+    std::string second;  // the second bake's table
+    std::string low;
+    std::string message;
+  };
+  const Case cases[] = {
+      {job_bake("second", "named.obj", "second.png") +
+           "[[bake.group]]\nname = \"g\"\nlow = [\"bdy_low\"]\nhigh = [\"x\"]\n",
+       "named.obj", ": group 'g' names low part 'bdy_low', which the file does not have (parts: 'body_low')"},
+      {job_bake("second", "named.obj", "second.png") + "match = \"name\"\nlow_suffix = \"_lp\"\n", "named.obj",
+       ": --match name: no low part ends in '_lp' (parts: 'body_low')"},
+      {job_bake("second", "udim.obj", "second.png"), "udim.obj",
+       ": UVs lie outside [0, 1]^2 (UDIM tiles 1002): put <UDIM> in the output path"},
+      {job_bake("second", "quad.glb", "second.png") + "uv_set = 1\n", "quad.glb", "(TEXCOORD_1) is missing"},
+  };
+  const std::string job = s.dir.file("job.toml");
+  for (const Case& c : cases) {
+    write_text(job, job_bake("first", "low.obj", "first.png") + c.second);
+    const test::CommandResult r = run_command(cli() + " bake -q " + quoted(job));
+    EXPECT_EQ(r.exit_code, 2) << c.second << "\n" << r.output;
+    EXPECT_TRUE(contains(r.output, "second: " + s.dir.file(c.low))) << c.second << "\n" << r.output;
+    EXPECT_TRUE(contains(r.output, c.message)) << c.second << "\n" << r.output;
+    EXPECT_FALSE(fs::exists(s.dir.file("first.png"))) << c.second;
+    EXPECT_FALSE(fs::exists(s.dir.file("second.png"))) << c.second;
+  }
+  // The same second bake fixed: both maps.
+  write_text(job, job_bake("first", "low.obj", "first.png") + job_bake("second", "udim.obj", "second.<UDIM>.png"));
+  const test::CommandResult r = run_command(cli() + " bake -q " + quoted(job));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(s.dir.file("first.png")));
+  EXPECT_TRUE(fs::exists(s.dir.file("second.1002.png")));
+}
+
 // A failure that only shows during a bake (a mesh broken halfway) stops the
 // job, saying which bakes finished and what they wrote; --keep-going runs the
 // rest; --job-report lists every bake's status.
 TEST(Hostile, FailedBakeStopsTheJobAndSaysWhatFinished) {
   Scene s;
-  std::string broken = kLowQuadObj;
-  broken += "f 1/1 2/2 99/3\n";  // passes the up-front sniff, fails in the load
+  // A high mesh: a job reads it only when its bake runs (a low mesh is
+  // loaded up front, so a broken one stops the job before it starts).
+  std::string broken = high_plane_obj();
+  broken += "f 1 2 999\n";  // passes the up-front sniff, fails in the load
   write_text(s.dir.file("broken.obj"), broken);
   const std::string job = s.dir.file("job.toml");
-  write_text(job, job_bake("one", "low.obj", "one.png") + job_bake("two", "broken.obj", "two.png") +
+  write_text(job, job_bake("one", "low.obj", "one.png") + job_bake("two", "low.obj", "two.png", "broken.obj") +
                       job_bake("three", "low.obj", "three.png"));
   const std::string report = s.dir.file("job.json");
   test::CommandResult r = run_command(cli() + " bake -q " + quoted(job) + " --job-report " + quoted(report));
   EXPECT_EQ(r.exit_code, 2) << r.output;
-  EXPECT_TRUE(contains(r.output, "two: " + s.dir.file("broken.obj") + ":11:")) << r.output;
+  EXPECT_TRUE(contains(r.output, "two: " + s.dir.file("broken.obj") + ":210:")) << r.output;
   EXPECT_TRUE(contains(r.output, "one: done, wrote " + s.dir.file("one.png"))) << r.output;
   EXPECT_TRUE(contains(r.output, "two: failed: ")) << r.output;
   EXPECT_TRUE(contains(r.output, "three: not run")) << r.output;
@@ -817,10 +883,16 @@ TEST(Hostile, InterruptedBakeLeavesNothing) {
     int status = 0;
     for (;;) {
       if (!files_with(s.dir.path().string(), "nmbake-tmp").empty()) {
+        // Stopped for sure (SIGSTOP is delivered asynchronously), and still
+        // writing: on a busy machine this process can lose the processor
+        // between seeing the temp file and stopping the bake, which may
+        // meanwhile have renamed it and finished.
         ::kill(child, SIGSTOP);
-        caught_writing = true;
-        ::kill(child, SIGTERM);
+        if (::waitpid(child, &status, WUNTRACED) != child || !WIFSTOPPED(status)) break;  // it ended
+        caught_writing = !files_with(s.dir.path().string(), "nmbake-tmp").empty();
+        if (caught_writing) ::kill(child, SIGTERM);
         ::kill(child, SIGCONT);
+        if (!caught_writing) ::waitpid(child, &status, 0);
         break;
       }
       if (::waitpid(child, &status, WNOHANG) == child) break;  // finished before we saw it

@@ -132,4 +132,12 @@ Status validate_options(const BakeOptions& options);
 // path (through printable_text) and the reason.
 Status check_bake_inputs(const BakeOptions& options);
 
+// Checks what the low mesh alone decides, so that a job finds it in a later
+// bake before the first bake writes its maps: the low mesh loads as bake()
+// loads it (a glTF's or FBX's UV set `uv_set` exists), its part names fit the
+// groups (check_low_parts), and UVs outside [0, 1]^2 come with <UDIM> in the
+// outputs. Loads the low mesh (small); never the high mesh or the cage. The
+// errors are bake()'s own, word for word.
+Status check_bake_low_mesh(const BakeOptions& options);
+
 }  // namespace nmbake

@@ -82,6 +82,14 @@ struct BakeGroups {
   bool grouped() const { return !groups.empty(); }
 };
 
+// The part of match_parts() that needs the low mesh only (its part names):
+// a name in an explicit group that is not a low part, a low part in two
+// explicit groups, MatchMode::name with no low part in the low suffix.
+// bad_input naming the low file, as match_parts() words it. A job checks
+// this for every bake before the first one runs (low meshes are small; a
+// high mesh is read once, when its bake runs).
+Status check_low_parts(const Mesh& low, const MatchOptions& options, const std::string& low_path);
+
 // Matches the parts of `low` and `high` (paths for messages). bad_input on:
 // a low part matching nothing (Unmatched::error; all such parts listed), a
 // group with no high triangles, a name in an explicit group that is not a

@@ -362,6 +362,11 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
     if (s && job.options.tile_count == 0) {
       s = check_cache_dir(!flags.cache.empty() ? flags.cache : resolve_cache_dir(job.cache_dir));
     }
+    // With more than one bake, also what the low mesh decides (its UV set,
+    // its UDIM tiles, its part names against the groups): else a later
+    // bake's mistake is found after the earlier bakes wrote their maps. The
+    // low meshes are small; a lone bake finds the same at once by itself.
+    if (s && jobs.size() > 1) s = check_bake_low_mesh(job.options);
     // An environment failure (the image module missing) stays internal. A
     // flag bake is named after its first output, which the message names
     // already: no name in front (it printed the path twice).

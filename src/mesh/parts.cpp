@@ -66,9 +66,45 @@ constexpr std::uint32_t kNoGroup = 0xffffffffu;
 
 }  // namespace
 
+Status check_low_parts(const Mesh& low, const MatchOptions& options, const std::string& low_path) {
+  const std::vector<std::string> low_names = distinct_names(parts_of(low));
+  if (!options.groups.empty()) {
+    std::map<std::string, std::size_t> low_to_group;  // low part -> the group that lists it
+    for (std::size_t g = 0; g < options.groups.size(); ++g) {
+      const GroupSpec& spec = options.groups[g];
+      const std::string group = spec.name.empty() ? "group " + std::to_string(g + 1) : spec.name;
+      for (const std::string& name : spec.low) {
+        if (std::find(low_names.begin(), low_names.end(), name) == low_names.end()) {
+          return Status::bad_input(low_path + ": group '" + group + "' names low part '" + name +
+                                   "', which the file does not have (parts: " + quoted_list(low_names) + ")");
+        }
+        const auto [it, added] = low_to_group.emplace(name, g);
+        if (!added) {
+          if (it->second == g) {
+            return Status::bad_input(low_path + ": group '" + group + "' lists low part '" + name + "' twice");
+          }
+          const GroupSpec& first = options.groups[it->second];
+          const std::string first_name = first.name.empty() ? "group " + std::to_string(it->second + 1) : first.name;
+          return Status::bad_input(low_path + ": low part '" + name + "' is in two groups ('" + first_name +
+                                   "' and '" + group + "')");
+        }
+      }
+    }
+    return Status::ok();
+  }
+  if (options.mode == MatchMode::name &&
+      std::none_of(low_names.begin(), low_names.end(),
+                   [&](const std::string& name) { return ends_with_nocase(name, options.low_suffix); })) {
+    return Status::bad_input(low_path + ": --match name: no low part ends in '" + options.low_suffix +
+                             "' (parts: " + quoted_list(low_names) + ")");
+  }
+  return Status::ok();
+}
+
 Status match_parts(const Mesh& low, const Mesh& high, const MatchOptions& options, const std::string& low_path,
                    const std::string& high_path, BakeGroups& out) {
   out = BakeGroups{};
+  NMBAKE_TRY(check_low_parts(low, options, low_path));
   const std::vector<MeshPart> low_parts = parts_of(low);
   const std::vector<MeshPart> high_parts = parts_of(high);
   const std::vector<std::string> low_names = distinct_names(low_parts);
@@ -84,21 +120,7 @@ Status match_parts(const Mesh& low, const Mesh& high, const MatchOptions& option
       const auto g = static_cast<std::uint32_t>(groups.size());
       BakeGroup group;
       group.name = spec.name.empty() ? "group " + std::to_string(g + 1) : spec.name;
-      for (const std::string& name : spec.low) {
-        if (std::find(low_names.begin(), low_names.end(), name) == low_names.end()) {
-          return Status::bad_input(low_path + ": group '" + group.name + "' names low part '" + name +
-                                   "', which the file does not have (parts: " + quoted_list(low_names) + ")");
-        }
-        if (const auto it = low_to_group.find(name); it != low_to_group.end()) {
-          // This group is not in `groups` yet: a part listed twice in it
-          // must not be looked up there.
-          if (it->second == g) {
-            return Status::bad_input(low_path + ": group '" + group.name + "' lists low part '" + name +
-                                     "' twice");
-          }
-          return Status::bad_input(low_path + ": low part '" + name + "' is in two groups ('" +
-                                   groups[it->second].name + "' and '" + group.name + "')");
-        }
+      for (const std::string& name : spec.low) {  // each a low part, in one group (check_low_parts)
         low_to_group[name] = g;
         group.low_parts.push_back(name);
       }
@@ -121,10 +143,6 @@ Status match_parts(const Mesh& low, const Mesh& high, const MatchOptions& option
   } else {
     bool any_suffixed = false;
     for (const std::string& name : low_names) any_suffixed |= ends_with_nocase(name, options.low_suffix);
-    if (options.mode == MatchMode::name && !any_suffixed) {
-      return Status::bad_input(low_path + ": --match name: no low part ends in '" + options.low_suffix +
-                               "' (parts: " + quoted_list(low_names) + ")");
-    }
     if (options.mode == MatchMode::off || !any_suffixed) return Status::ok();  // one group of everything
     // Groups in the order their low parts first appear.
     std::map<std::string, std::uint32_t> base_to_group;
