@@ -841,7 +841,7 @@ TEST(Maps, IdSourceFlagAndReport) {
       << none.output;
   const test::CommandResult word = bake("high.obj", "--id-source texture");
   EXPECT_EQ(word.exit_code, 2) << word.output;
-  EXPECT_NE(word.output.find("--id-source texture: expected auto, part or material"), std::string::npos)
+  EXPECT_NE(word.output.find("--id-source texture: expected one of: auto, part, material"), std::string::npos)
       << word.output;
 }
 
@@ -936,7 +936,7 @@ TEST(MapsJob, IdSourceInJobFilesAndTheKey) {
                    "outputs = [\"m.png\"]\n");
   const Status bad = load_job_file(dir.file("bad.toml"), jobs);
   EXPECT_EQ(bad.code(), StatusCode::bad_input);
-  EXPECT_NE(bad.message().find("expected \"auto\", \"part\" or \"material\""), std::string::npos)
+  EXPECT_NE(bad.message().find("id_source: expected one of: auto, part, material"), std::string::npos)
       << bad.message();
 }
 

@@ -341,7 +341,7 @@ TEST(EnginePreset, JobKeysOverrideThePreset) {
       "[[bake]]\nlow = \"l.obj\"\nhigh = \"h.ply\"\noutputs = [\"a.png\"]\npreset = \"cryengine\"\n");
   const Status s = load_job_file(dir.file("bad.toml"), jobs);
   ASSERT_FALSE(s.is_ok());
-  EXPECT_NE(s.message().find("bad.toml:5: preset: expected one of unity, unreal"), std::string::npos)
+  EXPECT_NE(s.message().find("bad.toml:5: preset: expected one of: unity, unreal"), std::string::npos)
       << s.message();
 }
 
@@ -371,7 +371,7 @@ TEST(EnginePreset, CliFlagsOverrideThePresetAndTheReportSaysSo) {
   EXPECT_EQ(e.at("dither_8bit"), true);
   const test::CommandResult bad = test::run_command(base + " --preset cryengine -o " + dir.file("x.png"));
   EXPECT_EQ(bad.exit_code, 2);
-  EXPECT_NE(bad.output.find("--preset cryengine: expected one of unity, unreal, godot"), std::string::npos)
+  EXPECT_NE(bad.output.find("--preset cryengine: expected one of: unity, unreal, godot"), std::string::npos)
       << bad.output;
   EXPECT_FALSE(std::filesystem::exists(dir.file("x.png")));
 

@@ -122,6 +122,10 @@ Status check_map_tokens(const std::vector<OutputSpec>& outputs, const std::vecto
 // mesh turns out to need an unwrap; distances against the diagonal once the
 // low mesh is loaded.
 Status validate_options(const BakeOptions& options);
+// The part of validate_options() that reads nothing but the values: sizes,
+// samples, ranges, distances. A job file checks each bake with it as it is
+// read (the outputs' folders and formats wait for validate_options()).
+Status validate_option_values(const BakeOptions& options);
 
 // Checks what can be known of the input files without loading them, so a
 // job finds a bad path in its last bake before the first bake runs: every

@@ -144,10 +144,7 @@ std::vector<MapOutput> map_outputs(const std::vector<OutputSpec>& outputs, const
   return out;
 }
 
-Status validate_options(const BakeOptions& o) {
-  if (o.low_path.empty()) return Status::bad_input("no low mesh given (--low)");
-  if (o.high_path.empty()) return Status::bad_input("no high mesh given (--high)");
-  if (o.outputs.empty()) return Status::bad_input("no output map given (-o)");
+Status validate_option_values(const BakeOptions& o) {
   constexpr int kMaxSize = 32768;
   if (o.width <= 0 || o.height <= 0 || o.width > kMaxSize || o.height > kMaxSize) {
     return Status::bad_input("map size " + std::to_string(o.width) + "x" + std::to_string(o.height) +
@@ -192,6 +189,21 @@ Status validate_options(const BakeOptions& o) {
   if (o.padding < 0 || o.padding > 4096) {
     return Status::bad_input("--padding " + std::to_string(o.padding) + " is out of range (0 to 4096)");
   }
+  if (o.uv_set < 0 || o.uv_set > 7) {
+    return Status::bad_input("--uv-set " + std::to_string(o.uv_set) + " is out of range (0 to 7)");
+  }
+  if (o.groups_per_scene < 0 || o.groups_per_scene > 32) {
+    return Status::bad_input("--groups-per-scene " + std::to_string(o.groups_per_scene) +
+                             " is out of range (0 to 32)");
+  }
+  return Status::ok();
+}
+
+Status validate_options(const BakeOptions& o) {
+  if (o.low_path.empty()) return Status::bad_input("no low mesh given (--low)");
+  if (o.high_path.empty()) return Status::bad_input("no high mesh given (--high)");
+  if (o.outputs.empty()) return Status::bad_input("no output map given (-o)");
+  NMBAKE_TRY(validate_option_values(o));
   for (const OutputSpec& out : o.outputs) {
     // The file system would see the path cut at the NUL: another file.
     if (out.path.find('\0') != std::string::npos) {

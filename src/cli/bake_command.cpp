@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -16,6 +17,7 @@
 #include "nmbake/budget.hpp"
 #include "nmbake/cleanup.hpp"
 #include "nmbake/job.hpp"
+#include "nmbake/options.hpp"
 #include "nmbake/preset.hpp"
 #include "nmbake/task.hpp"
 #include "progress.hpp"
@@ -24,53 +26,23 @@ namespace nmbake::cli {
 
 namespace {
 
+// The command's own flags; every option of the bake itself comes from the
+// option table (options.hpp), as text, in `table`.
 struct BakeFlags {
   std::string job_file;
-  std::string low, high, cage;
   std::vector<std::string> outputs;
-  std::string size = "2048";
-  std::string samples = "4";
-  int adaptive_max = 16;
-  AdaptiveOptions adaptive;  // thresholds (experts; adaptive.hpp)
-  std::string space = "tangent", front = "auto", back = "auto", hit = "first";
-  std::string cage_mode = "banded", retry_misses = "auto", high_normals = "smooth", build_quality = "low", encode = "inverse", bvh = "auto";
   std::string format;
-  std::string tangent_basis = "mikktspace";
-  std::string tangents = "mikktspace";
-  int uv_set = 0;
-  bool ignore_backfaces = false;
-  float edge_band = kDefaultEdgeBand;
-  int padding = 16;
   std::string report;
-  std::string debug_dump;
   double max_miss_rate = -1.0;  // < 0: no gate
-  std::string match = "auto", unmatched = "error", low_suffix = "_low", high_suffix = "_high", cage_suffix = "_cage";
-  int groups_per_scene = 0;
   std::string only, tile, tile_file, cache;
   bool keep_going = false;      // a job: run the other bakes after one fails
   std::string job_report;       // a job: write each bake's status here (JSON)
-  std::string max_memory;       // empty: the memory available to the process
-  // Outputs as engines want them: a preset, then the flags given explicitly
-  // ("" = not given), which override it whatever their order.
-  std::string preset, green, bitangent, tbn, blue;
-  std::string dither = "on";
-  // The map set (maps.hpp).
-  std::vector<std::string> maps;
-  std::string height_range = "auto", curvature_range = "auto", ao_distance = "auto", thickness_distance = "auto";
-  std::string id_source = "auto";
-  int ao_rays = 64, thickness_rays = 16;
+  bool print_options = false;   // print each bake's options (JSON lines) and stop
+  // The table's flags by key: the words given (repeatable flags collect
+  // several), and switches.
+  std::map<std::string, std::vector<std::string>, std::less<>> table;
+  std::map<std::string, bool, std::less<>> switches;
 };
-
-// "auto" (0) or a number > 0.
-bool parse_range(const std::string& text, float& out) {
-  if (text == "auto") {
-    out = 0.0f;
-    return true;
-  }
-  const char* end = text.data() + text.size();
-  const auto r = std::from_chars(text.data(), end, out);
-  return r.ec == std::errc() && r.ptr == end && std::isfinite(out) && out > 0.0f;
-}
 
 int fail(const Status& status) {
   print_error(status.message());
@@ -82,111 +54,32 @@ int usage_error(const std::string& message) {
   return kBadInput;
 }
 
-bool parse_size(const std::string& text, int& width, int& height) {
-  auto parse_int = [](const char* begin, const char* end, int& out) {
-    const auto r = std::from_chars(begin, end, out);
-    return r.ec == std::errc() && r.ptr == end;
-  };
-  const auto x = text.find('x');
-  const char* begin = text.data();
-  const char* end = begin + text.size();
-  if (x == std::string::npos) {
-    if (!parse_int(begin, end, width)) return false;
-    height = width;
-    return true;
-  }
-  return parse_int(begin, begin + x, width) && parse_int(begin + x + 1, end, height);
-}
-
-// Turns the flags into options; a usage problem is a bad_input Status.
+// Turns the flags into options through the option table; a usage problem
+// is a bad_input Status naming the flag.
 Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
-  o.low_path = f.low;
-  o.high_path = f.high;
-  o.cage_path = f.cage;
-  if (!parse_size(f.size, o.width, o.height)) return Status::bad_input("--size " + f.size + ": expected N or WxH");
-  if (f.samples == "adaptive") {
-    o.adaptive = true;
-    o.adaptive_options = f.adaptive;
-    o.adaptive_options.max_samples = f.adaptive_max;
-  } else {
-    const char* end = f.samples.data() + f.samples.size();
-    const auto parsed = std::from_chars(f.samples.data(), end, o.samples);
-    if (parsed.ec != std::errc() || parsed.ptr != end) {
-      return Status::bad_input("--samples " + f.samples + ": expected 1, 4, 16, 64 or adaptive");
+  std::vector<GivenOption> given;
+  for (const OptionSpec& spec : bake_option_table()) {
+    GivenOption g{&spec, {}, flag_of(spec), true};
+    if (spec.is_switch) {
+      const auto it = f.switches.find(spec.key);
+      if (it == f.switches.end() || !it->second) continue;
+      g.value = OptionValue::of_text("true");
+    } else {
+      const auto it = f.table.find(spec.key);
+      if (it == f.table.end() || it->second.empty()) continue;
+      // A repeated flag (--map normal --map ao) is one list.
+      std::string joined;
+      for (const std::string& word : it->second) joined += (joined.empty() ? "" : ",") + word;
+      g.value = OptionValue::of_text(spec.key == "maps" ? joined : it->second.back());
     }
+    given.push_back(std::move(g));
   }
-  if (!parse_word(f.space, o.space)) return Status::bad_input("--space " + f.space + ": expected tangent or object");
-  if (!f.preset.empty()) {
-    EnginePreset preset;
-    if (!find_engine_preset(f.preset, preset)) {
-      return Status::bad_input("--preset " + f.preset + ": expected one of " + engine_preset_names());
-    }
-    o.preset = f.preset;
-    apply_engine_preset(preset, {}, o.green, o.decode);
-  }
-  if (!f.green.empty() && !parse_word(f.green, o.green)) {
-    return Status::bad_input("--green " + f.green + ": expected up or down");
-  }
-  if (!f.bitangent.empty() && !parse_word(f.bitangent, o.decode.bitangent)) {
-    return Status::bad_input("--bitangent " + f.bitangent + ": expected pixel or vertex");
-  }
-  if (!f.tbn.empty() && !parse_word(kFrameRuleWords, f.tbn, o.decode.unit_frame)) {
-    return Status::bad_input("--tbn " + f.tbn + ": expected raw or normalized");
-  }
-  if (!f.blue.empty() && !parse_word(kBlueRuleWords, f.blue, o.decode.rebuild_blue)) {
-    return Status::bad_input("--blue " + f.blue + ": expected stored or rebuilt");
-  }
-  if (f.dither != "on" && f.dither != "off") return Status::bad_input("--dither " + f.dither + ": expected on or off");
-  o.dither = f.dither == "on";
-  if (!parse_word(f.hit, o.hit)) return Status::bad_input("--hit " + f.hit + ": expected first or nearest");
-  if (!parse_word(f.cage_mode, o.cage_mode)) return Status::bad_input("--cage-mode " + f.cage_mode + ": expected banded, averaged or interpolated");
-  o.edge_band = f.edge_band;
-  if (!parse_word(f.retry_misses, o.retry_misses)) return Status::bad_input("--retry-misses " + f.retry_misses + ": expected auto, on or off");
-  if (!parse_word(f.high_normals, o.high_normals)) return Status::bad_input("--high-normals " + f.high_normals + ": expected smooth or face");
-  if (!parse_word(f.bvh, o.bvh_memory)) return Status::bad_input("--bvh " + f.bvh + ": expected auto, fast or compact");
-  if (!parse_word(f.build_quality, o.build_quality)) return Status::bad_input("--build-quality " + f.build_quality + ": expected low, medium or high");
-  if (!parse_word(f.encode, o.tangent_encode)) return Status::bad_input("--encode " + f.encode + ": expected inverse or transpose");
-  if (!parse_word(f.tangent_basis, o.tangent_basis)) return Status::bad_input("--tangent-basis " + f.tangent_basis + ": expected mikktspace, lengyel, face or file");
-  if (f.tangents != "mikktspace" && f.tangents != "file") return Status::bad_input("--tangents " + f.tangents + ": expected mikktspace or file");
-  if (f.tangents == "file") o.tangent_basis = TangentBasis::file;
-  o.uv_set = f.uv_set;
-  if (!parse_distance(f.front, o.front)) return Status::bad_input("--front " + f.front + ": expected a distance, N% or auto");
-  if (!parse_distance(f.back, o.back)) return Status::bad_input("--back " + f.back + ": expected a distance, N% or auto");
-  if (!parse_word(f.match, o.match.mode)) return Status::bad_input("--match " + f.match + ": expected auto, name or off");
-  if (!parse_word(f.unmatched, o.match.unmatched)) return Status::bad_input("--unmatched " + f.unmatched + ": expected error or all");
-  if (f.low_suffix.empty() || f.high_suffix.empty()) return Status::bad_input("--low-suffix and --high-suffix must not be empty");
-  o.groups_per_scene = f.groups_per_scene;
-  o.match.low_suffix = f.low_suffix;
-  if (f.cage_suffix.empty()) return Status::bad_input("--cage-suffix must not be empty");
-  o.match.cage_suffix = f.cage_suffix;
-  o.match.high_suffix = f.high_suffix;
-  o.ignore_backfaces = f.ignore_backfaces;
-  o.padding = f.padding;
-  o.debug_dump_prefix = f.debug_dump;
-  if (!f.max_memory.empty() && !parse_memory_size(f.max_memory, o.max_memory_bytes)) {
-    return Status::bad_input("--max-memory " + f.max_memory + ": expected bytes, or a number with K, M, G or T");
-  }
-  if (!f.maps.empty()) {
-    o.maps.clear();
-    for (const std::string& list : f.maps) {
-      if (const Status s = parse_map_list(list, o.maps); !s) return Status::bad_input("--map " + list + ": " + s.message());
-    }
-  }
-  if (!parse_range(f.height_range, o.height_range)) return Status::bad_input("--height-range " + f.height_range + ": expected a distance > 0 or auto");
-  if (!parse_range(f.curvature_range, o.curvature_range)) return Status::bad_input("--curvature-range " + f.curvature_range + ": expected a curvature > 0 (1/scene units) or auto");
-  if (!parse_distance(f.ao_distance, o.ao_distance)) return Status::bad_input("--ao-distance " + f.ao_distance + ": expected a distance, N% or auto");
-  if (!parse_distance(f.thickness_distance, o.thickness_distance)) return Status::bad_input("--thickness-distance " + f.thickness_distance + ": expected a distance, N% or auto");
-  o.ao_rays = f.ao_rays;
-  o.thickness_rays = f.thickness_rays;
-  if (!parse_word(f.id_source, o.id_source))
-    return Status::bad_input("--id-source " + f.id_source + ": expected auto, part or material");
+  NMBAKE_TRY(apply_options(given, o));
   for (const std::string& path : f.outputs) {
     OutputSpec out;
     out.path = path;
     if (!f.format.empty()) {
-      if (!parse_word(f.format, out.format)) {
-        return Status::bad_input("--format " + f.format + ": expected png8, png16, tiff16, exr-half, exr-float, exr-float-piz or tga");
-      }
+      if (!parse_word(f.format, out.format)) return Status::bad_input("--format " + f.format + ": " + expected_words<PixelFormat>());
       out.format_given = true;
     } else if (!pixel_format_from_path(path, out.format)) {
       return Status::bad_input(path + ": unknown image extension (use .png, .tif, .tiff, .exr or .tga)");
@@ -316,7 +209,7 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
     const Status s = load_job_file(flags.job_file, jobs);
     if (!s) return fail(s);
   } else {
-    if (flags.low.empty() || flags.high.empty() || flags.outputs.empty()) {
+    if (command.count("--low") == 0 || command.count("--high") == 0 || flags.outputs.empty()) {
       return usage_error("bake needs --low, --high and -o (or a job file); see nmbake bake --help");
     }
     BakeJob job;
@@ -352,6 +245,10 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
                                                  std::to_string(index + 1) + "-of-" + std::to_string(count);
   } else if (!flags.tile_file.empty()) {
     return usage_error("--tile-file needs --tile I/N");
+  }
+  if (flags.print_options) {
+    for (const BakeJob& job : jobs) std::printf("%s\n", options_json(job.options).c_str());
+    return kSuccess;
   }
   // Check every job before the first one runs: a typo in the last bake of a
   // job file must not be found after an hour of baking.
@@ -477,111 +374,34 @@ Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
   auto flags = std::make_shared<BakeFlags>();
   CLI::App* cmd = app.add_subcommand("bake", "bake a normal map (from flags, or every bake of a TOML job file)");
   cmd->add_option("job", flags->job_file, "job file (TOML) describing one or several bakes")->check(CLI::ExistingFile);
-  cmd->add_option("--low", flags->low, "low-poly mesh with UVs (OBJ, PLY, glTF/GLB, FBX, DAE, 3DS)");
-  cmd->add_option("--high", flags->high, "high-poly mesh (OBJ, PLY, glTF/GLB, FBX, DAE, 3DS, STL)");
-  cmd->add_option("--cage", flags->cage, "cage mesh with the low mesh's topology (default: averaged-normal cage)");
-  cmd->add_option("-o,--output", flags->outputs, "output map(s): .png (16-bit), .tif, .exr, .tga (8-bit); repeat for several")->allow_extra_args(false);
-  cmd->add_option("--size", flags->size, "map size, N or WxH")->default_val("2048");
-  cmd->add_option(
-         "--samples", flags->samples,
-         "samples per texel: 1, 4, 16, 64, or adaptive (1, then --adaptive-max where the normal varies)")
-      ->default_val("4");
-  cmd->add_option("--adaptive-max", flags->adaptive_max,
-                  "samples of a refined texel with --samples adaptive: 4, 16, 64")
-      ->default_val(16);
-  cmd->add_option("--adaptive-normal", flags->adaptive.normal_threshold,
-                  "refine where the stored vector's second difference between texels exceeds this")
-      ->default_val(AdaptiveOptions{}.normal_threshold);
-  cmd->add_option("--adaptive-depth", flags->adaptive.depth_threshold,
-                  "refine where the hit distance's second difference exceeds this many texels")
-      ->default_val(AdaptiveOptions{}.depth_threshold);
-  cmd->add_option(
-         "--adaptive-spread", flags->adaptive.spread_threshold,
-         "take --adaptive-max samples where a refined texel's 4 samples spread more than this (radians)")
-      ->default_val(AdaptiveOptions{}.spread_threshold);
-  cmd->add_option("--adaptive-border", flags->adaptive.border_threshold,
-                  "at a chart border, refine where the normal's first difference exceeds this")
-      ->default_val(AdaptiveOptions{}.border_threshold);
-  cmd->add_option("--space", flags->space, "tangent | object")->default_val("tangent");
-  cmd->add_option("--front", flags->front, "cage distance outside the low surface: units, N% of the bbox diagonal, auto")->default_val("auto");
-  cmd->add_option("--back", flags->back, "search distance inside the low surface: units, N%, auto")->default_val("auto");
-  cmd->add_option("--hit", flags->hit, "first (from the cage) | nearest (to the low surface)")->default_val("first");
-  cmd->add_option("--cage-mode", flags->cage_mode, "banded (averaged normals near hard edges, shading normals elsewhere) | averaged | interpolated: how the default cage is pushed")->default_val("banded");
-  cmd->add_option("--edge-band", flags->edge_band, "banded cage: width of the band around hard edges, in units of front + back")->default_val(kDefaultEdgeBand);
-  cmd->add_option("--retry-misses", flags->retry_misses, "trace a ray that missed again, out and in up to a quarter of the diagonal: auto (when no distance or cage is given) | on | off")->default_val("auto");
-  cmd->add_flag("--ignore-backfaces", flags->ignore_backfaces, "skip high triangles that face away from the ray");
-  cmd->add_option("--high-normals", flags->high_normals, "smooth (interpolated vertex normals) | face")->default_val("smooth");
-  cmd->add_option("--padding", flags->padding, "texels of dilation around charts")->default_val(16);
-  cmd->add_option("--format", flags->format, "png8 | png16 | tiff16 | exr-half | exr-float | exr-float-piz | tga (default: from the extension)");
+  cmd->add_option("-o,--output", flags->outputs,
+                  "output map(s): .png (16-bit), .tif, .exr, .tga (8-bit); repeat for several; <MAP> names each map "
+                  "of a map set, <UDIM> each UV tile")
+      ->allow_extra_args(false);
+  cmd->add_option("--format", flags->format, "every output in this format: " + word_list<PixelFormat>(", ") +
+                                                 " (default: from the extension)");
+  // Every option of the bake, from the option table.
+  for (const OptionSpec& spec : bake_option_table()) {
+    if (spec.is_switch) {
+      cmd->add_flag(flag_of(spec), flags->switches[std::string(spec.key)], std::string(spec.help));
+    } else {
+      cmd->add_option(flag_of(spec), flags->table[std::string(spec.key)], help_of(spec))
+          ->type_name(std::string(spec.value))
+          ->allow_extra_args(false);
+    }
+  }
   cmd->add_option("--report", flags->report, "write the bake report (JSON) here");
-  cmd->add_option("--max-miss-rate", flags->max_miss_rate, "exit 1 when more than this share of rays miss (0..1)")->check(CLI::Range(0.0, 1.0));
-  cmd->add_option("--build-quality", flags->build_quality, "BVH build quality: low | medium | high")->default_val("low");
-  cmd->add_option("--bvh", flags->bvh,
-                  "BVH memory: fast (vertices copied into leaves) | compact (indices only, about a third of the "
-                  "memory, slower rays) | auto (compact above 16M high triangles)")
-      ->default_val("auto");
-  cmd->add_option("--encode", flags->encode, "tangent-space encode: inverse (exact) | transpose (for comparison)")->default_val("inverse");
-  cmd->add_option("--tangent-basis", flags->tangent_basis, "basis the map is encoded in: mikktspace | lengyel | face (comparison only)")->default_val("mikktspace");
-  cmd->add_option("--match", flags->match, "parts into bake groups: auto (by name when a low part ends in the low suffix) | name | off")->default_val("auto");
-  cmd->add_option("--low-suffix", flags->low_suffix, "name suffix of low parts (X_low bakes from X_high, X_high_1, X_high.001)")->default_val("_low");
-  cmd->add_option("--high-suffix", flags->high_suffix, "name suffix of high parts")->default_val("_high");
-  cmd->add_option("--cage-suffix", flags->cage_suffix, "name suffix of cage parts (X_cage is the cage of X_low)")->default_val("_cage");
-  cmd->add_option("--unmatched", flags->unmatched, "low parts with no high match: error | all (bake them against every unused high part)")->default_val("error");
-  cmd->add_option("--groups-per-scene", flags->groups_per_scene, "bake groups sharing one BVH through ray masks, 1-32 (0: auto; for benchmarks)")->default_val(0)->check(CLI::Range(0, 32));
+  cmd->add_option("--max-miss-rate", flags->max_miss_rate, "exit 1 when more than this share of rays miss (0..1)")
+      ->check(CLI::Range(0.0, 1.0));
   cmd->add_option("--only", flags->only, "of a job file, bake only the bake of this name");
   cmd->add_option("--tile", flags->tile, "bake only tile I of N (bands of rows) into a tile file, for nmbake merge");
   cmd->add_option("--tile-file", flags->tile_file, "where --tile writes (default: FIRST_OUTPUT.tile-I-of-N)");
-  cmd->add_option("--cache", flags->cache, "content-addressed cache folder: a bake whose key is there is copied, not baked (also NMBAKE_CACHE)");
-  cmd->add_option("--tangents", flags->tangents,
-                  "tangent frame of the map: mikktspace (computed) | file (the low mesh's glTF TANGENT / FBX tangents)")
-      ->default_val("mikktspace");
-  cmd->add_option("--uv-set", flags->uv_set, "the low mesh's UV set: glTF TEXCOORD_N, FBX UV channel N")
-      ->default_val(0)->check(CLI::Range(0, 7));
+  cmd->add_option("--cache", flags->cache,
+                  "content-addressed cache folder: a bake whose key is there is copied, not baked (also NMBAKE_CACHE)");
   cmd->add_flag("--keep-going", flags->keep_going, "a job: run the other bakes when one fails (exit 2 at the end)");
   cmd->add_option("--job-report", flags->job_report, "a job: write each bake's status and outputs here (JSON)");
-  cmd->add_option("--max-memory", flags->max_memory,
-                  "refuse a bake whose estimated memory is above this (e.g. 8G; default: what is available)");
-  // Outputs as engines want them (README): one block, so other option
-  // blocks merge beside it.
-  cmd->add_option("--preset", flags->preset,
-                  "engine the map is for: " + engine_preset_names() +
-                      " (sets --green, --bitangent, --tbn, --blue; each of those given too overrides it, in any order)");
-  cmd->add_option("--green", flags->green, "up (OpenGL: Blender, Unity, glTF, Maya) | down (DirectX: Unreal, 3ds Max)")
-      ->default_str("up");
-  cmd->add_option("--bitangent", flags->bitangent,
-                  "how the engine gets B: pixel (sign cross(N, T) from the interpolated N, T) | vertex (per vertex, "
-                  "interpolated)")
-      ->default_str("pixel");
-  cmd->add_option("--tbn", flags->tbn, "the engine's T, B, N before the decode: raw (interpolated) | normalized")
-      ->default_str("raw");
-  cmd->add_option("--blue", flags->blue, "the engine's z: stored (read from blue) | rebuilt (sqrt(1 - x^2 - y^2), BC5)")
-      ->default_str("stored");
-  cmd->add_option("--dither", flags->dither, "8-bit outputs (png8, tga): on (ordered dither) | off (rounded)")
-      ->default_val("on");
-  cmd->add_option("--debug-dump", flags->debug_dump, "also write PREFIX_coverage.png, PREFIX_misses.png, PREFIX_distance.exr");
-  cmd->add_option("--map", flags->maps,
-                  "maps to bake, repeat or comma list: normal (default), height, ao, bent-normal, curvature, thickness, "
-                  "position, object-normal, miss, vertex-color, id; several need <MAP> in each output path")
-      ->allow_extra_args(false);
-  cmd->add_option("--height-range", flags->height_range,
-                  "height map in integer files: heights in [-R, R] scene units fill 0..1 (auto: the map's largest)")
-      ->default_val("auto");
-  cmd->add_option("--curvature-range", flags->curvature_range,
-                  "curvature map in integer files: mean curvature in [-R, R] (1/scene units) fills 0..1 (auto: 99th "
-                  "percentile)")
-      ->default_val("auto");
-  cmd->add_option("--ao-rays", flags->ao_rays, "AO (and bent normal) rays per sample, 1-4096")->default_val(64);
-  cmd->add_option("--ao-distance", flags->ao_distance,
-                  "AO: occluders further than this do not count: units, N% of the bbox diagonal, auto (10%)")
-      ->default_val("auto");
-  cmd->add_option("--thickness-rays", flags->thickness_rays, "thickness rays per sample, 1-4096")->default_val(16);
-  cmd->add_option("--thickness-distance", flags->thickness_distance,
-                  "thickness: search distance, also white in integer files: units, N%, auto (10%)")
-      ->default_val("auto");
-  cmd->add_option(
-         "--id-source", flags->id_source,
-         "id map colours: part | material | auto (materials when the high mesh has named ones, else parts)")
-      ->default_val("auto");
+  cmd->add_flag("--print-options", flags->print_options,
+                "print each bake's options as they were read (one JSON line a bake) and bake nothing");
   return [flags, &global, cmd]() { return run_bake(*flags, global, *cmd); };
 }
 

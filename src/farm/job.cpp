@@ -1,7 +1,7 @@
-// Job files (TOML, through toml++) and the option words shared with the CLI.
+// Job files (TOML, through toml++): their keys are the option table's
+// (options.hpp), and a job's own (name, outputs, report, cache, groups).
 #include "nmbake/job.hpp"
-#include "nmbake/budget.hpp"
-#include "nmbake/preset.hpp"
+#include "nmbake/options.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -25,9 +25,39 @@ std::string resolve_path(const std::filesystem::path& folder, const std::string&
   return path.is_absolute() ? p : (folder / path).lexically_normal().string();
 }
 
-// Applies one key of [defaults] or [[bake]] to the options.
+// A TOML value as the option table takes it (options.hpp).
+bool option_value(const toml::node& node, const std::filesystem::path& folder, OptionValue& out) {
+  out = OptionValue{};
+  out.folder = folder.string();
+  if (auto s = node.value_exact<std::string>()) {
+    out.text = *s;
+  } else if (auto i = node.value_exact<std::int64_t>()) {
+    out.kind = OptionValue::Kind::integer;
+    out.integer = *i;
+  } else if (auto d = node.value_exact<double>()) {
+    out.kind = OptionValue::Kind::number;
+    out.number = *d;
+  } else if (auto b = node.value_exact<bool>()) {
+    out.kind = OptionValue::Kind::boolean;
+    out.boolean = *b;
+  } else if (const toml::array* list = node.as_array()) {
+    out.kind = OptionValue::Kind::list;
+    for (const toml::node& item : *list) {
+      const auto word = item.value_exact<std::string>();
+      if (!word) return false;
+      out.list.push_back(*word);
+    }
+  } else {
+    return false;
+  }
+  return true;
+}
+
+// Reads one key of [defaults] or [[bake]]: an option of the table joins
+// `given` (applied once the bake's keys are all read), the job's own keys
+// (name, report, cache, outputs, groups) go to `job`.
 Status apply_key(const std::string& file, const std::filesystem::path& folder, const std::string& key,
-                 const toml::node& value, bool in_bake, BakeJob& job) {
+                 const toml::node& value, bool in_bake, BakeJob& job, std::vector<GivenOption>& given) {
   BakeOptions& o = job.options;
   auto bad = [&](const std::string& why) { return Status::bad_input(where(file, value) + ": " + key + ": " + why); };
   auto get_string = [&](std::string& out) -> bool {
@@ -37,162 +67,24 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
     }
     return false;
   };
-  auto get_int = [&](int& out) -> bool {
-    if (auto i = value.value<std::int64_t>(); i && value.is_integer()) {
-      if (*i < -2147483647 || *i > 2147483647) return false;
-      out = static_cast<int>(*i);
-      return true;
-    }
-    return false;
-  };
   std::string text;
-  if (key == "size") {
-    int size = 0;
-    if (!get_int(size)) return bad("expected an integer");
-    o.width = o.height = size;
-  } else if (key == "width") {
-    if (!get_int(o.width)) return bad("expected an integer");
-  } else if (key == "height") {
-    if (!get_int(o.height)) return bad("expected an integer");
-  } else if (key == "samples") {
-    if (get_string(text)) {
-      if (text != "adaptive") return bad("expected an integer or \"adaptive\"");
-      o.adaptive = true;
-    } else if (get_int(o.samples)) {
-      o.adaptive = false;
-    } else {
-      return bad("expected an integer or \"adaptive\"");
+  if (const OptionSpec* spec = find_option(key); spec != nullptr && (in_bake || spec->in_defaults)) {
+    GivenOption g{spec, {}, where(file, value) + ": " + key, false};
+    if (!option_value(value, folder, g.value)) {
+      // A value of no type the table reads (a table, a date, a list of numbers).
+      const std::string words = spec->words();
+      return bad("expected " + (words.empty() ? std::string(spec->value) : "one of: " + words));
     }
-  } else if (key == "adaptive_max") {
-    if (!get_int(o.adaptive_options.max_samples)) return bad("expected an integer");
-  } else if (key == "padding") {
-    if (!get_int(o.padding)) return bad("expected an integer");
-  } else if (key == "space") {
-    if (!get_string(text) || !parse_word(text, o.space)) return bad("expected \"tangent\" or \"object\"");
-  } else if (key == "green") {
-    if (!get_string(text) || !parse_word(text, o.green)) return bad("expected \"up\" or \"down\"");
-  } else if (key == "hit") {
-    if (!get_string(text) || !parse_word(text, o.hit)) return bad("expected \"first\" or \"nearest\"");
-  } else if (key == "high_normals") {
-    if (!get_string(text) || !parse_word(text, o.high_normals)) return bad("expected \"smooth\" or \"face\"");
-  } else if (key == "cage_mode") {
-    if (!get_string(text) || !parse_word(text, o.cage_mode))
-      return bad("expected \"banded\", \"averaged\" or \"interpolated\"");
-  } else if (key == "edge_band") {
-    if (!value.is_number() || !(*value.value<double>() >= 0.0 && *value.value<double>() <= 100.0))
-      return bad("expected a number from 0 to 100");
-    o.edge_band = static_cast<float>(*value.value<double>());
-  } else if (key == "retry_misses") {
-    if (!get_string(text) || !parse_word(text, o.retry_misses)) return bad("expected \"auto\", \"on\" or \"off\"");
-  } else if (key == "build_quality") {
-    if (!get_string(text) || !parse_word(text, o.build_quality)) return bad("expected \"low\", \"medium\" or \"high\"");
-  } else if (key == "bvh") {
-    if (!get_string(text) || !parse_word(text, o.bvh_memory)) return bad("expected \"auto\", \"fast\" or \"compact\"");
-  } else if (key == "tangents") {
-    if (!get_string(text) || (text != "mikktspace" && text != "file")) return bad("expected \"mikktspace\" or \"file\"");
-    o.tangent_basis = text == "file" ? TangentBasis::file : TangentBasis::mikktspace;
-  } else if (key == "uv_set") {
-    if (!get_int(o.uv_set) || o.uv_set < 0 || o.uv_set > 7) return bad("expected an integer 0..7");
-  } else if (key == "ignore_backfaces") {
-    if (auto b = value.value<bool>(); b && value.is_boolean()) o.ignore_backfaces = *b;
-    else return bad("expected true or false");
-  } else if (key == "front" || key == "back") {
-    Distance d;
-    if (value.is_number()) {
-      const double v = *value.value<double>();
-      if (!(v >= 0.0)) return bad("expected a distance >= 0");
-      d.kind = Distance::Kind::absolute;
-      d.value = static_cast<float>(v);
-    } else if (!get_string(text) || !parse_distance(text, d)) {
-      return bad("expected a number, \"N%\" or \"auto\"");
-    }
-    (key == "front" ? o.front : o.back) = d;
-  } else if (key == "max_memory") {
-    if (auto i = value.value<std::int64_t>(); i && value.is_integer() && *i > 0) {
-      o.max_memory_bytes = static_cast<std::uint64_t>(*i);
-    } else if (!get_string(text) || !parse_memory_size(text, o.max_memory_bytes)) {
-      return bad("expected bytes, or a string such as \"8G\"");
-    }
-  } else if (key == "preset") {
-    // Outputs as engines want them (preset.hpp): the preset is applied once
-    // the bake's keys are all read (load_job_file), so green, bitangent, tbn
-    // and blue given anywhere override it.
-    EnginePreset preset;
-    if (!get_string(text) || !find_engine_preset(text, preset)) return bad("expected one of " + engine_preset_names());
-    o.preset = text;
-  } else if (key == "bitangent") {
-    if (!get_string(text) || !parse_word(text, o.decode.bitangent)) return bad("expected \"pixel\" or \"vertex\"");
-  } else if (key == "tbn") {
-    if (!get_string(text) || !parse_word(kFrameRuleWords, text, o.decode.unit_frame)) return bad("expected \"raw\" or \"normalized\"");
-  } else if (key == "blue") {
-    if (!get_string(text) || !parse_word(kBlueRuleWords, text, o.decode.rebuild_blue)) return bad("expected \"stored\" or \"rebuilt\"");
-  } else if (key == "dither") {
-    if (auto b = value.value<bool>(); b && value.is_boolean()) o.dither = *b;
-    else if (get_string(text) && (text == "on" || text == "off")) o.dither = text == "on";
-    else return bad("expected \"on\", \"off\", true or false");
-  } else if (key == "maps") {
-    // maps = ["normal", "ao"] or "normal,ao"
-    o.maps.clear();
-    if (const toml::array* list = value.as_array()) {
-      for (const toml::node& item : *list) {
-        const auto name = item.value<std::string>();
-        if (!name) return Status::bad_input(where(file, item) + ": maps: expected map names (strings)");
-        if (const Status s = parse_map_list(*name, o.maps); !s) return Status::bad_input(where(file, item) + ": maps: " + s.message());
-      }
-      if (o.maps.empty()) return bad("expected at least one map");
-    } else if (get_string(text)) {
-      if (const Status s = parse_map_list(text, o.maps); !s) return bad(s.message());
-    } else {
-      return bad("expected a list of map names, e.g. [\"normal\", \"ao\"]");
-    }
-  } else if (key == "height_range" || key == "curvature_range") {
-    float& range = key == "height_range" ? o.height_range : o.curvature_range;
-    if (value.is_number() && *value.value<double>() > 0.0 && std::isfinite(*value.value<double>())) {
-      range = static_cast<float>(*value.value<double>());
-    } else if (get_string(text) && text == "auto") {
-      range = 0.0f;
-    } else {
-      return bad("expected a number > 0 or \"auto\"");
-    }
-  } else if (key == "id_source") {
-    if (!get_string(text) || !parse_word(text, o.id_source))
-      return bad("expected \"auto\", \"part\" or \"material\"");
-  } else if (key == "ao_rays" || key == "thickness_rays") {
-    if (!get_int(key == "ao_rays" ? o.ao_rays : o.thickness_rays)) return bad("expected an integer");
-  } else if (key == "ao_distance" || key == "thickness_distance") {
-    Distance d;
-    if (value.is_number()) {
-      const double v = *value.value<double>();
-      if (!(v > 0.0)) return bad("expected a distance > 0");
-      d.kind = Distance::Kind::absolute;
-      d.value = static_cast<float>(v);
-    } else if (!get_string(text) || !parse_distance(text, d)) {
-      return bad("expected a number, \"N%\" or \"auto\"");
-    }
-    (key == "ao_distance" ? o.ao_distance : o.thickness_distance) = d;
-  } else if (key == "cage") {
-    if (!get_string(text) || text.empty()) return bad("expected a path");
-    o.cage_path = resolve_path(folder, text);
+    given.push_back(std::move(g));
   } else if (in_bake && key == "name") {
     if (!get_string(job.name)) return bad("expected a string");
-  } else if (in_bake && (key == "low" || key == "high" || key == "report" || key == "debug_dump")) {
+  } else if (in_bake && key == "report") {
     // "" would resolve to the job file's folder: caught here, by name.
     if (!get_string(text) || text.empty()) return bad("expected a path");
-    const std::string p = resolve_path(folder, text);
-    if (key == "low") o.low_path = p;
-    else if (key == "high") o.high_path = p;
-    else if (key == "report") job.report_path = p;
-    else o.debug_dump_prefix = p;
+    job.report_path = resolve_path(folder, text);
   } else if (key == "cache") {
     if (!get_string(text) || text.empty()) return bad("expected a folder");
     job.cache_dir = resolve_path(folder, text);
-  } else if (key == "match") {
-    if (!get_string(text) || !parse_word(text, o.match.mode)) return bad("expected \"auto\", \"name\" or \"off\"");
-  } else if (key == "unmatched") {
-    if (!get_string(text) || !parse_word(text, o.match.unmatched)) return bad("expected \"error\" or \"all\"");
-  } else if (key == "low_suffix" || key == "high_suffix" || key == "cage_suffix") {
-    if (!get_string(text) || text.empty()) return bad("expected a non-empty string");
-    (key == "low_suffix" ? o.match.low_suffix : key == "high_suffix" ? o.match.high_suffix : o.match.cage_suffix) = text;
   } else if (in_bake && key == "group") {
     // [[bake.group]] name = "..", low = ["body_low"], high = ["body_high", "bolts_high"]
     const toml::array* list = value.as_array();
@@ -202,9 +94,9 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
       if (!t) return Status::bad_input(where(file, item) + ": group: expected a table with low = [..] and high = [..]");
       GroupSpec group;
       // As match_parts() names them: the name, else "group N".
-      const auto label = [](const GroupSpec& spec, std::size_t number) {
+      const auto label = [](const GroupSpec& named, std::size_t number) {
         const std::string name =
-            spec.name.empty() ? "group " + std::to_string(number) : printable_text(spec.name);
+            named.name.empty() ? "group " + std::to_string(number) : printable_text(named.name);
         return std::string("'").append(name).append("'");
       };
       const std::size_t number = o.match.groups.size() + 1;
@@ -302,7 +194,7 @@ Status load_job_file(const std::string& path, std::vector<BakeJob>& jobs) {
   const std::filesystem::path folder = std::filesystem::path(path).parent_path();
 
   BakeJob defaults;
-  const toml::table* defaults_table = root["defaults"].as_table();
+  std::vector<GivenOption> defaults_given;
   for (const auto& [key, value] : root) {
     const std::string k(key.str());
     if (k != "defaults" && k != "bake") {
@@ -313,7 +205,9 @@ Status load_job_file(const std::string& path, std::vector<BakeJob>& jobs) {
   if (const toml::node_view d = root["defaults"]) {
     const toml::table* table = d.as_table();
     if (!table) return Status::bad_input(path + ": [defaults] must be a table");
-    for (const auto& [key, value] : *table) NMBAKE_TRY(apply_key(path, folder, std::string(key.str()), value, false, defaults));
+    for (const auto& [key, value] : *table) {
+      NMBAKE_TRY(apply_key(path, folder, std::string(key.str()), value, false, defaults, defaults_given));
+    }
   }
   const toml::array* bakes = root["bake"].as_array();
   if (!bakes || bakes->empty()) return Status::bad_input(path + ": no [[bake]] entries");
@@ -324,16 +218,15 @@ Status load_job_file(const std::string& path, std::vector<BakeJob>& jobs) {
     if (!table) return Status::bad_input(where(path, node) + ": each [[bake]] must be a table");
     BakeJob job = defaults;
     job.name = "bake " + std::to_string(index);
-    for (const auto& [key, value] : *table) NMBAKE_TRY(apply_key(path, folder, std::string(key.str()), value, true, job));
-    if (!job.options.preset.empty()) {
-      // Keys given in [defaults] or this [[bake]] keep their values.
-      const auto given = [&](const char* key) {
-        return table->contains(key) || (defaults_table != nullptr && defaults_table->contains(key));
-      };
-      EnginePreset preset;
-      NMBAKE_CHECK(find_engine_preset(job.options.preset, preset), "preset checked when read");
-      apply_engine_preset(preset, {given("green"), given("bitangent"), given("tbn"), given("blue")}, job.options.green,
-                          job.options.decode);
+    // The options of [defaults], then the bake's own (a preset first, so
+    // that green, bitangent, tbn and blue given anywhere override it).
+    std::vector<GivenOption> given = defaults_given;
+    for (const auto& [key, value] : *table) {
+      NMBAKE_TRY(apply_key(path, folder, std::string(key.str()), value, true, job, given));
+    }
+    NMBAKE_TRY(apply_options(given, job.options));
+    if (const Status s = validate_option_values(job.options); !s) {
+      return Status::bad_input(where(path, node) + ": [[bake]] \"" + printable_text(job.name) + "\": " + s.message());
     }
     if (job.options.low_path.empty() || job.options.high_path.empty() || job.options.outputs.empty()) {
       return Status::bad_input(where(path, node) + ": [[bake]] \"" + job.name + "\" needs low, high and outputs");

@@ -23,9 +23,9 @@ Status parse_map_list(const std::string& text, std::vector<MapKind>& out) {
     word.erase(word.find_last_not_of(" \t") + 1);
     begin = end + 1;
     if (word.empty()) continue;
-    MapKind map;
+    MapKind map = MapKind::normal;
     if (!parse_word(word, map)) {
-      return Status::bad_input("unknown map '" + printable_text(word) + "' (maps: " + word_list<MapKind>(", ") + ")");
+      return Status::bad_input("unknown map '" + printable_text(word) + "': " + expected_words<MapKind>());
     }
     any = true;
     if (std::find(out.begin(), out.end(), map) == out.end()) out.push_back(map);
