@@ -38,10 +38,7 @@ struct BakeFlags {
   bool keep_going = false;      // a job: run the other bakes after one fails
   std::string job_report;       // a job: write each bake's status here (JSON)
   bool print_options = false;   // print each bake's options (JSON lines) and stop
-  // The table's flags by key: the words given (repeatable flags collect
-  // several), and switches.
-  std::map<std::string, std::vector<std::string>, std::less<>> table;
-  std::map<std::string, bool, std::less<>> switches;
+  TableFlags table;  // every option of the bake (options.hpp)
 };
 
 int fail(const Status& status) {
@@ -57,24 +54,7 @@ int usage_error(const std::string& message) {
 // Turns the flags into options through the option table; a usage problem
 // is a bad_input Status naming the flag.
 Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
-  std::vector<GivenOption> given;
-  for (const OptionSpec& spec : bake_option_table()) {
-    GivenOption g{&spec, {}, flag_of(spec), true};
-    if (spec.is_switch) {
-      const auto it = f.switches.find(spec.key);
-      if (it == f.switches.end() || !it->second) continue;
-      g.value = OptionValue::of_text("true");
-    } else {
-      const auto it = f.table.find(spec.key);
-      if (it == f.table.end() || it->second.empty()) continue;
-      // A repeated flag (--map normal --map ao) is one list.
-      std::string joined;
-      for (const std::string& word : it->second) joined += (joined.empty() ? "" : ",") + word;
-      g.value = OptionValue::of_text(spec.key == "maps" ? joined : it->second.back());
-    }
-    given.push_back(std::move(g));
-  }
-  NMBAKE_TRY(apply_options(given, o));
+  NMBAKE_TRY(apply_table_flags(f.table, o));
   for (const std::string& path : f.outputs) {
     OutputSpec out;
     out.path = path;
@@ -381,15 +361,7 @@ Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--format", flags->format, "every output in this format: " + word_list<PixelFormat>(", ") +
                                                  " (default: from the extension)");
   // Every option of the bake, from the option table.
-  for (const OptionSpec& spec : bake_option_table()) {
-    if (spec.is_switch) {
-      cmd->add_flag(flag_of(spec), flags->switches[std::string(spec.key)], std::string(spec.help));
-    } else {
-      cmd->add_option(flag_of(spec), flags->table[std::string(spec.key)], help_of(spec))
-          ->type_name(std::string(spec.value))
-          ->allow_extra_args(false);
-    }
-  }
+  add_table_flags(cmd, flags->table);
   cmd->add_option("--report", flags->report, "write the bake report (JSON) here");
   cmd->add_option("--max-miss-rate", flags->max_miss_rate, "exit 1 when more than this share of rays miss (0..1)")
       ->check(CLI::Range(0.0, 1.0));

@@ -3,12 +3,16 @@
 #pragma once
 
 #include <functional>
-
+#include <initializer_list>
+#include <map>
 #include <string>
+#include <string_view>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
 #include "nmbake/common.hpp"
+#include "nmbake/options.hpp"
 #include "nmbake/preview.hpp"
 
 namespace nmbake::cli {
@@ -44,6 +48,17 @@ struct ViewFlags {
 };
 void add_view_flags(CLI::App* cmd, ViewFlags& flags, int default_size);
 Status parse_view_flags(const ViewFlags& flags, ViewOptions& view);
+// Rows of the option table (options.hpp) as flags: the words given per
+// key, and the switches.
+struct TableFlags {
+  std::map<std::string, std::vector<std::string>, std::less<>> values;
+  std::map<std::string, bool, std::less<>> switches;
+};
+// Registers the rows named in `keys` (every row when empty) on `cmd`.
+void add_table_flags(CLI::App* cmd, TableFlags& flags, std::initializer_list<std::string_view> keys = {});
+// Applies the flags given to `options` (apply_options()).
+Status apply_table_flags(const TableFlags& flags, BakeOptions& options);
+
 Runner add_unwrap_command(CLI::App& app, const GlobalOptions& global);
 Runner add_merge_command(CLI::App& app, const GlobalOptions& global);  // merge_command.cpp
 Runner add_plan_command(CLI::App& app, const GlobalOptions& global);   // plan_command.cpp

@@ -60,8 +60,9 @@ void add_view_flags(CLI::App* cmd, ViewFlags& f, int default_size) {
 namespace {
 
 struct PreviewFlags {
-  std::string map, output, green, preset, bitangent, tbn, blue, low, high, space = "tangent", front = "auto", back = "auto",
-                           hit = "first", cage_mode = "banded";
+  std::string map, output, low, high;
+  // How the map was baked: the bake's own options (options.hpp).
+  TableFlags baked;
   int max_size = 1024;
   int turntable = 1;
   float heat_max = 5.0f;
@@ -78,35 +79,16 @@ int run_preview_3d(const PreviewFlags& f, const GlobalOptions& global, const Ima
   if (const Status s = parse_view_flags(f.view, options.view); !s) return fail(s);
   options.turntable = f.turntable;
   options.heat_max_degrees = f.heat_max;
-  // A preset first, then the flags given explicitly, as `bake` does.
-  if (!f.preset.empty()) {
-    EnginePreset preset;
-    if (!find_engine_preset(f.preset, preset)) {
-      return fail(Status::bad_input("--preset " + f.preset + ": expected one of " + engine_preset_names()));
-    }
-    apply_engine_preset(preset, {}, options.green, options.decode);
-  }
-  if (!f.green.empty() && !parse_word(f.green, options.green))
-    return fail(Status::bad_input("--green " + f.green + ": expected up or down"));
-  if (!f.bitangent.empty() && !parse_word(f.bitangent, options.decode.bitangent))
-    return fail(Status::bad_input("--bitangent " + f.bitangent + ": expected pixel or vertex"));
-  if (!f.tbn.empty() && !parse_word(kFrameRuleWords, f.tbn, options.decode.unit_frame))
-    return fail(Status::bad_input("--tbn " + f.tbn + ": expected raw or normalized"));
-  if (!f.blue.empty() && !parse_word(kBlueRuleWords, f.blue, options.decode.rebuild_blue))
-    return fail(Status::bad_input("--blue " + f.blue + ": expected stored or rebuilt"));
-  if (!parse_word(f.space, options.space)) {
-    return fail(Status::bad_input("--space " + f.space + ": expected tangent or object"));
-  }
-  if (!parse_word(f.hit, options.hit))
-    return fail(Status::bad_input("--hit " + f.hit + ": expected first or nearest"));
-  if (!parse_word(f.cage_mode, options.cage_mode))
-    return fail(Status::bad_input("--cage-mode " + f.cage_mode + ": expected banded, averaged or interpolated"));
-  if (!parse_distance(f.front, options.front)) {
-    return fail(Status::bad_input("--front " + f.front + ": expected a distance, N% or auto"));
-  }
-  if (!parse_distance(f.back, options.back)) {
-    return fail(Status::bad_input("--back " + f.back + ": expected a distance, N% or auto"));
-  }
+  // How the map was baked, read as `bake` reads it.
+  BakeOptions baked;
+  if (const Status s = apply_table_flags(f.baked, baked); !s) return fail(s);
+  options.green = baked.green;
+  options.decode = baked.decode;
+  options.space = baked.space;
+  options.hit = baked.hit;
+  options.cage_mode = baked.cage_mode;
+  options.front = baked.front;
+  options.back = baked.back;
   Mesh low, high;
   LowSurface surface;
   if (const Status s = load_preview_meshes(f.low, f.high, low, surface, high); !s) return fail(s);
@@ -167,16 +149,9 @@ int run_preview(const PreviewFlags& f, const GlobalOptions& global) {
   if (three_d) return run_preview_3d(f, global, map);
 
   LitMapOptions options;
-  EnginePreset preset;
-  if (!f.preset.empty() && !find_engine_preset(f.preset, preset)) {
-    std::fprintf(stderr, "nmbake: error: --preset %s: expected one of %s\n", f.preset.c_str(), engine_preset_names().c_str());
-    return kBadInput;
-  }
-  if (!f.preset.empty()) options.green = preset.green;
-  if (!f.green.empty() && !parse_word(f.green, options.green)) {
-    std::fprintf(stderr, "nmbake: error: --green %s: expected up or down\n", f.green.c_str());
-    return kBadInput;
-  }
+  BakeOptions baked;  // the green convention, as `bake` reads it (a preset's, or --green)
+  if (const Status s = apply_table_flags(f.baked, baked); !s) return fail(s);
+  options.green = baked.green;
   options.max_size = f.max_size;
   const Image lit = render_lit_map(map, options);
   if (const Status s = write_image(lit, f.output, format); !s) return fail(s);
@@ -193,26 +168,15 @@ Runner add_preview_command(CLI::App& app, const GlobalOptions& global) {
                                      "--low/--high the sheet [high | low+map | error]");
   cmd->add_option("--map", flags->map, "the normal map")->required();
   cmd->add_option("-o,--output", flags->output, "the preview image (.png: 8-bit)")->required();
-  cmd->add_option("--green", flags->green, "the map's green convention: up | down")->default_str("up");
-  cmd->add_option("--preset", flags->preset,
-                  "the engine the map was baked for (bake --preset): " + engine_preset_names() +
-                      "; --green, --bitangent, --tbn, --blue given too override it");
-  cmd->add_option("--bitangent", flags->bitangent, "3D: how the map's engine gets B: pixel | vertex")->default_str("pixel");
-  cmd->add_option("--tbn", flags->tbn, "3D: the engine's T, B, N before the decode: raw | normalized")->default_str("raw");
-  cmd->add_option("--blue", flags->blue, "3D: the engine's z: stored | rebuilt (from red and green)")->default_str("stored");
   cmd->add_option("--max-size", flags->max_size, "lit map only: longest side of the preview")
       ->default_val(1024)
       ->check(CLI::Range(16, 16384));
   cmd->add_option("--low", flags->low, "3D: the low mesh the map was baked for (OBJ, PLY, with UVs)");
   cmd->add_option("--high", flags->high, "3D: the high mesh it was baked from");
-  cmd->add_option("--space", flags->space, "3D: the map's space: tangent | object")->default_val("tangent");
-  cmd->add_option("--front", flags->front, "3D: the bake's front distance (units, N%, auto)")
-      ->default_val("auto");
-  cmd->add_option("--back", flags->back, "3D: the bake's back distance (units, N%, auto)")
-      ->default_val("auto");
-  cmd->add_option("--hit", flags->hit, "3D: the bake's hit rule: first | nearest")->default_val("first");
-  cmd->add_option("--cage-mode", flags->cage_mode, "3D: the bake's cage mode: banded | averaged | interpolated")
-      ->default_val("banded");
+  // How the map was baked (3D: all of them; the lit map: green and preset),
+  // the rows of `bake`'s own option table.
+  add_table_flags(cmd, flags->baked, {"space", "preset", "green", "bitangent", "tbn", "blue", "front", "back", "hit",
+                                      "cage_mode"});
   cmd->add_option("--turntable", flags->turntable, "3D: views in the sheet, one row each, yaw + 360 k / N")
       ->default_val(1)
       ->check(CLI::Range(1, 64));
