@@ -130,7 +130,7 @@ Status validate_option_values(const BakeOptions& options);
 // Checks what can be known of the input files without loading them, so a
 // job finds a bad path in its last bake before the first bake runs: every
 // mesh path is non-empty, has no NUL byte, names a regular file with a
-// supported extension (.obj, .ply) that can be opened, and starts as its
+// supported extension (.obj, .ply, .gltf, .glb, .fbx, .dae, .3ds, .stl) that can be opened, and starts as its
 // format must (PLY: "ply"; OBJ: text, no NUL byte in its first 4 KiB); every
 // output, report and debug-dump path has no NUL byte. bad_input naming the
 // path (through printable_text) and the reason.

@@ -7,7 +7,7 @@
 //     same maps), threads and band size (tested not to change a byte), the
 //     report and debug-dump paths. `auto` distances enter as "auto": they
 //     are a function of the meshes, which are in the key;
-//   * any band of rows can be baked alone (a tile, bake_tile_rows) and the
+//   * any band of rows can be baked alone (a tile: BakeOptions::tile_index of tile_count, bake()) and the
 //     tiles merged before dilation give the bytes of the whole bake, for
 //     every map of a map set (a tile holds each map's raw texels; the merge
 //     takes auto ranges from the whole map, as the whole bake does).

@@ -38,7 +38,7 @@
 
 #include "load/parsers.hpp"
 #include "load/tinygltf.hpp"
-#include "nmbake/budget.hpp"
+#include "nmbake/memory.hpp"
 
 namespace nmbake::load_detail {
 
