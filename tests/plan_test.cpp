@@ -128,6 +128,7 @@ void make_hostile_plan(HostilePlan& p, const std::string& program) {
       p.expected.outputs.push_back(tile_file);
       merge.push_back(tile_file);
     }
+    merge.insert(merge.end(), {"--expect-output", out});
     p.expected.merges.push_back(merge);
     p.expected.outputs.push_back(out);
   }

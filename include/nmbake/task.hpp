@@ -90,7 +90,11 @@ struct MergeReport {
 // writes `outputs` (empty: the outputs the bake named; with several maps
 // each path needs <MAP>). The bytes are those of the whole bake.
 // bad_input naming the tile file on a mixed, missing or repeated tile.
+// Without `outputs`, the paths a tile names are written only inside the
+// current folder or the tile file's folder (a tile is data from another
+// machine), unless they are exactly `expected` (what a plan, which read the
+// job file, knows the bake names: its merge task passes them).
 Status merge_tiles(const std::vector<std::string>& tile_paths, const std::vector<OutputSpec>& outputs,
-                   MergeReport& report);
+                   MergeReport& report, const std::vector<std::string>& expected = {});
 
 }  // namespace nmbake

@@ -609,7 +609,7 @@ std::string MergeReport::to_json() const {
 }
 
 Status merge_tiles(const std::vector<std::string>& tile_paths, const std::vector<OutputSpec>& outputs,
-                   MergeReport& report) {
+                   MergeReport& report, const std::vector<std::string>& expected) {
   using Clock = std::chrono::steady_clock;
   report = MergeReport{};
   if (tile_paths.empty()) return Status::bad_input("merge: no tile files given");
@@ -628,7 +628,20 @@ Status merge_tiles(const std::vector<std::string>& tile_paths, const std::vector
   const std::vector<OutputSpec>& targets = outputs.empty() ? named : outputs;
   if (targets.empty()) return Status::bad_input("merge: no output map given (-o) and the tiles name none");
   if (outputs.empty()) {
-    for (const OutputSpec& out : named) NMBAKE_TRY(check_tile_output(out.path, tile_paths.front()));
+    const auto normal = [](const std::string& path) {
+      std::error_code ec;
+      return std::filesystem::absolute(path, ec).lexically_normal().string();
+    };
+    std::vector<std::string> names, wanted;
+    for (const OutputSpec& out : named) names.push_back(normal(out.path));
+    for (const std::string& path : expected) wanted.push_back(normal(path));
+    if (!expected.empty() && names != wanted) {
+      return Status::bad_input(printable_text(tile_paths.front()) +
+                               ": the tile names other outputs than the plan expects: bake the tiles again");
+    }
+    if (expected.empty()) {
+      for (const OutputSpec& out : named) NMBAKE_TRY(check_tile_output(out.path, tile_paths.front()));
+    }
   }
   if (const Status tokens = check_map_tokens(targets, settings.maps); !tokens) {
     return Status::bad_input("merge: " + tokens.message());

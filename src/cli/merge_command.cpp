@@ -12,7 +12,7 @@ namespace nmbake::cli {
 namespace {
 
 struct MergeFlags {
-  std::vector<std::string> tiles, outputs;
+  std::vector<std::string> tiles, outputs, expected;
   std::string format, report;
 };
 
@@ -30,7 +30,7 @@ int run_merge(const MergeFlags& f, const GlobalOptions& global) {
     outputs.push_back(out);
   }
   MergeReport report;
-  const Status s = merge_tiles(f.tiles, outputs, report);
+  const Status s = merge_tiles(f.tiles, outputs, report, f.expected);
   if (!s) {
     print_error(s.message());
     return s.code() == StatusCode::internal ? kInternal : kBadInput;
@@ -65,6 +65,10 @@ Runner add_merge_command(CLI::App& app, const GlobalOptions& global) {
       ->allow_extra_args(false);
   cmd->add_option("--format", flags->format, "png8 | png16 | tiff16 | exr-half | exr-float | exr-float-piz");
   cmd->add_option("--report", flags->report, "write the merge report (JSON) here");
+  cmd->add_option("--expect-output", flags->expected,
+                  "the outputs the tiles must name, in order (a plan's merge task gives them): written wherever they "
+                  "are; tiles naming others are refused")
+      ->allow_extra_args(false);
   return [flags, &global]() { return run_merge(*flags, global); };
 }
 

@@ -222,6 +222,13 @@ Status plan_jobs(const std::vector<BakeJob>& jobs, const PlanOptions& options, s
       merge.dependencies.push_back(t.id);
       tasks.push_back(std::move(t));
     }
+    // The outputs the job names, which the tiles must name too: the merge
+    // then writes them wherever the job put them (a tile alone may only
+    // name paths beside itself or the current folder).
+    for (const OutputSpec& out : job.options.outputs) {
+      merge.command.push_back("--expect-output");
+      merge.command.push_back(absolute(out.path));
+    }
     merge.inputs.push_back(options.nmbake);
     merge.outputs = maps;
     if (!job.report_path.empty()) {

@@ -223,7 +223,7 @@ int run_map_lab(const std::string& out_dir, int size) {
     BakeOptions o = c.options;
     o.low_path = low_path;
     o.high_path = high_path;
-    MapKind map;
+    MapKind map = MapKind::normal;
     parse_word(c.map, map);
     o.maps = {map};
     const std::string map_file = (dir / (c.map + "_" + std::to_string(c.rays) + "_" + std::to_string(o.samples) + ".exr")).string();
