@@ -3,17 +3,15 @@
 // this file only wires them, times them and collects their counters.
 #include "nmbake/bake.hpp"
 
-#include "base/huge_pages.hpp"
+#include "bake/adaptive_rows.hpp"
+#include "bake/debug_images.hpp"
+#include "bake/pipeline.hpp"
+#include "bake/validate.hpp"
 #include "nmbake/budget.hpp"
 #include "nmbake/maps.hpp"
 #include "nmbake/task.hpp"
 #include "nmbake/udim.hpp"
 
-#include <cctype>
-#include <cerrno>
-#include <charconv>
-#include <cstdio>
-#include <cstring>
 #include <chrono>
 #include <cmath>
 #include <algorithm>
@@ -21,285 +19,19 @@
 #include <memory>
 #include <string>
 
-#include <sys/resource.h>
 #include <tbb/global_control.h>
 #include <tbb/info.h>
-#include <tbb/parallel_for.h>
 
 namespace nmbake {
 
-namespace {
-
-std::string number_text(double value) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%g", value);
-  return text;
-}
-
-// Resolved distances against the low mesh's diagonal (kMaxDistanceDiagonals).
-// A zero diagonal (every low vertex in one place) has only kMaxDistance.
-Status check_distance(const char* name, const Distance& d, float diagonal) {
-  const double limit = static_cast<double>(kMaxDistanceDiagonals) * diagonal;
-  if (d.kind != Distance::Kind::absolute || diagonal <= 0.0f || d.value <= limit) return Status::ok();
-  return Status::bad_input(std::string(name) + " distance " + number_text(d.value) + " is out of range: at most " +
-                           number_text(kMaxDistanceDiagonals) + " times the low mesh's diagonal " +
-                           number_text(diagonal) + " = " + number_text(limit) + " scene units");
-}
-
-// The map set's options (maps.hpp).
-Status validate_map_set(const BakeOptions& o) {
-  if (o.maps.empty()) return Status::bad_input("no map to bake (--map)");
-  for (const MapKind map : o.maps) {
-    if (!map_traits(map).implemented) return Status::bad_input(std::string("--map ") + to_string(map) + ": not implemented yet");
-  }
-  NMBAKE_TRY(check_map_tokens(o.outputs, o.maps));
-  for (const MapOutput& out : map_outputs(o)) {
-    if (const Status target = check_output_target(out.path); !target) return Status::bad_input(target.message());
-  }
-  const auto check_range = [](const char* name, float value) {
-    if (!(value >= 0.0f) || !std::isfinite(value)) {
-      return Status::bad_input(std::string(name) + " " + number_text(value) + " is out of range: a number > 0, or auto");
-    }
-    return Status::ok();
-  };
-  NMBAKE_TRY(check_range("--height-range", o.height_range));
-  NMBAKE_TRY(check_range("--curvature-range", o.curvature_range));
-  for (const auto& [name, rays] : {std::pair{"--ao-rays", o.ao_rays}, std::pair{"--thickness-rays", o.thickness_rays}}) {
-    if (rays < 1 || rays > kMaxOcclusionRays) {
-      return Status::bad_input(std::string(name) + " " + std::to_string(rays) + " is out of range (1 to " +
-                               std::to_string(kMaxOcclusionRays) + ")");
-    }
-  }
-  for (const auto& [name, d] :
-       {std::pair{"--ao-distance", o.ao_distance}, std::pair{"--thickness-distance", o.thickness_distance}}) {
-    if (d.kind != Distance::Kind::automatic && !(d.value > 0.0f)) {
-      return Status::bad_input(std::string(name) + " " + to_string(d) + " is out of range: a distance > 0, N% or auto");
-    }
-    if (d.kind == Distance::Kind::absolute && !(d.value <= kMaxDistance)) {
-      return Status::bad_input(std::string(name) + " " + number_text(d.value) + " is out of range: at most " +
-                               number_text(kMaxDistance) + " scene units");
-    }
-    if (d.kind == Distance::Kind::percent && !(d.value <= 100.0f * kMaxDistanceDiagonals)) {
-      return Status::bad_input(std::string(name) + " " + number_text(d.value) + "% is out of range: at most " +
-                               number_text(100.0f * kMaxDistanceDiagonals) + "% of the low mesh's diagonal");
-    }
-  }
-  if (o.adaptive && (o.maps.size() != 1 || o.maps.front() != MapKind::normal)) {
-    return Status::bad_input("--samples adaptive bakes the normal map alone; the map set (" + map_list_text(o.maps) +
-                             ") needs a fixed sample count (1, 4, 16 or 64)");
-  }
-  return Status::ok();
-}
-
-}  // namespace
-
-Status write_map_files(MapSet& maps, const std::vector<MapOutput>& files, bool dither) {
-  std::vector<Status> written(files.size());
-  tbb::parallel_for(std::size_t{0}, files.size(), [&](std::size_t i) {
-    const MapOutput& out = files[i];
-    WriteOptions options;
-    options.dither = dither;
-    maps.integer_mapping(out.map, options.scale, options.offset);
-    written[i] = write_image(maps.image(out.map), out.path, out.format, options);
-  });
-  for (const Status& s : written) NMBAKE_TRY(s);
-  return Status::ok();
-}
-
-std::vector<MapReport> map_file_reports(const MapSet& maps, const std::vector<MapOutput>& files, int tile) {
-  std::vector<MapReport> reports = maps.reports(tile);
-  for (MapReport& m : reports) {
-    for (const MapOutput& out : files) {
-      if (out.map == m.map) m.outputs.push_back(out.path);
-    }
-  }
-  return reports;
-}
-
-Status check_map_tokens(const std::vector<OutputSpec>& outputs, const std::vector<MapKind>& maps) {
-  if (maps.size() <= 1) return Status::ok();
-  for (const OutputSpec& out : outputs) {
-    if (!has_map_token(out.path)) {
-      return Status::bad_input(printable_text(out.path) + ": " + std::to_string(maps.size()) +
-                               " maps are baked (" + map_list_text(maps) + "): the output path needs the " +
-                               kMapToken + " token, e.g. asset_" + kMapToken + ".png");
-    }
-  }
-  return Status::ok();
-}
-
-std::vector<MapOutput> map_outputs(const BakeOptions& o) { return map_outputs(o.outputs, o.maps); }
-
-std::vector<MapOutput> map_outputs(const std::vector<OutputSpec>& outputs, const std::vector<MapKind>& maps) {
-  std::vector<MapOutput> out;
-  for (const OutputSpec& spec : outputs) {
-    for (const MapKind map : maps) {
-      MapOutput m;
-      m.path = map_path(spec.path, map);
-      m.format = map_format(map, spec.format, spec.format_given, spec.path);
-      m.map = map;
-      out.push_back(std::move(m));
-    }
-  }
-  return out;
-}
-
-Status validate_options(const BakeOptions& o) {
-  if (o.low_path.empty()) return Status::bad_input("no low mesh given (--low)");
-  if (o.high_path.empty()) return Status::bad_input("no high mesh given (--high)");
-  if (o.outputs.empty()) return Status::bad_input("no output map given (-o)");
-  constexpr int kMaxSize = 32768;
-  if (o.width <= 0 || o.height <= 0 || o.width > kMaxSize || o.height > kMaxSize) {
-    return Status::bad_input("map size " + std::to_string(o.width) + "x" + std::to_string(o.height) +
-                             " is out of range: width and height must be 1 to " + std::to_string(kMaxSize));
-  }
-  if (o.adaptive) {
-    const int m = o.adaptive_options.max_samples;
-    if (m != 4 && m != 16 && m != 64) {
-      return Status::bad_input("--adaptive-max " + std::to_string(m) + " is not supported: use 4, 16 or 64");
-    }
-    const AdaptiveOptions& a = o.adaptive_options;
-    for (const float t : {a.normal_threshold, a.depth_threshold, a.border_threshold, a.spread_threshold}) {
-      if (!(t >= 0.0f) || !std::isfinite(t))
-        return Status::bad_input("adaptive thresholds must be finite and >= 0");
-    }
-  } else if (!is_supported_sample_count(o.samples)) {
-    return Status::bad_input("--samples " + std::to_string(o.samples) +
-                             " is not supported: use 1, 4, 16 or 64");
-  }
-  // Against the map size only when an unwrap happens (bake()): a small map
-  // of a mesh with UVs must not be refused for a gutter it never uses.
-  if (o.unwrap_gutter < 0) {
-    return Status::bad_input("unwrap gutter " + std::to_string(o.unwrap_gutter) + " is out of range (0 to size / 4)");
-  }
-  const auto check_limit = [](const char* name, const Distance& d) {
-    if (d.kind == Distance::Kind::absolute && !(d.value <= kMaxDistance)) {
-      return Status::bad_input(std::string(name) + " distance " + number_text(d.value) +
-                               " is out of range: at most " + number_text(kMaxDistance) + " scene units");
-    }
-    if (d.kind == Distance::Kind::percent && !(d.value <= 100.0f * kMaxDistanceDiagonals)) {
-      return Status::bad_input(std::string(name) + " distance " + number_text(d.value) +
-                               "% is out of range: at most " + number_text(100.0f * kMaxDistanceDiagonals) +
-                               "% of the low mesh's diagonal");
-    }
-    return Status::ok();
-  };
-  if (!(o.edge_band >= 0.0f && o.edge_band <= 100.0f)) {
-    return Status::bad_input("--edge-band " + number_text(o.edge_band) + " is out of range (0 to 100)");
-  }
-  NMBAKE_TRY(check_limit("front", o.front));
-  NMBAKE_TRY(check_limit("back", o.back));
-  if (o.padding < 0 || o.padding > 4096) {
-    return Status::bad_input("--padding " + std::to_string(o.padding) + " is out of range (0 to 4096)");
-  }
-  for (const OutputSpec& out : o.outputs) {
-    // The file system would see the path cut at the NUL: another file.
-    if (out.path.find('\0') != std::string::npos) {
-      return Status::bad_input(printable_text(out.path) + ": the output path holds a NUL byte");
-    }
-    if (const Status target = check_output_target(out.path); !target) return Status::bad_input(target.message());
-    if (!format_matches_extension(out.format, out.path)) {
-      return Status::bad_input(out.path + ": format " + to_string(out.format) + " cannot be written to a file with this extension");
-    }
-    std::filesystem::path folder = std::filesystem::path(out.path).parent_path();
-    if (folder.empty()) folder = ".";
-    std::error_code ec;
-    if (!std::filesystem::is_directory(folder, ec)) {
-      return Status::bad_input(out.path + ": the output folder " + folder.string() + " does not exist");
-    }
-    // TIFF needs the OpenImageIO module: known before the bake, not after.
-    if (const Status writer = check_image_writer(out.format); !writer) {
-      return Status::internal(out.path + ": " + writer.message());  // names the output once
-    }
-  }
-  return validate_map_set(o);
-}
+using detail::AdaptiveRows;
+using detail::Clock;
+using detail::DebugImages;
+using detail::Prepared;
+using detail::StageTimer;
+using detail::peak_rss_bytes;
 
 namespace {
-
-// `path` for a message: a path from a job file may hold any byte.
-std::string shown(const std::string& path) { return printable_text(path); }
-
-Status check_mesh_input(const char* what, const std::string& path) {
-  if (path.empty()) return Status::bad_input(std::string("the ") + what + " mesh path is empty");
-  if (path.find('\0') != std::string::npos) {
-    return Status::bad_input(shown(path) + ": the " + what + " mesh path holds a NUL byte");
-  }
-  std::string extension = std::filesystem::path(path).extension().string();
-  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  if (!mesh_extension_supported(path)) {
-    return Status::bad_input(shown(path) + ": unknown mesh format '" + shown(extension) + "' (expected " +
-                             supported_mesh_extensions() + ")");
-  }
-  std::error_code ec;
-  const std::filesystem::file_status status = std::filesystem::status(path, ec);
-  if (ec || !std::filesystem::exists(status)) {
-    return Status::bad_input(shown(path) + ": the " + what + " mesh does not exist");
-  }
-  // A FIFO would block and a device (a link to /dev/zero) never ends.
-  if (!std::filesystem::is_regular_file(status)) {
-    return Status::bad_input(shown(path) + ": the " + what + " mesh is not a regular file");
-  }
-  std::FILE* file = std::fopen(path.c_str(), "rb");
-  if (!file) return Status::bad_input(shown(path) + ": cannot open the " + what + " mesh: " + std::strerror(errno));
-  char head[4096];
-  const std::size_t got = std::fread(head, 1, sizeof head, file);
-  std::fclose(file);
-  const std::string_view bytes(head, got);
-  if (got == 0) return Status::bad_input(shown(path) + ": the " + what + " mesh is empty");
-  if (extension == ".ply" && bytes.substr(0, 3) != "ply") {
-    return Status::bad_input(shown(path) + ": not a PLY file (it does not start with \"ply\")");
-  }
-  if (extension == ".glb" && bytes.substr(0, 4) != "glTF") {
-    return Status::bad_input(shown(path) + ": not a binary glTF file (it does not start with \"glTF\")");
-  }
-  if (extension == ".obj" && bytes.find('\0') != std::string_view::npos) {
-    return Status::bad_input(shown(path) + ": not an OBJ file (a NUL byte in its first " + std::to_string(got) +
-                             " bytes: binary data)");
-  }
-  return Status::ok();
-}
-
-using Clock = std::chrono::steady_clock;
-
-std::uint64_t peak_rss_bytes() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return static_cast<std::uint64_t>(usage.ru_maxrss) * 1024u;
-}
-
-class StageTimer {
- public:
-  StageTimer(BakeReport& report, const ProgressFn& progress) : report_(report), progress_(progress) {}
-  void start(const char* name) {
-    name_ = name;
-    begin_ = Clock::now();
-    if (progress_) progress_(name_, 0.0);
-  }
-  // A stage run several times (once per band) adds up under one name.
-  void stop(bool report_done = true) {
-    const double seconds = std::chrono::duration<double>(Clock::now() - begin_).count();
-    for (StageTime& st : report_.stages) {
-      if (st.name == name_) {
-        st.seconds += seconds;
-        if (progress_ && report_done) progress_(name_, 1.0);
-        return;
-      }
-    }
-    report_.stages.push_back({name_, seconds});
-    if (progress_ && report_done) progress_(name_, 1.0);
-  }
-  void start_quietly(const char* name) {
-    name_ = name;
-    begin_ = Clock::now();
-  }
-
- private:
-  BakeReport& report_;
-  const ProgressFn& progress_;
-  const char* name_ = "";
-  Clock::time_point begin_;
-};
 
 float resolve(const Distance& d, float diagonal, float estimated) {
   switch (d.kind) {
@@ -319,63 +51,6 @@ void prepare_high_normals(Mesh& mesh, MeshStats& stats) {
   }
 }
 
-// Per texel: covered, share of missed samples, mean signed hit distance;
-// filled band by band.
-struct DebugImages {
-  Image coverage, misses, distance, refined;
-  bool adaptive = false;
-  DebugImages(int width, int height, bool adaptive_bake) : adaptive(adaptive_bake) {
-    for (Image* image : {&coverage, &misses, &distance, &refined}) {
-      image->width = width;
-      image->height = height;
-      image->channels = 3;
-      image->pixels.assign(static_cast<std::size_t>(width) * height * 3, 0.0f);
-    }
-  }
-  void add_band(const TexelSamples& samples, const Hits& hits) {
-    const std::size_t texels = static_cast<std::size_t>(samples.width) * samples.height;
-    const std::size_t offset = static_cast<std::size_t>(samples.row_begin) * samples.width;
-    for (std::size_t t = 0; t < texels; ++t) {
-      int traced = 0, missed = 0;
-      double sum = 0.0;
-      for (int k = 0; k < samples.samples; ++k) {
-        const std::size_t s = t * samples.samples + k;
-        if (samples.triangle[s] < 0) continue;
-        ++traced;
-        if (hits.triangle[s] < 0) {
-          ++missed;
-        } else {
-          sum += hits.distance[s];
-        }
-      }
-      const float c = samples.coverage[t] ? 1.0f : 0.0f;
-      const float m = traced > 0 ? static_cast<float>(missed) / traced : 0.0f;
-      const float d = traced > missed ? static_cast<float>(sum / (traced - missed)) : 0.0f;
-      for (int ch = 0; ch < 3; ++ch) {
-        coverage.pixels[(offset + t) * 3 + ch] = c;
-        misses.pixels[(offset + t) * 3 + ch] = ch == 0 ? m : 0.0f;
-        distance.pixels[(offset + t) * 3 + ch] = d;
-      }
-    }
-  }
-  // Adaptive sampling: the texels a level chose (band indices of the band
-  // starting at image row `row_begin`), drawn with `value` (the last level
-  // white).
-  void add_refined(int row_begin, const std::vector<std::uint32_t>& texels, float value) {
-    const std::size_t offset = static_cast<std::size_t>(row_begin) * refined.width;
-    for (const std::uint32_t t : texels) {
-      for (int ch = 0; ch < 3; ++ch) refined.pixels[(offset + t) * 3 + ch] = value;
-    }
-  }
-  Status write(const std::string& prefix) const {
-    if (adaptive) NMBAKE_TRY(write_image(refined, prefix + "_refined.png", PixelFormat::png8));
-    NMBAKE_TRY(write_image(coverage, prefix + "_coverage.png", PixelFormat::png8));
-    NMBAKE_TRY(write_image(misses, prefix + "_misses.png", PixelFormat::png8));
-    NMBAKE_TRY(write_image(distance, prefix + "_distance.exr", PixelFormat::exr_float));
-    return Status::ok();
-  }
-};
-
 }  // namespace
 
 // About 1M samples a band, so the per-sample arrays (28 bytes a sample, ~28
@@ -385,253 +60,6 @@ struct DebugImages {
 // without a listener, a band costs little: at 2048^2 16 spp, 64 bands of 1M
 // bake as fast as 16 of 4M, with 84 MB less peak memory.
 namespace {
-
-// How bake() loads the low mesh; check_bake_low_mesh() loads it the same way.
-LoadOptions low_load_options(const BakeOptions& o) {
-  LoadOptions options{true, true};
-  options.uv_set = o.uv_set;
-  options.keep_tangents = o.tangent_basis == TangentBasis::file;
-  return options;
-}
-
-bool bakes_udim_tiles(const BakeOptions& o) {
-  return std::any_of(o.outputs.begin(), o.outputs.end(),
-                     [](const OutputSpec& out) { return has_udim_token(out.path); });
-}
-
-}  // namespace
-
-Status check_bake_low_mesh(const BakeOptions& o) {
-  Mesh low;
-  LoadStats stats;
-  NMBAKE_TRY(load_mesh(o.low_path, low_load_options(o), low, stats));
-  NMBAKE_TRY(check_low_parts(low, o.match, o.low_path));
-  // A low mesh without UVs is unwrapped into [0, 1]^2: one tile, whatever
-  // the outputs say.
-  if (low.has_uvs()) {
-    std::vector<int> tiles;
-    NMBAKE_TRY(find_udim_tiles(low, o.low_path, bakes_udim_tiles(o), tiles));
-  }
-  return Status::ok();
-}
-
-Status check_bake_inputs(const BakeOptions& o) {
-  NMBAKE_TRY(check_mesh_input("low", o.low_path));
-  NMBAKE_TRY(check_mesh_input("high", o.high_path));
-  if (!o.cage_path.empty()) NMBAKE_TRY(check_mesh_input("cage", o.cage_path));
-  if (o.debug_dump_prefix.find('\0') != std::string::npos) {
-    return Status::bad_input(shown(o.debug_dump_prefix) + ": the debug-dump path holds a NUL byte");
-  }
-  return Status::ok();
-}
-
-
-namespace {
-
-// What every UDIM tile of a bake shares: the prepared meshes, the scene and
-// the rays.
-struct Prepared {
-  const BakeOptions& options;
-  const Mesh& high;
-  const HighScene& scene;
-  const RayOptions& rays;
-  MapSettings maps;  // the map set, with the normal map's encode options
-};
-
-// Adaptive sampling (adaptive.hpp), rows [first_row, last_row) of the map
-// into `image` and `coverage` (which hold only those rows), band by band:
-// each band's first pass (one sample a texel: rasterize, trace, encode),
-// then the texels level 1 chose again with the 4-sample pattern, in chunks,
-// compactly (rasterize_selected), and of those the ones level 2 chose with
-// max_samples; each level's values written over the one before. Level 1
-// reads the row above and below each band, so the next band's first pass
-// runs before a band is refined, and a tile of rows first traces the rows
-// just outside it (not counted as its rays).
-class AdaptiveRows {
- public:
-  AdaptiveRows(const Prepared& p, const LowSurface& surface, BakeReport& r, Image& image,
-               std::vector<std::uint8_t>& coverage, const EncodeOptions& encode_options, DebugImages* debug)
-      : p_(p),
-        o_(p.options),
-        surface_(surface),
-        r_(r),
-        image_(image),
-        coverage_(coverage),
-        encode_(encode_options),
-        debug_(debug),
-        texel_size_(texel_sizes(surface, p.options.width, p.options.height)),
-        levels_(adaptive_levels(p.options.adaptive_options)) {}
-
-  void run(int first_row, int last_row, StageTimer& timer, const ProgressFn& progress,
-           std::uint64_t& covered_texels) {
-    timer_ = &timer;
-    const int rows_per_band = band_rows(o_.width, o_.height, 1, o_.band_samples);
-    r_.adaptive.max_samples = o_.adaptive_options.max_samples;
-    r_.adaptive.level_texels.assign(levels_.size(), 0);
-    r_.adaptive.level_rays.assign(levels_.size(), 0);
-    FirstPass above, below;
-    if (first_row > 0) {
-      first_pass(halo_, std::max(0, first_row - kRasterTileSize), first_row, false);
-      above = first_pass_row(halo_.values, halo_.values.rows - 1);
-    }
-    first_pass(bands_[0], first_row, std::min(first_row + rows_per_band, last_row), true);
-    int k = 0;
-    for (int row = first_row; row < last_row; row += rows_per_band, ++k) {
-      Band& band = bands_[k % 2];
-      const int row_end = std::min(row + rows_per_band, last_row);
-      if (row_end < last_row) {
-        Band& next = bands_[(k + 1) % 2];
-        first_pass(next, row_end, std::min(row_end + rows_per_band, last_row), true);
-        below = first_pass_row(next.values, 0);
-      } else if (last_row < o_.height) {
-        first_pass(halo_, last_row, std::min(last_row + kRasterTileSize, o_.height), false);
-        below = first_pass_row(halo_.values, 0);
-      } else {
-        below = FirstPass{};
-      }
-      timer.start_quietly("adaptive");
-      refine_texels(above, band.values, below, o_.adaptive_options, chosen_);
-      timer.stop(false);
-      // The first pass's values, then the refined texels' over them.
-      std::copy(band.values.rgb.begin(), band.values.rgb.end(),
-                image_.pixels.begin() + static_cast<std::ptrdiff_t>(row - first_row) * o_.width * 3);
-      covered_texels += band.covered;
-      std::copy(band.samples.coverage.begin(), band.samples.coverage.end(),
-                coverage_.begin() + static_cast<std::ptrdiff_t>(row - first_row) * o_.width);
-      if (debug_ != nullptr) debug_->add_band(band.samples, band.hits);
-      refine_level(0, chosen_, row, row_end, first_row);
-      above = first_pass_row(band.values, band.values.rows - 1);
-      if (progress) progress("trace", static_cast<double>(row_end - first_row) / (last_row - first_row));
-    }
-    r_.adaptive.refined_texels = r_.adaptive.level_texels[0];
-  }
-
- private:
-  struct Band {
-    TexelSamples samples;
-    Hits hits;
-    FirstPass values;  // with the encoded first pass (kept: the rule needs it after the next band's)
-    Image image;       // scratch of the encode
-    std::uint64_t covered = 0;
-  };
-  // The compact buffers of one level.
-  struct Level {
-    TexelSamples samples;
-    Hits hits;
-    Image image;
-    std::vector<std::uint32_t> next;  // the texels of the level after this one
-  };
-
-  // One sample a texel for rows [row_begin, row_end), encoded; `counted`:
-  // rows of this bake (not the halo of a tile).
-  void first_pass(Band& band, int row_begin, int row_end, bool counted) {
-    timer_->start_quietly("raster");
-    RasterStats raster;
-    rasterize(surface_, o_.width, o_.height, 1, band.samples, raster, row_begin, row_end);
-    timer_->stop(false);
-    timer_->start_quietly("trace");
-    TraceStats traced;
-    trace(p_.scene, surface_, band.samples, p_.rays, band.hits, traced);
-    timer_->stop(false);
-    timer_->start_quietly("encode");
-    EncodeOptions band_encode = encode_;
-    band_encode.out_row_begin = row_begin;
-    band.image.height = 0;
-    EncodeStats encoded;
-    encode(surface_, band.samples, p_.high, band.hits, band_encode, band.image,
-           counted ? r_.encode : encoded);
-    band.values.rgb.swap(band.image.pixels);
-    timer_->stop(false);
-    timer_->start_quietly("adaptive");
-    first_pass_values(band.samples, band.hits, texel_size_, band.values);
-    timer_->stop(false);
-    band.covered = raster.covered_texels;
-    if (!counted) {
-      r_.adaptive.halo_rays += traced.rays;
-      return;
-    }
-    r_.raster.covered_texels += raster.covered_texels;
-    r_.raster.border_samples += raster.border_samples;
-    r_.raster.overlapping_samples += raster.overlapping_samples;
-    r_.raster.degenerate_uv_triangles = raster.degenerate_uv_triangles;
-    add(r_.trace, traced);
-    r_.adaptive.first_pass_rays += traced.rays;
-  }
-
-  // `texels` (band indices, ascending) with level `level`'s pattern, in
-  // chunks of about a band's samples, each value written over the one
-  // before; the texels the next level takes go on to it chunk by chunk.
-  void refine_level(std::size_t level, const std::vector<std::uint32_t>& texels, int row_begin, int row_end,
-                    int first_row) {
-    if (level >= std::size(level_)) return;  // levels_ holds at most two refinement levels
-    const int n = levels_[level];
-    const bool last = level + 1 == levels_.size();
-    Level& l = level_[level];
-    const std::size_t band_samples = o_.band_samples > 0 ? o_.band_samples : std::size_t{1} << 20;
-    const std::size_t chunk = std::max<std::size_t>(1, band_samples / static_cast<std::size_t>(n));
-    r_.adaptive.level_texels[level] += texels.size();
-    if (debug_ != nullptr)
-      debug_->add_refined(row_begin, texels, static_cast<float>(level + 1) / levels_.size());
-    EncodeOptions compact_encode = encode_;
-    compact_encode.out_row_begin = 0;
-    for (std::size_t begin = 0; begin < texels.size(); begin += chunk) {
-      const std::size_t count = std::min(chunk, texels.size() - begin);
-      timer_->start_quietly("raster");
-      RasterStats raster;
-      rasterize_selected(surface_, o_.width, o_.height, n, row_begin, row_end, texels.data() + begin, count,
-                         l.samples, raster, slot_);
-      r_.raster.border_samples += raster.border_samples;
-      r_.raster.overlapping_samples += raster.overlapping_samples;
-      timer_->stop(false);
-      timer_->start_quietly("trace");
-      TraceStats traced;
-      trace(p_.scene, surface_, l.samples, p_.rays, l.hits, traced);
-      add(r_.trace, traced);
-      r_.adaptive.level_rays[level] += traced.rays;
-      timer_->stop(false);
-      timer_->start_quietly("encode");
-      l.image.height = 0;
-      encode(surface_, l.samples, p_.high, l.hits, compact_encode, l.image, r_.encode);
-      // Into the image rows of the band (the image holds rows from first_row).
-      const std::size_t offset =
-          static_cast<std::size_t>(row_begin - first_row) * static_cast<std::size_t>(o_.width);
-      for (std::size_t i = 0; i < count; ++i) {
-        std::copy_n(&l.image.pixels[i * 3], 3, &image_.pixels[(offset + texels[begin + i]) * 3]);
-      }
-      timer_->stop(false);
-      if (last) continue;
-      timer_->start_quietly("adaptive");
-      l.next.clear();
-      spread_texels(l.samples, l.hits, p_.high, encode_.high_normals == HighNormals::smooth,
-                    texels.data() + begin, o_.adaptive_options, l.next);
-      timer_->stop(false);
-      refine_level(level + 1, l.next, row_begin, row_end, first_row);
-    }
-  }
-
-  static void add(TraceStats& to, const TraceStats& from) {
-    to.rays += from.rays;
-    to.samples += from.samples;
-    to.hits += from.hits;
-    to.misses += from.misses;
-    to.ray_fallbacks += from.ray_fallbacks;
-  }
-
-  const Prepared& p_;
-  const BakeOptions& o_;
-  const LowSurface& surface_;
-  BakeReport& r_;
-  Image& image_;
-  std::vector<std::uint8_t>& coverage_;
-  const EncodeOptions& encode_;
-  DebugImages* debug_;
-  StageTimer* timer_ = nullptr;
-  std::vector<float> texel_size_;
-  std::vector<int> levels_;
-  Band bands_[2], halo_;
-  Level level_[2];
-  std::vector<std::uint32_t> chosen_, slot_;
-};
 
 // raster -> trace -> [occlusion rays] -> encode (every map of the set),
 // band of rows by band of rows, then dilate and write, for one map (a UDIM
@@ -720,7 +148,9 @@ Status bake_tile(const Prepared& p, const LowSurface& surface, const std::vector
   return Status::ok();
 }
 
+
 }  // namespace
+
 
 Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   const Clock::time_point bake_begin = Clock::now();
@@ -758,7 +188,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   // load
   timer.start("load");
   Mesh low, high, cage;
-  NMBAKE_TRY(load_mesh(o.low_path, low_load_options(o), low, r.low_load));
+  NMBAKE_TRY(load_mesh(o.low_path, detail::low_load_options(o), low, r.low_load));
   const bool smooth_high = o.high_normals == HighNormals::smooth;
   const auto wants = [&](MapKind map) { return std::find(o.maps.begin(), o.maps.end(), map) != o.maps.end(); };
   LoadOptions high_options{false, smooth_high};
@@ -792,15 +222,15 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
                                 MeshSize{high.vertex_count(), high.triangle_count()}));
   {
     const float diagonal = compute_bounds(low).diagonal();
-    NMBAKE_TRY(check_distance("front", o.front, diagonal));
-    NMBAKE_TRY(check_distance("back", o.back, diagonal));
+    NMBAKE_TRY(detail::check_distance("front", o.front, diagonal));
+    NMBAKE_TRY(detail::check_distance("back", o.back, diagonal));
   }
   timer.stop();
   // Parts into groups before anything is baked: a naming mistake is found in
   // a second, not after the unwrap.
   BakeGroups groups;
   NMBAKE_TRY(match_parts(low, high, o.match, o.low_path, o.high_path, groups));
-  const bool udim = bakes_udim_tiles(o);
+  const bool udim = detail::bakes_udim_tiles(o);
   if (!low.has_uvs()) {
     const int side = std::min(o.width, o.height);
     if (o.unwrap_gutter > side / 4) {
