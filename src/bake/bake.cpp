@@ -33,15 +33,6 @@ using detail::peak_rss_bytes;
 
 namespace {
 
-float resolve(const Distance& d, float diagonal, float estimated) {
-  switch (d.kind) {
-    case Distance::Kind::absolute: return d.value;
-    case Distance::Kind::percent: return d.value * 0.01f * diagonal;
-    case Distance::Kind::automatic: break;
-  }
-  return estimated;
-}
-
 // High normals: the file's, normalised, or area-weighted ones.
 void prepare_high_normals(Mesh& mesh, MeshStats& stats) {
   if (mesh.has_normals()) {
@@ -175,8 +166,8 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   r.height = o.height;
   r.samples = o.samples;
   r.preset = o.preset;
-  r.green = o.green;
-  r.decode = o.decode;
+  r.green = o.encode.green;
+  r.decode = o.encode.decode;
   r.dither = o.dither;
   r.threads = tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
   StageTimer timer(r, progress);
@@ -189,7 +180,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   timer.start("load");
   Mesh low, high, cage;
   NMBAKE_TRY(load_mesh(o.low_path, detail::low_load_options(o), low, r.low_load));
-  const bool smooth_high = o.high_normals == HighNormals::smooth;
+  const bool smooth_high = o.encode.high_normals == HighNormals::smooth;
   const auto wants = [&](MapKind map) { return std::find(o.maps.begin(), o.maps.end(), map) != o.maps.end(); };
   LoadOptions high_options{false, smooth_high};
   high_options.keep_colors = wants(MapKind::vertex_color);
@@ -222,8 +213,8 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
                                 MeshSize{high.vertex_count(), high.triangle_count()}));
   {
     const float diagonal = compute_bounds(low).diagonal();
-    NMBAKE_TRY(detail::check_distance("front", o.front, diagonal));
-    NMBAKE_TRY(detail::check_distance("back", o.back, diagonal));
+    NMBAKE_TRY(detail::check_distance("front", o.rays.front, diagonal));
+    NMBAKE_TRY(detail::check_distance("back", o.rays.back, diagonal));
   }
   timer.stop();
   // Parts into groups before anything is baked: a naming mistake is found in
@@ -302,7 +293,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
 
   timer.start("build");
   HighScene scene;
-  NMBAKE_TRY(HighScene::build(high, o.build_quality, o.ignore_backfaces, scene, o.bvh_memory,
+  NMBAKE_TRY(HighScene::build(high, o.build_quality, o.rays.ignore_backfaces, scene, o.bvh_memory,
                               groups.grouped() ? &scene_groups : nullptr));
   r.compact_bvh = scene.compact();
   r.scenes = scene.scene_count();
@@ -310,60 +301,40 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
 
   // Ray distances: as given, or estimated by probing the two meshes (each
   // group its own).
+  const bool need_estimate = o.rays.estimates_distances();
+  if (need_estimate) timer.start("distances");
   RayOptions rays;
-  rays.cage = use_cage_mesh ? CageMode::mesh : o.cage_mode;
-  rays.hit = o.hit;
-  rays.ignore_backfaces = o.ignore_backfaces;
-  DistanceEstimate estimate;
-  const bool need_estimate = o.front.kind == Distance::Kind::automatic || o.back.kind == Distance::Kind::automatic;
+  const DistanceEstimate estimate =
+      resolve_rays(o.rays, scene, surface, r.low_diagonal, groups.groups.size(), rays);
   if (need_estimate) {
-    timer.start("distances");
-    estimate = estimate_distances(scene, surface, r.low_diagonal);
     timer.stop();
     r.distances_estimated = true;
     r.estimate_probes = estimate.probes;
     r.estimate_probe_misses = estimate.probe_misses;
   }
-  rays.front = resolve(o.front, r.low_diagonal, estimate.front);
-  rays.back = resolve(o.back, r.low_diagonal, estimate.back);
-  rays.edge_band = o.edge_band;
-  const bool retry = o.retry_misses == BakeOptions::Retry::on ||
-                     (o.retry_misses == BakeOptions::Retry::automatic && !use_cage_mesh &&
-                      o.front.kind == Distance::Kind::automatic && o.back.kind == Distance::Kind::automatic);
-  rays.retry_reach = retry ? kProbeReach * r.low_diagonal : 0.0f;
   r.cage_mode = to_string(rays.cage);
   r.edge_band = rays.cage == CageMode::banded ? rays.edge_band : 0.0f;
   r.retry_reach = rays.retry_reach;
   r.front = rays.front;
   r.back = rays.back;
-  if (need_estimate) {
-    NMBAKE_CHECK(estimate.groups.size() == std::max<std::size_t>(groups.groups.size(), 1),
-                 "an estimate per group");
-  }
   for (std::size_t g = 0; g < groups.groups.size(); ++g) {
-    const GroupDistances e = need_estimate ? estimate.groups[g] : GroupDistances{};
-    rays.groups.push_back({resolve(o.front, r.low_diagonal, e.front), resolve(o.back, r.low_diagonal, e.back)});
-    r.groups.push_back({groups.groups[g], rays.groups.back().front, rays.groups.back().back});
+    r.groups.push_back({groups.groups[g], rays.groups[g].front, rays.groups[g].back});
   }
   r.unused_high_parts = groups.unused_high_parts;
-  if (rays.cage == CageMode::banded) prepare_edge_band(surface, edge_band_reach(rays));
 
   Prepared prepared{o, high, scene, rays, MapSettings{}};
   MapSettings& map_settings = prepared.maps;
   map_settings.maps = o.maps;
-  map_settings.encode.space = o.space;
-  map_settings.encode.green = o.green;
-  map_settings.encode.high_normals = o.high_normals;
-  map_settings.encode.tangent_encode = o.tangent_encode;
-  map_settings.encode.decode = o.decode;
+  map_settings.encode = o.encode;
+  map_settings.encode.out_row_begin = 0;  // set per tile of rows, on a copy
   map_settings.height_range = o.height_range;
   map_settings.curvature_range = o.curvature_range;
   const float auto_map_distance = kAutoMapDistancePercent * 0.01f * r.low_diagonal;
   map_settings.occlusion.rays = o.ao_rays;
-  map_settings.occlusion.distance = resolve(o.ao_distance, r.low_diagonal, auto_map_distance);
+  map_settings.occlusion.distance = resolve_distance(o.ao_distance, r.low_diagonal, auto_map_distance);
   map_settings.occlusion.bent = map_settings.has(MapKind::bent_normal);
   map_settings.thickness.rays = o.thickness_rays;
-  map_settings.thickness.distance = resolve(o.thickness_distance, r.low_diagonal, auto_map_distance);
+  map_settings.thickness.distance = resolve_distance(o.thickness_distance, r.low_diagonal, auto_map_distance);
   map_mesh.apply(map_settings);
   r.maps = o.maps;
   const std::vector<MapOutput> map_files = map_outputs(o);

@@ -150,11 +150,11 @@ Status validate_options(const BakeOptions& o) {
     }
     return Status::ok();
   };
-  if (!(o.edge_band >= 0.0f && o.edge_band <= 100.0f)) {
-    return Status::bad_input("--edge-band " + number_text(o.edge_band) + " is out of range (0 to 100)");
+  if (!(o.rays.edge_band >= 0.0f && o.rays.edge_band <= 100.0f)) {
+    return Status::bad_input("--edge-band " + number_text(o.rays.edge_band) + " is out of range (0 to 100)");
   }
-  NMBAKE_TRY(check_limit("front", o.front));
-  NMBAKE_TRY(check_limit("back", o.back));
+  NMBAKE_TRY(check_limit("front", o.rays.front));
+  NMBAKE_TRY(check_limit("back", o.rays.back));
   if (o.padding < 0 || o.padding > 4096) {
     return Status::bad_input("--padding " + std::to_string(o.padding) + " is out of range (0 to 4096)");
   }

@@ -115,43 +115,43 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
       return Status::bad_input("--samples " + f.samples + ": expected 1, 4, 16, 64 or adaptive");
     }
   }
-  if (!parse_word(f.space, o.space)) return Status::bad_input("--space " + f.space + ": expected tangent or object");
+  if (!parse_word(f.space, o.encode.space)) return Status::bad_input("--space " + f.space + ": expected tangent or object");
   if (!f.preset.empty()) {
     EnginePreset preset;
     if (!find_engine_preset(f.preset, preset)) {
       return Status::bad_input("--preset " + f.preset + ": expected one of " + engine_preset_names());
     }
     o.preset = f.preset;
-    apply_engine_preset(preset, {}, o.green, o.decode);
+    apply_engine_preset(preset, {}, o.encode.green, o.encode.decode);
   }
-  if (!f.green.empty() && !parse_word(f.green, o.green)) {
+  if (!f.green.empty() && !parse_word(f.green, o.encode.green)) {
     return Status::bad_input("--green " + f.green + ": expected up or down");
   }
-  if (!f.bitangent.empty() && !parse_word(f.bitangent, o.decode.bitangent)) {
+  if (!f.bitangent.empty() && !parse_word(f.bitangent, o.encode.decode.bitangent)) {
     return Status::bad_input("--bitangent " + f.bitangent + ": expected pixel or vertex");
   }
-  if (!f.tbn.empty() && !parse_word(kFrameRuleWords, f.tbn, o.decode.unit_frame)) {
+  if (!f.tbn.empty() && !parse_word(kFrameRuleWords, f.tbn, o.encode.decode.unit_frame)) {
     return Status::bad_input("--tbn " + f.tbn + ": expected raw or normalized");
   }
-  if (!f.blue.empty() && !parse_word(kBlueRuleWords, f.blue, o.decode.rebuild_blue)) {
+  if (!f.blue.empty() && !parse_word(kBlueRuleWords, f.blue, o.encode.decode.rebuild_blue)) {
     return Status::bad_input("--blue " + f.blue + ": expected stored or rebuilt");
   }
   if (f.dither != "on" && f.dither != "off") return Status::bad_input("--dither " + f.dither + ": expected on or off");
   o.dither = f.dither == "on";
-  if (!parse_word(f.hit, o.hit)) return Status::bad_input("--hit " + f.hit + ": expected first or nearest");
-  if (!parse_word(f.cage_mode, o.cage_mode)) return Status::bad_input("--cage-mode " + f.cage_mode + ": expected banded, averaged or interpolated");
-  o.edge_band = f.edge_band;
-  if (!parse_word(f.retry_misses, o.retry_misses)) return Status::bad_input("--retry-misses " + f.retry_misses + ": expected auto, on or off");
-  if (!parse_word(f.high_normals, o.high_normals)) return Status::bad_input("--high-normals " + f.high_normals + ": expected smooth or face");
+  if (!parse_word(f.hit, o.rays.hit)) return Status::bad_input("--hit " + f.hit + ": expected first or nearest");
+  if (!parse_word(f.cage_mode, o.rays.cage_mode)) return Status::bad_input("--cage-mode " + f.cage_mode + ": expected banded, averaged or interpolated");
+  o.rays.edge_band = f.edge_band;
+  if (!parse_word(f.retry_misses, o.rays.retry_misses)) return Status::bad_input("--retry-misses " + f.retry_misses + ": expected auto, on or off");
+  if (!parse_word(f.high_normals, o.encode.high_normals)) return Status::bad_input("--high-normals " + f.high_normals + ": expected smooth or face");
   if (!parse_word(f.bvh, o.bvh_memory)) return Status::bad_input("--bvh " + f.bvh + ": expected auto, fast or compact");
   if (!parse_word(f.build_quality, o.build_quality)) return Status::bad_input("--build-quality " + f.build_quality + ": expected low, medium or high");
-  if (!parse_word(f.encode, o.tangent_encode)) return Status::bad_input("--encode " + f.encode + ": expected inverse or transpose");
+  if (!parse_word(f.encode, o.encode.tangent_encode)) return Status::bad_input("--encode " + f.encode + ": expected inverse or transpose");
   if (!parse_word(f.tangent_basis, o.tangent_basis)) return Status::bad_input("--tangent-basis " + f.tangent_basis + ": expected mikktspace, lengyel, face or file");
   if (f.tangents != "mikktspace" && f.tangents != "file") return Status::bad_input("--tangents " + f.tangents + ": expected mikktspace or file");
   if (f.tangents == "file") o.tangent_basis = TangentBasis::file;
   o.uv_set = f.uv_set;
-  if (!parse_distance(f.front, o.front)) return Status::bad_input("--front " + f.front + ": expected a distance, N% or auto");
-  if (!parse_distance(f.back, o.back)) return Status::bad_input("--back " + f.back + ": expected a distance, N% or auto");
+  if (!parse_distance(f.front, o.rays.front)) return Status::bad_input("--front " + f.front + ": expected a distance, N% or auto");
+  if (!parse_distance(f.back, o.rays.back)) return Status::bad_input("--back " + f.back + ": expected a distance, N% or auto");
   if (!parse_word(f.match, o.match.mode)) return Status::bad_input("--match " + f.match + ": expected auto, name or off");
   if (!parse_word(f.unmatched, o.match.unmatched)) return Status::bad_input("--unmatched " + f.unmatched + ": expected error or all");
   if (f.low_suffix.empty() || f.high_suffix.empty()) return Status::bad_input("--low-suffix and --high-suffix must not be empty");
@@ -160,7 +160,7 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
   if (f.cage_suffix.empty()) return Status::bad_input("--cage-suffix must not be empty");
   o.match.cage_suffix = f.cage_suffix;
   o.match.high_suffix = f.high_suffix;
-  o.ignore_backfaces = f.ignore_backfaces;
+  o.rays.ignore_backfaces = f.ignore_backfaces;
   o.padding = f.padding;
   o.debug_dump_prefix = f.debug_dump;
   if (!f.max_memory.empty() && !parse_memory_size(f.max_memory, o.max_memory_bytes)) {

@@ -97,14 +97,14 @@ int run_preview_3d(const PreviewFlags& f, const GlobalOptions& global, const Ima
   if (!parse_word(f.space, options.space)) {
     return fail(Status::bad_input("--space " + f.space + ": expected tangent or object"));
   }
-  if (!parse_word(f.hit, options.hit))
+  if (!parse_word(f.hit, options.rays.hit))
     return fail(Status::bad_input("--hit " + f.hit + ": expected first or nearest"));
-  if (!parse_word(f.cage_mode, options.cage_mode))
+  if (!parse_word(f.cage_mode, options.rays.cage_mode))
     return fail(Status::bad_input("--cage-mode " + f.cage_mode + ": expected banded, averaged or interpolated"));
-  if (!parse_distance(f.front, options.front)) {
+  if (!parse_distance(f.front, options.rays.front)) {
     return fail(Status::bad_input("--front " + f.front + ": expected a distance, N% or auto"));
   }
-  if (!parse_distance(f.back, options.back)) {
+  if (!parse_distance(f.back, options.rays.back)) {
     return fail(Status::bad_input("--back " + f.back + ": expected a distance, N% or auto"));
   }
   Mesh low, high;

@@ -68,22 +68,22 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
   } else if (key == "padding") {
     if (!get_int(o.padding)) return bad("expected an integer");
   } else if (key == "space") {
-    if (!get_string(text) || !parse_word(text, o.space)) return bad("expected \"tangent\" or \"object\"");
+    if (!get_string(text) || !parse_word(text, o.encode.space)) return bad("expected \"tangent\" or \"object\"");
   } else if (key == "green") {
-    if (!get_string(text) || !parse_word(text, o.green)) return bad("expected \"up\" or \"down\"");
+    if (!get_string(text) || !parse_word(text, o.encode.green)) return bad("expected \"up\" or \"down\"");
   } else if (key == "hit") {
-    if (!get_string(text) || !parse_word(text, o.hit)) return bad("expected \"first\" or \"nearest\"");
+    if (!get_string(text) || !parse_word(text, o.rays.hit)) return bad("expected \"first\" or \"nearest\"");
   } else if (key == "high_normals") {
-    if (!get_string(text) || !parse_word(text, o.high_normals)) return bad("expected \"smooth\" or \"face\"");
+    if (!get_string(text) || !parse_word(text, o.encode.high_normals)) return bad("expected \"smooth\" or \"face\"");
   } else if (key == "cage_mode") {
-    if (!get_string(text) || !parse_word(text, o.cage_mode))
+    if (!get_string(text) || !parse_word(text, o.rays.cage_mode))
       return bad("expected \"banded\", \"averaged\" or \"interpolated\"");
   } else if (key == "edge_band") {
     if (!value.is_number() || !(*value.value<double>() >= 0.0 && *value.value<double>() <= 100.0))
       return bad("expected a number from 0 to 100");
-    o.edge_band = static_cast<float>(*value.value<double>());
+    o.rays.edge_band = static_cast<float>(*value.value<double>());
   } else if (key == "retry_misses") {
-    if (!get_string(text) || !parse_word(text, o.retry_misses)) return bad("expected \"auto\", \"on\" or \"off\"");
+    if (!get_string(text) || !parse_word(text, o.rays.retry_misses)) return bad("expected \"auto\", \"on\" or \"off\"");
   } else if (key == "build_quality") {
     if (!get_string(text) || !parse_word(text, o.build_quality)) return bad("expected \"low\", \"medium\" or \"high\"");
   } else if (key == "bvh") {
@@ -94,7 +94,7 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
   } else if (key == "uv_set") {
     if (!get_int(o.uv_set) || o.uv_set < 0 || o.uv_set > 7) return bad("expected an integer 0..7");
   } else if (key == "ignore_backfaces") {
-    if (auto b = value.value<bool>(); b && value.is_boolean()) o.ignore_backfaces = *b;
+    if (auto b = value.value<bool>(); b && value.is_boolean()) o.rays.ignore_backfaces = *b;
     else return bad("expected true or false");
   } else if (key == "front" || key == "back") {
     Distance d;
@@ -106,7 +106,7 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
     } else if (!get_string(text) || !parse_distance(text, d)) {
       return bad("expected a number, \"N%\" or \"auto\"");
     }
-    (key == "front" ? o.front : o.back) = d;
+    (key == "front" ? o.rays.front : o.rays.back) = d;
   } else if (key == "max_memory") {
     if (auto i = value.value<std::int64_t>(); i && value.is_integer() && *i > 0) {
       o.max_memory_bytes = static_cast<std::uint64_t>(*i);
@@ -121,11 +121,11 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
     if (!get_string(text) || !find_engine_preset(text, preset)) return bad("expected one of " + engine_preset_names());
     o.preset = text;
   } else if (key == "bitangent") {
-    if (!get_string(text) || !parse_word(text, o.decode.bitangent)) return bad("expected \"pixel\" or \"vertex\"");
+    if (!get_string(text) || !parse_word(text, o.encode.decode.bitangent)) return bad("expected \"pixel\" or \"vertex\"");
   } else if (key == "tbn") {
-    if (!get_string(text) || !parse_word(kFrameRuleWords, text, o.decode.unit_frame)) return bad("expected \"raw\" or \"normalized\"");
+    if (!get_string(text) || !parse_word(kFrameRuleWords, text, o.encode.decode.unit_frame)) return bad("expected \"raw\" or \"normalized\"");
   } else if (key == "blue") {
-    if (!get_string(text) || !parse_word(kBlueRuleWords, text, o.decode.rebuild_blue)) return bad("expected \"stored\" or \"rebuilt\"");
+    if (!get_string(text) || !parse_word(kBlueRuleWords, text, o.encode.decode.rebuild_blue)) return bad("expected \"stored\" or \"rebuilt\"");
   } else if (key == "dither") {
     if (auto b = value.value<bool>(); b && value.is_boolean()) o.dither = *b;
     else if (get_string(text) && (text == "on" || text == "off")) o.dither = text == "on";
@@ -332,8 +332,8 @@ Status load_job_file(const std::string& path, std::vector<BakeJob>& jobs) {
       };
       EnginePreset preset;
       NMBAKE_CHECK(find_engine_preset(job.options.preset, preset), "preset checked when read");
-      apply_engine_preset(preset, {given("green"), given("bitangent"), given("tbn"), given("blue")}, job.options.green,
-                          job.options.decode);
+      apply_engine_preset(preset, {given("green"), given("bitangent"), given("tbn"), given("blue")}, job.options.encode.green,
+                          job.options.encode.decode);
     }
     if (job.options.low_path.empty() || job.options.high_path.empty() || job.options.outputs.empty()) {
       return Status::bad_input(where(path, node) + ": [[bake]] \"" + job.name + "\" needs low, high and outputs");
