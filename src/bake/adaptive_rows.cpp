@@ -5,6 +5,8 @@
 #include <cstddef>
 #include <iterator>
 
+#include "bake/report_fill.hpp"
+
 namespace nmbake::detail {
 
 AdaptiveRows::AdaptiveRows(const Prepared& p, const LowSurface& surface, BakeReport& r, Image& image,
@@ -90,10 +92,7 @@ void AdaptiveRows::first_pass(Band& band, int row_begin, int row_end, bool count
     r_.adaptive.halo_rays += traced.rays;
     return;
   }
-  r_.raster.covered_texels += raster.covered_texels;
-  r_.raster.border_samples += raster.border_samples;
-  r_.raster.overlapping_samples += raster.overlapping_samples;
-  r_.raster.degenerate_uv_triangles = raster.degenerate_uv_triangles;
+  report_raster_band(raster, r_);
   add(r_.trace, traced);
   r_.adaptive.first_pass_rays += traced.rays;
 }

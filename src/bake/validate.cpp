@@ -79,6 +79,74 @@ Status validate_map_set(const BakeOptions& o) {
   return Status::ok();
 }
 
+// The sample count, or adaptive sampling's levels and thresholds.
+Status check_sampling(const BakeOptions& o) {
+  if (o.adaptive) {
+    const int m = o.adaptive_options.max_samples;
+    if (m != 4 && m != 16 && m != 64) {
+      return Status::bad_input("--adaptive-max " + std::to_string(m) + " is not supported: use 4, 16 or 64");
+    }
+    const AdaptiveOptions& a = o.adaptive_options;
+    for (const float t : {a.normal_threshold, a.depth_threshold, a.border_threshold, a.spread_threshold}) {
+      if (!(t >= 0.0f) || !std::isfinite(t))
+        return Status::bad_input("adaptive thresholds must be finite and >= 0");
+    }
+  } else if (!is_supported_sample_count(o.samples)) {
+    return Status::bad_input("--samples " + std::to_string(o.samples) +
+                             " is not supported: use 1, 4, 16 or 64");
+  }
+  return Status::ok();
+}
+
+// The rays' options against kMaxDistance and kMaxDistanceDiagonals (against
+// the diagonal itself once the low mesh is loaded: check_distance()).
+Status check_ray_limits(const RaySettings& rays) {
+  const auto check_limit = [](const char* name, const Distance& d) {
+    if (d.kind == Distance::Kind::absolute && !(d.value <= kMaxDistance)) {
+      return Status::bad_input(std::string(name) + " distance " + number_text(d.value) +
+                               " is out of range: at most " + number_text(kMaxDistance) + " scene units");
+    }
+    if (d.kind == Distance::Kind::percent && !(d.value <= 100.0f * kMaxDistanceDiagonals)) {
+      return Status::bad_input(std::string(name) + " distance " + number_text(d.value) +
+                               "% is out of range: at most " + number_text(100.0f * kMaxDistanceDiagonals) +
+                               "% of the low mesh's diagonal");
+    }
+    return Status::ok();
+  };
+  if (!(rays.edge_band >= 0.0f && rays.edge_band <= 100.0f)) {
+    return Status::bad_input("--edge-band " + number_text(rays.edge_band) + " is out of range (0 to 100)");
+  }
+  NMBAKE_TRY(check_limit("front", rays.front));
+  NMBAKE_TRY(check_limit("back", rays.back));
+  return Status::ok();
+}
+
+// One output: a path the file system takes as given, a format its extension
+// allows, an existing folder, a writer that can be loaded.
+Status check_output_spec(const OutputSpec& out) {
+  // The file system would see the path cut at the NUL: another file.
+  if (out.path.find('\0') != std::string::npos) {
+    return Status::bad_input(printable_text(out.path) + ": the output path holds a NUL byte");
+  }
+  if (const Status target = check_output_target(out.path); !target)
+    return Status::bad_input(target.message());
+  if (!format_matches_extension(out.format, out.path)) {
+    return Status::bad_input(out.path + ": format " + to_string(out.format) +
+                             " cannot be written to a file with this extension");
+  }
+  std::filesystem::path folder = std::filesystem::path(out.path).parent_path();
+  if (folder.empty()) folder = ".";
+  std::error_code ec;
+  if (!std::filesystem::is_directory(folder, ec)) {
+    return Status::bad_input(out.path + ": the output folder " + folder.string() + " does not exist");
+  }
+  // TIFF needs the OpenImageIO module: known before the bake, not after.
+  if (const Status writer = check_image_writer(out.format); !writer) {
+    return Status::internal(out.path + ": " + writer.message());  // names the output once
+  }
+  return Status::ok();
+}
+
 }  // namespace
 
 namespace detail {
@@ -118,68 +186,18 @@ Status validate_options(const BakeOptions& o) {
     return Status::bad_input("map size " + std::to_string(o.width) + "x" + std::to_string(o.height) +
                              " is out of range: width and height must be 1 to " + std::to_string(kMaxSize));
   }
-  if (o.adaptive) {
-    const int m = o.adaptive_options.max_samples;
-    if (m != 4 && m != 16 && m != 64) {
-      return Status::bad_input("--adaptive-max " + std::to_string(m) + " is not supported: use 4, 16 or 64");
-    }
-    const AdaptiveOptions& a = o.adaptive_options;
-    for (const float t : {a.normal_threshold, a.depth_threshold, a.border_threshold, a.spread_threshold}) {
-      if (!(t >= 0.0f) || !std::isfinite(t))
-        return Status::bad_input("adaptive thresholds must be finite and >= 0");
-    }
-  } else if (!is_supported_sample_count(o.samples)) {
-    return Status::bad_input("--samples " + std::to_string(o.samples) +
-                             " is not supported: use 1, 4, 16 or 64");
-  }
+  NMBAKE_TRY(check_sampling(o));
   // Against the map size only when an unwrap happens (bake()): a small map
   // of a mesh with UVs must not be refused for a gutter it never uses.
   if (o.unwrap_gutter < 0) {
     return Status::bad_input("unwrap gutter " + std::to_string(o.unwrap_gutter) +
                              " is out of range (0 to size / 4)");
   }
-  const auto check_limit = [](const char* name, const Distance& d) {
-    if (d.kind == Distance::Kind::absolute && !(d.value <= kMaxDistance)) {
-      return Status::bad_input(std::string(name) + " distance " + number_text(d.value) +
-                               " is out of range: at most " + number_text(kMaxDistance) + " scene units");
-    }
-    if (d.kind == Distance::Kind::percent && !(d.value <= 100.0f * kMaxDistanceDiagonals)) {
-      return Status::bad_input(std::string(name) + " distance " + number_text(d.value) +
-                               "% is out of range: at most " + number_text(100.0f * kMaxDistanceDiagonals) +
-                               "% of the low mesh's diagonal");
-    }
-    return Status::ok();
-  };
-  if (!(o.rays.edge_band >= 0.0f && o.rays.edge_band <= 100.0f)) {
-    return Status::bad_input("--edge-band " + number_text(o.rays.edge_band) + " is out of range (0 to 100)");
-  }
-  NMBAKE_TRY(check_limit("front", o.rays.front));
-  NMBAKE_TRY(check_limit("back", o.rays.back));
+  NMBAKE_TRY(check_ray_limits(o.rays));
   if (o.padding < 0 || o.padding > 4096) {
     return Status::bad_input("--padding " + std::to_string(o.padding) + " is out of range (0 to 4096)");
   }
-  for (const OutputSpec& out : o.outputs) {
-    // The file system would see the path cut at the NUL: another file.
-    if (out.path.find('\0') != std::string::npos) {
-      return Status::bad_input(printable_text(out.path) + ": the output path holds a NUL byte");
-    }
-    if (const Status target = check_output_target(out.path); !target)
-      return Status::bad_input(target.message());
-    if (!format_matches_extension(out.format, out.path)) {
-      return Status::bad_input(out.path + ": format " + to_string(out.format) +
-                               " cannot be written to a file with this extension");
-    }
-    std::filesystem::path folder = std::filesystem::path(out.path).parent_path();
-    if (folder.empty()) folder = ".";
-    std::error_code ec;
-    if (!std::filesystem::is_directory(folder, ec)) {
-      return Status::bad_input(out.path + ": the output folder " + folder.string() + " does not exist");
-    }
-    // TIFF needs the OpenImageIO module: known before the bake, not after.
-    if (const Status writer = check_image_writer(out.format); !writer) {
-      return Status::internal(out.path + ": " + writer.message());  // names the output once
-    }
-  }
+  for (const OutputSpec& out : o.outputs) NMBAKE_TRY(check_output_spec(out));
   return validate_map_set(o);
 }
 
