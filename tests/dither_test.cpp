@@ -180,7 +180,7 @@ TEST(Dither, PresetBakeSameBytesWithOneThreadOrAllAndFromTiles) {
   o.width = 160;
   o.height = 96;
   o.preset = "godot";
-  o.decode = {Bitangent::vertex, true, true};
+  o.encode.decode = {Bitangent::vertex, true, true};
   o.outputs = {{dir.file("all.png"), PixelFormat::png8}, {dir.file("all.tga"), PixelFormat::tga8}};
   BakeReport report;
   ASSERT_TRUE(bake(o, report).is_ok());

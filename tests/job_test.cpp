@@ -41,11 +41,11 @@ bvh = "compact"
   EXPECT_EQ(jobs[0].name, "a");
   EXPECT_EQ(a.width, 512);
   EXPECT_EQ(a.samples, 16);
-  EXPECT_EQ(a.green, GreenChannel::down);
-  EXPECT_EQ(a.front.kind, Distance::Kind::percent);
-  EXPECT_FLOAT_EQ(a.front.value, 2.0f);
-  EXPECT_EQ(a.back.kind, Distance::Kind::absolute);
-  EXPECT_FLOAT_EQ(a.back.value, 0.25f);
+  EXPECT_EQ(a.encode.green, GreenChannel::down);
+  EXPECT_EQ(a.rays.front.kind, Distance::Kind::percent);
+  EXPECT_FLOAT_EQ(a.rays.front.value, 2.0f);
+  EXPECT_EQ(a.rays.back.kind, Distance::Kind::absolute);
+  EXPECT_FLOAT_EQ(a.rays.back.value, 0.25f);
   EXPECT_EQ(a.low_path, (dir.path() / "meshes/low.obj").string());
   EXPECT_EQ(a.high_path, "/abs/high.ply");
   ASSERT_EQ(a.outputs.size(), 2u);
@@ -56,8 +56,8 @@ bvh = "compact"
   EXPECT_EQ(jobs[1].name, "bake 2");
   EXPECT_EQ(b.width, 64);
   EXPECT_EQ(b.samples, 16);  // from [defaults]
-  EXPECT_EQ(b.hit, HitRule::nearest);
-  EXPECT_TRUE(b.ignore_backfaces);
+  EXPECT_EQ(b.rays.hit, HitRule::nearest);
+  EXPECT_TRUE(b.rays.ignore_backfaces);
   EXPECT_EQ(b.bvh_memory, BvhMemory::compact);
   EXPECT_EQ(a.bvh_memory, BvhMemory::automatic);
   EXPECT_EQ(b.outputs[0].format, PixelFormat::tiff16);

@@ -174,8 +174,8 @@ TEST(Maps, AmbientOcclusionMatchesClosedForms) {
   for (const AoScene& scene : kAoScenes) {
     test::TempDir dir;
     BakeOptions o = scene_bake(dir, scene.make(), 64, 1);
-    o.front.kind = o.back.kind = Distance::Kind::absolute;
-    o.front.value = o.back.value = 0.05f;
+    o.rays.front.kind = o.rays.back.kind = Distance::Kind::absolute;
+    o.rays.front.value = o.rays.back.value = 0.05f;
     o.ao_distance.kind = Distance::Kind::absolute;
     o.ao_distance.value = scene.distance;
     o.padding = 0;
@@ -205,7 +205,7 @@ TEST(Maps, AmbientOcclusionMatchesClosedForms) {
 TEST(Maps, BentNormalMatchesTheGroove) {
   test::TempDir dir;
   BakeOptions o = scene_bake(dir, scenes::make_groove_scene(), 64, 1);
-  o.front = o.back = {Distance::Kind::absolute, 0.05f};
+  o.rays.front = o.rays.back = {Distance::Kind::absolute, 0.05f};
   o.ao_distance = {Distance::Kind::absolute, scenes::kGrooveDistance};
   o.ao_rays = 64;
   o.padding = 0;
@@ -292,8 +292,8 @@ TEST(Maps, ThicknessMatchesSlabAndSphere) {
     }
     BakeOptions o = scene_bake(dir, pair, 64);
     o.padding = 0;
-    o.front.kind = o.back.kind = Distance::Kind::absolute;
-    o.front.value = o.back.value = 0.05f;
+    o.rays.front.kind = o.rays.back.kind = Distance::Kind::absolute;
+    o.rays.front.value = o.rays.back.value = 0.05f;
     o.thickness_distance.kind = Distance::Kind::absolute;
     o.thickness_distance.value = 3.0f;
     const BakeReport report = bake_maps(dir, o, {MapKind::thickness});
@@ -385,9 +385,9 @@ TEST(Maps, StableNearHardEdgesAndInTheSlotAndTheSameForAnyThreadCount) {
     }
     BakeOptions o = scene_bake(dir, pair, 64);
     const scenes::LabDistances d = scenes::lab_distances(scene);
-    o.front = {Distance::Kind::absolute, d.front};
-    o.back = {Distance::Kind::absolute, d.back};
-    o.hit = scene == "slot" ? HitRule::nearest : HitRule::first;
+    o.rays.front = {Distance::Kind::absolute, d.front};
+    o.rays.back = {Distance::Kind::absolute, d.back};
+    o.rays.hit = scene == "slot" ? HitRule::nearest : HitRule::first;
     o.ao_rays = 16;
     o.ao_distance = {Distance::Kind::absolute, 1.0f};
     o.maps = kAllMaps;
@@ -693,7 +693,7 @@ TEST(Maps, IdColoursEachPartByName) {
   o.low_path = dir.file("low.obj");
   o.high_path = dir.file("high.obj");
   o.width = o.height = 16;
-  o.front = o.back = {Distance::Kind::absolute, 0.05f};
+  o.rays.front = o.rays.back = {Distance::Kind::absolute, 0.05f};
   o.match.unmatched = Unmatched::all;
   const glm::vec3 floor = part_color("floor_high");
   EXPECT_NE(floor, part_color("wall_high"));
@@ -1007,7 +1007,7 @@ TEST(Maps, OtherBakeGroupsDoNotShadow) {
   low.indices.insert(low.indices.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
   low.parts = {{"floor_low", 0, floor_low}, {"wall_low", floor_low, 2}};
   BakeOptions o = scene_bake(dir, scenes::ScenePair{low, high}, 64, 1);
-  o.front = o.back = {Distance::Kind::absolute, 0.05f};
+  o.rays.front = o.rays.back = {Distance::Kind::absolute, 0.05f};
   o.ao_distance = {Distance::Kind::absolute, scenes::kWallDistance};
   o.ao_rays = 64;
   o.padding = 0;

@@ -448,8 +448,8 @@ struct BleedScene {
                       bool auto_distances = false) const {
     BakeOptions o;
     if (!auto_distances) {
-      o.front = {Distance::Kind::absolute, 0.0015f};
-      o.back = {Distance::Kind::absolute, 0.0005f};
+      o.rays.front = {Distance::Kind::absolute, 0.0015f};
+      o.rays.back = {Distance::Kind::absolute, 0.0005f};
     }
     o.low_path = dir.file(low);
     o.high_path = dir.file(high);
@@ -604,8 +604,8 @@ TEST(BakeGroupsEndToEnd, MasksAndScenePerGroupGiveTheSameBytes) {
   EXPECT_EQ(report.scenes, 2);
   EXPECT_EQ(read_bytes(scene.dir.file("masks.png")), read_bytes(scene.dir.file("scenes.png")));
   // `nearest` and --ignore-backfaces take the same grouped path.
-  masks.hit = scenes.hit = HitRule::nearest;
-  masks.ignore_backfaces = scenes.ignore_backfaces = true;
+  masks.rays.hit = scenes.rays.hit = HitRule::nearest;
+  masks.rays.ignore_backfaces = scenes.rays.ignore_backfaces = true;
   ASSERT_TRUE(bake(masks, report).is_ok());
   ASSERT_TRUE(bake(scenes, report).is_ok());
   EXPECT_EQ(read_bytes(scene.dir.file("masks.png")), read_bytes(scene.dir.file("scenes.png")));
@@ -691,8 +691,8 @@ TEST(Udim, EachTileEqualsTheTileBakedAlone) {
   o.low_path = dir.file("low.obj");
   o.high_path = dir.file("high.obj");
   o.width = o.height = 96;
-  o.front = {Distance::Kind::absolute, 0.05f};
-  o.back = {Distance::Kind::absolute, 0.05f};
+  o.rays.front = {Distance::Kind::absolute, 0.05f};
+  o.rays.back = {Distance::Kind::absolute, 0.05f};
   o.outputs = {{dir.file("n.<UDIM>.png"), PixelFormat::png16}, {dir.file("n_<UDIM>.exr"), PixelFormat::exr_half}};
   BakeReport report;
   Status s = bake(o, report);

@@ -329,11 +329,12 @@ TEST(EnginePreset, JobKeysOverrideThePreset) {
   ASSERT_TRUE(load_job_file(dir.file("job.toml"), jobs).is_ok());
   ASSERT_EQ(jobs.size(), 2u);
   EXPECT_EQ(jobs[0].options.preset, "unreal");
-  EXPECT_EQ(jobs[0].options.green, GreenChannel::up);  // [defaults] green wins
-  EXPECT_TRUE(jobs[0].options.decode.rebuild_blue);
+  EXPECT_EQ(jobs[0].options.encode.green, GreenChannel::up);  // [defaults] green wins
+  EXPECT_TRUE(jobs[0].options.encode.decode.rebuild_blue);
   EXPECT_TRUE(jobs[0].options.dither);
-  EXPECT_EQ(jobs[1].options.decode.bitangent, Bitangent::pixel);  // given before the preset: still wins
-  EXPECT_TRUE(jobs[1].options.decode.unit_frame);
+  // Given before the preset: still wins.
+  EXPECT_EQ(jobs[1].options.encode.decode.bitangent, Bitangent::pixel);
+  EXPECT_TRUE(jobs[1].options.encode.decode.unit_frame);
   EXPECT_FALSE(jobs[1].options.dither);
   EXPECT_EQ(jobs[1].options.outputs[0].format, PixelFormat::tga8);
   test::write_text(
@@ -382,9 +383,9 @@ TEST(EnginePreset, CliFlagsOverrideThePresetAndTheReportSaysSo) {
   BakeKey base_key, k;
   ASSERT_TRUE(bake_key(o, base_key).is_ok());
   const std::vector<std::function<void(BakeOptions&)>> changes = {
-      [](BakeOptions& x) { x.decode.bitangent = Bitangent::vertex; },
-      [](BakeOptions& x) { x.decode.unit_frame = true; },
-      [](BakeOptions& x) { x.decode.rebuild_blue = true; },
+      [](BakeOptions& x) { x.encode.decode.bitangent = Bitangent::vertex; },
+      [](BakeOptions& x) { x.encode.decode.unit_frame = true; },
+      [](BakeOptions& x) { x.encode.decode.rebuild_blue = true; },
       [](BakeOptions& x) { x.dither = false; },
       [](BakeOptions& x) { x.preset = "blender"; },
   };

@@ -71,7 +71,7 @@ class PreviewRender : public ::testing::Test {
       o.outputs = {
           {dir_->file(space == NormalSpace::tangent ? "map.png" : "map_os.png"), PixelFormat::png16}};
       o.width = o.height = 128;
-      o.space = space;
+      o.encode.space = space;
       BakeReport report;
       const Status s = bake(o, report);
       ASSERT_TRUE(s.is_ok()) << s.message();
@@ -164,7 +164,7 @@ TEST(PreviewRenderSphere, ObjectSpaceMapDecodesDirectly) {
   b.high_path = dir.file("high.ply");
   b.outputs = {{dir.file("map_os.png"), PixelFormat::png16}};
   b.width = b.height = 128;
-  b.space = NormalSpace::object;
+  b.encode.space = NormalSpace::object;
   BakeReport report;
   ASSERT_TRUE(bake(b, report).is_ok());
 
@@ -295,7 +295,7 @@ TEST(PreviewRenderSphere, DecodesAsThePresetSays) {
   PreviewOptions options;
   options.view.size = 64;
   options.view.supersample = 1;
-  options.front = options.back = {Distance::Kind::absolute, 0.2f};
+  options.rays.front = options.rays.back = {Distance::Kind::absolute, 0.2f};
   Image sheet;
   PreviewStats right, wrong;
   options.decode = encode_options.decode;

@@ -76,8 +76,8 @@ BakeOptions small_options(int size = 128) {
   o.width = o.height = size;
   o.samples = 4;
   o.padding = 2;
-  o.front = {Distance::Kind::absolute, 0.05f};
-  o.back = {Distance::Kind::absolute, 0.05f};
+  o.rays.front = {Distance::Kind::absolute, 0.05f};
+  o.rays.back = {Distance::Kind::absolute, 0.05f};
   return o;
 }
 
@@ -161,7 +161,7 @@ TEST(StabilitySeam, DecodedNormalsAgreeAcrossUvSeams) {
   p.low_cells = 4;
   const scenes::ScenePair s = scenes::make_displaced_sphere(p);
   BakeOptions o = small_options(1024);
-  o.front = o.back = {Distance::Kind::absolute, 0.06f};
+  o.rays.front = o.rays.back = {Distance::Kind::absolute, 0.06f};
   o.padding = 4;
   const Baked b = bake_meshes(dir, s.low, s.high, o);
   ASSERT_TRUE(b.status.is_ok()) << b.status.message();
@@ -218,8 +218,8 @@ TEST(StabilityHardEdge, BandedAndAveragedCagesLeaveNoGapsAlongHardEdges) {
   const scenes::ScenePair s = scenes::make_box(p);
   for (const CageMode cage : {CageMode::banded, CageMode::averaged}) {
     BakeOptions o = small_options(256);
-    o.back = {Distance::Kind::absolute, 0.25f};
-    o.cage_mode = cage;
+    o.rays.back = {Distance::Kind::absolute, 0.25f};
+    o.rays.cage_mode = cage;
     const Baked b = bake_meshes(dir, s.low, s.high, o);
     ASSERT_TRUE(b.status.is_ok()) << b.status.message();
     EXPECT_EQ(b.report.trace.misses, 0u);
@@ -243,10 +243,10 @@ TEST(StabilityDimple, MissesBeyondTheEstimatedDistanceAreRetried) {
   p.high_cells = 160;
   const scenes::ScenePair s = scenes::make_panel(p);
   BakeOptions o = small_options(256);
-  o.front = o.back = Distance{};  // auto
-  o.retry_misses = BakeOptions::Retry::off;
+  o.rays.front = o.rays.back = Distance{};  // auto
+  o.rays.retry_misses = RetryMisses::off;
   const Baked before = bake_meshes(dir, s.low, s.high, o);
-  o.retry_misses = BakeOptions::Retry::automatic;
+  o.rays.retry_misses = RetryMisses::automatic;
   const Baked after = bake_meshes(dir, s.low, s.high, o);
   ASSERT_TRUE(before.status.is_ok() && after.status.is_ok());
   std::printf("dimple: back %.4f; misses %llu without retry, %llu with (%llu retried, %llu found)\n",
@@ -285,9 +285,9 @@ TEST(StabilityConcave, NearestWinsInAGrooveFirstWinsOverAThinPlate) {
     p.high_cells = 48;
     const scenes::ScenePair s = scenes::make_slot(p);
     BakeOptions o = small_options(128);
-    o.front = {Distance::Kind::absolute, 0.5f};
+    o.rays.front = {Distance::Kind::absolute, 0.5f};
     const Baked first = bake_meshes(dir, s.low, s.high, o);
-    o.hit = HitRule::nearest;
+    o.rays.hit = HitRule::nearest;
     const Baked nearest = bake_meshes(dir, s.low, s.high, o);
     ASSERT_TRUE(first.status.is_ok() && nearest.status.is_ok());
     const auto truth = scenes::make_true_surface("slot");
@@ -322,7 +322,7 @@ TEST(StabilityConcave, NearestWinsInAGrooveFirstWinsOverAThinPlate) {
     for (std::uint32_t i : under.indices) high.indices.push_back(i + offset);
     BakeOptions o = small_options(32);
     const Baked first = bake_meshes(dir, s.low, high, o);
-    o.hit = HitRule::nearest;
+    o.rays.hit = HitRule::nearest;
     const Baked nearest = bake_meshes(dir, s.low, high, o);
     ASSERT_TRUE(first.status.is_ok() && nearest.status.is_ok());
     const float* pf = first.map.at(16, 16);
@@ -446,7 +446,7 @@ TEST(StabilityScale, MillimetreDetailAKilometreFromTheOrigin) {
   for (Mesh* m : {&s.low, &s.high})
     for (glm::vec3& v : m->positions) v += glm::vec3(1000.0f, 1000.0f, 0.0f);
   BakeOptions o = small_options(256);
-  o.front = o.back = {Distance::Kind::absolute, 0.005f};
+  o.rays.front = o.rays.back = {Distance::Kind::absolute, 0.005f};
   const Baked b = bake_meshes(dir, s.low, s.high, o);
   ASSERT_TRUE(b.status.is_ok()) << b.status.message();
   EXPECT_EQ(b.report.trace.misses, 0u);

@@ -533,8 +533,8 @@ TEST(TaskKey, CoversBytesAndOptionsNotPathsOrThreads) {
   const std::vector<std::function<void(BakeOptions&)>> changes = {
       [](BakeOptions& x) { x.samples = 16; },
       [](BakeOptions& x) { x.width = 65; },
-      [](BakeOptions& x) { x.green = GreenChannel::down; },
-      [](BakeOptions& x) { x.front = {Distance::Kind::percent, 1.0f}; },
+      [](BakeOptions& x) { x.encode.green = GreenChannel::down; },
+      [](BakeOptions& x) { x.rays.front = {Distance::Kind::percent, 1.0f}; },
       [](BakeOptions& x) { x.padding = 3; },
       [](BakeOptions& x) { x.outputs[0].format = PixelFormat::png8; },
       [](BakeOptions& x) { x.match.groups.push_back({"g", {"a"}, {"b"}}); },

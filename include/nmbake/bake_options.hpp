@@ -43,20 +43,13 @@ struct BakeOptions {
   // (adaptive.hpp); `samples` is then unused.
   bool adaptive = false;
   AdaptiveOptions adaptive_options;
-  NormalSpace space = NormalSpace::tangent;
-  GreenChannel green = GreenChannel::up;
-  Distance front;  // auto
-  Distance back;   // auto
-  HitRule hit = HitRule::first;
-  CageMode cage_mode = CageMode::banded;  // `mesh` is implied by cage_path
-  float edge_band = kDefaultEdgeBand;     // the banded cage's band, in units of front + back
-  // Misses traced again out and in up to the distance probes' reach
-  // (trace.hpp): `automatic` = when neither distance nor a cage is given.
-  using Retry = RetryMisses;
-  Retry retry_misses = Retry::automatic;
-  bool ignore_backfaces = false;
-  HighNormals high_normals = HighNormals::smooth;
-  TangentEncode tangent_encode = TangentEncode::inverse;
+  // The rays as asked for (trace.hpp): distances, hit rule, cage, retry,
+  // backfaces; a cage mesh (cage_path) implies CageMode::mesh.
+  RaySettings rays;
+  // How hits become the normal map (encode.hpp): space, green, high
+  // normals, tangent encode, and how the engine decodes (`decode`, see
+  // `preset` below). out_row_begin is the bake's own (set per tile of rows).
+  EncodeOptions encode;
   TangentBasis tangent_basis = TangentBasis::mikktspace;  // file: the low mesh's own tangents; others: comparison only
   int uv_set = 0;  // the low mesh's UV set (glTF TEXCOORD_N, FBX UV channel N)
   BuildQuality build_quality = BuildQuality::low;  // measured: 4-6x faster builds than medium, rays as fast (BENCHMARKS.md)
@@ -83,12 +76,12 @@ struct BakeOptions {
   // when its estimate is larger. 0: the memory available to the process.
   std::uint64_t max_memory_bytes = 0;
   // Outputs as engines want them (preset.hpp). `preset` names the engine
-  // preset the green convention and `decode` came from ("" none; for the
-  // report: explicit flags may have overridden parts of it). `decode`: how
-  // the engine decodes the map; the encode stores its exact inverse.
-  // `dither`: 8-bit outputs (png8, tga) ordered-dithered instead of rounded.
+  // preset the green convention and encode.decode came from ("" none; for
+  // the report: explicit flags may have overridden parts of it).
+  // encode.decode: how the engine decodes the map; the encode stores its
+  // exact inverse. `dither`: 8-bit outputs (png8, tga) ordered-dithered
+  // instead of rounded.
   std::string preset;
-  NormalDecode decode;
   bool dither = true;
   // The map set (maps.hpp): the maps baked from the same rays, each output
   // written once per map (with several maps every output path holds <MAP>),

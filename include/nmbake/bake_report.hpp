@@ -42,7 +42,7 @@ struct BakeReport {
   TraceStats trace;
   EncodeStats encode;
   DilateStats dilate;
-  // How the map was encoded (BakeOptions::preset, decode, dither).
+  // How the map was encoded (BakeOptions::preset, encode.decode, dither).
   std::string preset;
   GreenChannel green = GreenChannel::up;
   NormalDecode decode;

@@ -144,6 +144,15 @@ Status load_mesh(const std::string& path, const LoadOptions& options, Mesh& out,
 bool mesh_extension_supported(const std::string& path);
 const char* supported_mesh_extensions();
 
+// What can be known of a mesh file without loading it, so a job finds a bad
+// path in its last bake before the first bake runs: `path` is non-empty, has
+// no NUL byte and a supported extension, names an existing regular file (a
+// FIFO would block, a device never ends) that opens and is not empty, and
+// starts as its format must (PLY: "ply"; binary glTF: "glTF"; OBJ: no NUL
+// byte in its first 4 KiB). bad_input naming the path (printable_text) and
+// the reason; `what` ("low", "high", "cage") names the mesh.
+Status check_mesh_file(const char* what, const std::string& path);
+
 // Writes a mesh as OBJ (v [r g b], vt, vn, f, `o NAME` where each part
 // begins, `usemtl NAME` where each material range begins (a bare `usemtl`
 // for "" after a named one; no .mtl); reals in the shortest form that reads

@@ -73,14 +73,10 @@ struct PreviewOptions {
   // decoded the same way, so a map baked with --preset X is previewed with
   // --preset X.
   NormalDecode decode;
-  // The bake's ray rule, used to find the high normal the baker should have
-  // stored at each low point (auto distances are estimated as the baker does).
-  Distance front;
-  Distance back;
-  HitRule hit = HitRule::first;
-  // The bake's cage (the default edge band); with both distances auto, misses
-  // are retried as the bake retries them.
-  CageMode cage_mode = CageMode::banded;
+  // The bake's rays, used to find the high normal the baker should have
+  // stored at each low point: resolved as the bake resolves them
+  // (resolve_rays(): auto distances estimated, misses retried by the same rule).
+  RaySettings rays;
   float heat_max_degrees = 5.0f;  // the top of the colour ramp
 };
 
@@ -120,8 +116,8 @@ Status load_preview_meshes(const std::string& low_path, const std::string& high_
 //   and turned into a world normal with tangent_to_world (T, N not
 //   normalised, B = sign cross(N, T)); object space maps are used directly.
 // * error: for each sample that hits the low mesh, the bake's own ray
-//   (make_ray with the resolved front/back, the hit rule, the cage mode and
-//   the bake's retry of misses) finds the high
+//   (make_ray with the rays resolve_rays() gives for options.rays, the
+//   bake's retry of misses included) finds the high
 //   normal the baker should have stored there; the panel shows the angle
 //   between it and the decoded normal (0 .. heat_max_degrees on the ramp,
 //   a scale bar, the mean and p99 printed). Bake-ray misses are magenta. This

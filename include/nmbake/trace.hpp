@@ -114,6 +114,9 @@ constexpr float kMaxDistanceDiagonals = 1000.0f;
 // "auto", "0.05", "2%". Returns false on anything else (negative, NaN, junk).
 bool parse_distance(const std::string& text, Distance& out);
 std::string to_string(const Distance& distance);
+// In scene units: as given, a percentage of `diagonal` (the low mesh's
+// bounding-box diagonal), or `automatic_value` when auto.
+float resolve_distance(const Distance& distance, float diagonal, float automatic_value);
 
 // Whether a ray that missed is traced again, out and in up to kProbeReach:
 // `automatic` when neither distance nor a cage is given.
@@ -137,8 +140,12 @@ constexpr float kDefaultEdgeBand = 2.0f;
 // the low mesh's bounding-box diagonal.
 constexpr float kProbeReach = 0.25f;
 
+// The rays as resolved for a scene (resolve_rays() below, or by hand).
 struct RayOptions {
-  CageMode cage = CageMode::averaged;  // bake.hpp's default is `banded`
+  // `averaged`, not the bake's `banded` (RaySettings): the trace tests, the
+  // evaluators of tools/gen and the distance probes build RayOptions by hand
+  // and rely on the averaged cage, which needs no prepare_edge_band().
+  CageMode cage = CageMode::averaged;
   float edge_band = kDefaultEdgeBand;  // CageMode::banded: the band's width / (front + back)
   float retry_reach = 0.0f;            // > 0: retry a sample that missed (see above), scene units
   HitRule hit = HitRule::first;
@@ -148,6 +155,25 @@ struct RayOptions {
   // With a grouped scene: the distances of each group (front and back above
   // are then unused); empty otherwise.
   std::vector<GroupDistances> groups;
+};
+
+// The rays as asked for (BakeOptions::rays, PreviewOptions::rays), one
+// default per field, here; resolve_rays() turns them into RayOptions.
+struct RaySettings {
+  Distance front;  // auto
+  Distance back;   // auto
+  HitRule hit = HitRule::first;
+  CageMode cage_mode = CageMode::banded;  // `mesh` is implied by a cage mesh (LowSurface::has_cage_mesh)
+  float edge_band = kDefaultEdgeBand;     // the banded cage's band, in units of front + back
+  // Misses traced again out and in up to the distance probes' reach
+  // (kProbeReach): `automatic` = when neither distance nor a cage is given.
+  RetryMisses retry_misses = RetryMisses::automatic;
+  bool ignore_backfaces = false;  // also the scene's backface filter (HighScene::build)
+
+  // Whether resolve_rays() probes the meshes (a distance is auto).
+  bool estimates_distances() const {
+    return front.kind == Distance::Kind::automatic || back.kind == Distance::Kind::automatic;
+  }
 };
 
 // How a scene holds bake groups (see above).
@@ -273,5 +299,22 @@ struct DistanceEstimate {
   std::uint64_t probe_misses = 0;  // probe points with no high surface within reach
 };
 DistanceEstimate estimate_distances(const HighScene& scene, const LowSurface& surface, float diagonal);
+
+// `settings` resolved into `rays` for `scene` and the low `surface` (the
+// bake's and the preview's one rule):
+//   * the cage: CageMode::mesh when the surface has a cage mesh, else
+//     settings.cage_mode;
+//   * distances: as given in scene units, a percentage of `low_diagonal`
+//     (the low mesh's bounding-box diagonal), or auto: estimate_distances()
+//     with `low_diagonal`, run once when either distance is auto;
+//   * with `group_count` > 0 (a scene built with SceneGroups of that many
+//     groups), rays.groups gets each group's distances, auto ones from that
+//     group's own probes; 0: rays.groups stays empty;
+//   * retry_reach = kProbeReach * low_diagonal when misses are retried (on;
+//     automatic: both distances auto and no cage mesh), else 0;
+//   * the banded cage: prepare_edge_band(surface) for the resolved rays.
+// Returns the estimate (empty when no distance is auto) for the report.
+DistanceEstimate resolve_rays(const RaySettings& settings, const HighScene& scene, LowSurface& surface,
+                              float low_diagonal, std::size_t group_count, RayOptions& rays);
 
 }  // namespace nmbake

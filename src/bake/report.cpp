@@ -1,11 +1,14 @@
 // The bake report: every counter of every stage, as JSON and as one line.
+#include <tbb/global_control.h>
+
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
-
 #include <nlohmann/json.hpp>
 
 #include "bake/map_report_json.hpp"
+#include "bake/report_fill.hpp"
 #include "nmbake/bake.hpp"
 #include "nmbake/preset.hpp"
 
@@ -36,6 +39,136 @@ double BakeReport::coverage() const {
   return texels > 0.0 ? static_cast<double>(raster.covered_texels) / texels : 0.0;
 }
 
+namespace {
+
+using nlohmann::ordered_json;
+
+// Adaptive sampling's figures: rays of the first pass, each level's texels and rays.
+ordered_json adaptive_json(const BakeReport& r) {
+  ordered_json levels = ordered_json::array();
+  const std::vector<int> level_samples =
+      r.adaptive.max_samples > 4 ? std::vector<int>{4, r.adaptive.max_samples} : std::vector<int>{4};
+  for (std::size_t l = 0; l < r.adaptive.level_texels.size() && l < level_samples.size(); ++l) {
+    levels.push_back({{"samples", level_samples[l]},
+                      {"texels", r.adaptive.level_texels[l]},
+                      {"rays", r.adaptive.level_rays.size() > l ? r.adaptive.level_rays[l] : 0}});
+  }
+  return {{"max_samples", r.adaptive.max_samples},
+          {"first_pass_rays", r.adaptive.first_pass_rays},
+          {"refined_texels", r.adaptive.refined_texels},
+          {"refined_fraction", r.raster.covered_texels > 0 ? static_cast<double>(r.adaptive.refined_texels) /
+                                                                 static_cast<double>(r.raster.covered_texels)
+                                                           : 0.0},
+          {"levels", levels},
+          {"halo_rays", r.adaptive.halo_rays},
+          {"rays_per_texel", r.rays_per_texel()}};
+}
+
+// Every counted fallback of every stage (curvature's added by to_json() when baked).
+ordered_json fallbacks_json(const BakeReport& r) {
+  return {
+      {"low_zero_area_triangles", r.low_mesh.zero_area_triangles},
+      {"low_zero_length_normals", r.low_mesh.zero_length_normals},
+      {"low_normals_computed", r.low_mesh.normals_computed},
+      {"high_zero_area_triangles", r.high_mesh.zero_area_triangles},
+      {"high_zero_length_normals", r.high_mesh.zero_length_normals},
+      {"high_normals_computed", r.high_mesh.normals_computed},
+      {"tangent_degenerate_triangles", r.tangents.degenerate_triangles},
+      {"tangent_degenerate_uv_triangles", r.tangents.degenerate_uv_triangles},
+      {"tangent_fallbacks", r.tangents.fallback_tangents},
+      {"raster_degenerate_uv_triangles", r.raster.degenerate_uv_triangles},
+      {"raster_border_samples", r.raster.border_samples},
+      {"raster_overlapping_samples", r.raster.overlapping_samples},
+      {"ray_fallbacks", r.trace.ray_fallbacks},
+      {"encode_singular_frames", r.encode.singular_frames},
+      {"encode_zero_high_normals", r.encode.zero_high_normals},
+      {"encode_zero_results", r.encode.zero_results},
+      {"encode_below_horizon", r.encode.below_horizon},
+      {"dilate_filled_texels", r.dilate.filled_texels},
+      {"load_skipped_faces", r.low_load.degenerate_faces + r.high_load.degenerate_faces},
+  };
+}
+
+ordered_json groups_json(const std::vector<BakeReport::Group>& groups) {
+  ordered_json group_json = ordered_json::array();
+  for (const BakeReport::Group& g : groups) {
+    group_json.push_back({{"name", g.parts.name},
+                          {"low_parts", g.parts.low_parts},
+                          {"high_parts", g.parts.high_parts},
+                          {"low_triangles", g.parts.low_triangles},
+                          {"high_triangles", g.parts.high_triangles},
+                          {"front", g.front},
+                          {"back", g.back}});
+  }
+  return group_json;
+}
+
+// Each name under the key of what it names: "part" or "material".
+ordered_json id_colors_json(IdSource id_source, const decltype(BakeReport::id_names)& id_names) {
+  const char* what = to_string(id_source);
+  ordered_json ids = ordered_json::array();
+  for (const auto& [name, color] : id_names) {
+    ids.push_back(
+        {{what, name},
+         {"rgb8",
+          {std::lround(255.0f * color.r), std::lround(255.0f * color.g), std::lround(255.0f * color.b)}}});
+  }
+  return ids;
+}
+
+// How the map was encoded: the engine preset (if any) and the rules in
+// force after explicit flags (README, "Outputs as engines want them").
+ordered_json encoding_json(const BakeReport& r) {
+  return {{"preset", r.preset.empty() ? ordered_json(nullptr) : ordered_json(r.preset)},
+          {"green", r.green == GreenChannel::up ? "up" : "down"},
+          {"bitangent", to_string(r.decode.bitangent)},
+          {"tbn", word_of(kFrameRuleWords, r.decode.unit_frame)},
+          {"blue", word_of(kBlueRuleWords, r.decode.rebuild_blue)},
+          {"dither_8bit", r.dither}};
+}
+
+ordered_json distances_json(const BakeReport& r) {
+  return {{"front", r.front},
+          {"back", r.back},
+          {"estimated", r.distances_estimated},
+          {"low_bbox_diagonal", r.low_diagonal},
+          {"probes", r.estimate_probes},
+          {"probe_misses", r.estimate_probe_misses}};
+}
+
+ordered_json rays_json(const BakeReport& r) {
+  return {{"samples_traced", r.trace.samples}, {"rays", r.trace.rays},         {"hits", r.trace.hits},
+          {"misses", r.trace.misses},          {"miss_rate", r.miss_rate()},   {"cage", r.cage_mode},
+          {"edge_band", r.edge_band},          {"retry_reach", r.retry_reach}, {"retried", r.trace.retried},
+          {"retry_hits", r.trace.retry_hits}};
+}
+
+ordered_json udim_tiles_json(const std::vector<BakeReport::Tile>& tiles) {
+  ordered_json tile_json = ordered_json::array();
+  for (const BakeReport::Tile& t : tiles) {
+    tile_json.push_back({{"tile", t.tile}, {"outputs", t.outputs}, {"covered_texels", t.covered_texels}});
+  }
+  return tile_json;
+}
+
+ordered_json stage_seconds_json(const std::vector<StageTime>& stages) {
+  ordered_json stage_json = ordered_json::object();
+  for (const StageTime& s : stages) stage_json[s.name] = s.seconds;
+  return stage_json;
+}
+
+// Rays traced per second of the trace stage.
+double rays_per_second(const BakeReport& r) {
+  const double trace_seconds = [&] {
+    for (const StageTime& s : r.stages)
+      if (s.name == "trace") return s.seconds;
+    return 0.0;
+  }();
+  return trace_seconds > 0.0 ? static_cast<double>(r.trace.rays) / trace_seconds : 0.0;
+}
+
+}  // namespace
+
 std::string BakeReport::to_json() const {
   using nlohmann::ordered_json;
   ordered_json j;
@@ -47,24 +180,7 @@ std::string BakeReport::to_json() const {
   j["height"] = height;
   if (adaptive.max_samples > 0) {
     j["samples_per_texel"] = "adaptive";
-    ordered_json levels = ordered_json::array();
-    const std::vector<int> level_samples =
-        adaptive.max_samples > 4 ? std::vector<int>{4, adaptive.max_samples} : std::vector<int>{4};
-    for (std::size_t l = 0; l < adaptive.level_texels.size() && l < level_samples.size(); ++l) {
-      levels.push_back({{"samples", level_samples[l]},
-                        {"texels", adaptive.level_texels[l]},
-                        {"rays", adaptive.level_rays.size() > l ? adaptive.level_rays[l] : 0}});
-    }
-    j["adaptive"] = {
-        {"max_samples", adaptive.max_samples},
-        {"first_pass_rays", adaptive.first_pass_rays},
-        {"refined_texels", adaptive.refined_texels},
-        {"refined_fraction", raster.covered_texels > 0 ? static_cast<double>(adaptive.refined_texels) /
-                                                             static_cast<double>(raster.covered_texels)
-                                                       : 0.0},
-        {"levels", levels},
-        {"halo_rays", adaptive.halo_rays},
-        {"rays_per_texel", rays_per_texel()}};
+    j["adaptive"] = adaptive_json(*this);
   } else {
     j["samples_per_texel"] = samples;
   }
@@ -73,52 +189,11 @@ std::string BakeReport::to_json() const {
   j["high_triangles"] = high_triangles;
   j["high_vertices"] = high_vertices;
   j["bvh"] = compact_bvh ? "compact" : "fast";
-  // How the map was encoded: the engine preset (if any) and the rules in
-  // force after explicit flags (README, "Outputs as engines want them").
-  j["encoding"] = {{"preset", preset.empty() ? ordered_json(nullptr) : ordered_json(preset)},
-                   {"green", green == GreenChannel::up ? "up" : "down"},
-                   {"bitangent", to_string(decode.bitangent)},
-                   {"tbn", word_of(kFrameRuleWords, decode.unit_frame)},
-                   {"blue", word_of(kBlueRuleWords, decode.rebuild_blue)},
-                   {"dither_8bit", dither}};
-  j["distances"] = {{"front", front},
-                    {"back", back},
-                    {"estimated", distances_estimated},
-                    {"low_bbox_diagonal", low_diagonal},
-                    {"probes", estimate_probes},
-                    {"probe_misses", estimate_probe_misses}};
+  j["encoding"] = encoding_json(*this);
+  j["distances"] = distances_json(*this);
   j["coverage"] = {{"covered_texels", raster.covered_texels}, {"fraction", coverage()}};
-  j["rays"] = {{"samples_traced", trace.samples},
-               {"rays", trace.rays},
-               {"hits", trace.hits},
-               {"misses", trace.misses},
-               {"miss_rate", miss_rate()},
-               {"cage", cage_mode},
-               {"edge_band", edge_band},
-               {"retry_reach", retry_reach},
-               {"retried", trace.retried},
-               {"retry_hits", trace.retry_hits}};
-  j["fallbacks"] = {
-      {"low_zero_area_triangles", low_mesh.zero_area_triangles},
-      {"low_zero_length_normals", low_mesh.zero_length_normals},
-      {"low_normals_computed", low_mesh.normals_computed},
-      {"high_zero_area_triangles", high_mesh.zero_area_triangles},
-      {"high_zero_length_normals", high_mesh.zero_length_normals},
-      {"high_normals_computed", high_mesh.normals_computed},
-      {"tangent_degenerate_triangles", tangents.degenerate_triangles},
-      {"tangent_degenerate_uv_triangles", tangents.degenerate_uv_triangles},
-      {"tangent_fallbacks", tangents.fallback_tangents},
-      {"raster_degenerate_uv_triangles", raster.degenerate_uv_triangles},
-      {"raster_border_samples", raster.border_samples},
-      {"raster_overlapping_samples", raster.overlapping_samples},
-      {"ray_fallbacks", trace.ray_fallbacks},
-      {"encode_singular_frames", encode.singular_frames},
-      {"encode_zero_high_normals", encode.zero_high_normals},
-      {"encode_zero_results", encode.zero_results},
-      {"encode_below_horizon", encode.below_horizon},
-      {"dilate_filled_texels", dilate.filled_texels},
-      {"load_skipped_faces", low_load.degenerate_faces + high_load.degenerate_faces},
-  };
+  j["rays"] = rays_json(*this);
+  j["fallbacks"] = fallbacks_json(*this);
   if (!key.empty()) j["key"] = key;
   j["cached"] = cached;
   if (tile_count > 0) {
@@ -127,23 +202,9 @@ std::string BakeReport::to_json() const {
   }
   j["high_triangles_used"] = high_triangles_used;
   j["embree_scenes"] = scenes;
-  ordered_json group_json = ordered_json::array();
-  for (const Group& g : groups) {
-    group_json.push_back({{"name", g.parts.name},
-                          {"low_parts", g.parts.low_parts},
-                          {"high_parts", g.parts.high_parts},
-                          {"low_triangles", g.parts.low_triangles},
-                          {"high_triangles", g.parts.high_triangles},
-                          {"front", g.front},
-                          {"back", g.back}});
-  }
-  j["groups"] = group_json;
+  j["groups"] = groups_json(groups);
   j["unused_high_parts"] = unused_high_parts;
-  ordered_json tile_json = ordered_json::array();
-  for (const Tile& t : tiles) {
-    tile_json.push_back({{"tile", t.tile}, {"outputs", t.outputs}, {"covered_texels", t.covered_texels}});
-  }
-  j["udim_tiles"] = tile_json;
+  j["udim_tiles"] = udim_tiles_json(tiles);
   // Units as the files state them (FBX UnitScaleFactor, glTF metres); 0:
   // the format does not say. Positions are baked in file units.
   j["units"] = {{"low_unit_meters", low_load.unit_meters}, {"high_unit_meters", high_load.unit_meters}};
@@ -155,32 +216,16 @@ std::string BakeReport::to_json() const {
   // its counters (maps.hpp).
   j["maps"] = detail::map_reports_json(map_reports);
   if (!id_names.empty()) {
-    // Each name under the key of what it names: "part" or "material".
-    const char* what = to_string(id_source);
-    ordered_json ids = ordered_json::array();
-    for (const auto& [name, color] : id_names) {
-      ids.push_back(
-          {{what, name},
-           {"rgb8",
-            {std::lround(255.0f * color.r), std::lround(255.0f * color.g), std::lround(255.0f * color.b)}}});
-    }
-    j["id_source"] = what;
-    j["id_colors"] = ids;
+    j["id_source"] = to_string(id_source);
+    j["id_colors"] = id_colors_json(id_source, id_names);
   }
   if (std::find(maps.begin(), maps.end(), MapKind::curvature) != maps.end()) {
     j["fallbacks"]["curvature_degenerate_triangles"] = curvature_degenerate_triangles;
     j["fallbacks"]["curvature_isolated_vertices"] = curvature_isolated_vertices;
   }
-  ordered_json stage_json = ordered_json::object();
-  for (const StageTime& s : stages) stage_json[s.name] = s.seconds;
-  j["seconds"] = stage_json;
+  j["seconds"] = stage_seconds_json(stages);
   j["total_seconds"] = total_seconds;
-  const double trace_seconds = [&] {
-    for (const StageTime& s : stages)
-      if (s.name == "trace") return s.seconds;
-    return 0.0;
-  }();
-  j["rays_per_second"] = trace_seconds > 0.0 ? static_cast<double>(trace.rays) / trace_seconds : 0.0;
+  j["rays_per_second"] = rays_per_second(*this);
   j["peak_rss_bytes"] = peak_rss_bytes;
   j["input_bytes"] = {{"low", low_load.bytes}, {"high", high_load.bytes}};
   j["load_mb_per_second"] = {{"low", low_load.mb_per_second()}, {"high", high_load.mb_per_second()}};
@@ -270,3 +315,95 @@ std::string BakeReport::summary_line() const {
 }
 
 }  // namespace nmbake
+
+// How bake() fills the report (report_fill.hpp).
+namespace nmbake::detail {
+
+void report_options(const BakeOptions& o, BakeReport& r) {
+  r = BakeReport{};
+  r.low_path = o.low_path;
+  r.high_path = o.high_path;
+  r.cage_path = o.cage_path;
+  for (const OutputSpec& out : o.outputs) r.outputs.push_back(out.path);
+  r.width = o.width;
+  r.height = o.height;
+  r.samples = o.samples;
+  r.preset = o.preset;
+  r.green = o.encode.green;
+  r.decode = o.encode.decode;
+  r.dither = o.dither;
+  r.threads = tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
+}
+
+void report_mesh_sizes(const Mesh& low, const Mesh& high, BakeReport& r) {
+  r.low_triangles = low.triangle_count();
+  r.high_triangles = high.triangle_count();
+  r.high_vertices = high.vertex_count();
+}
+
+void report_unwrapped(const std::string& path, BakeReport& r) {
+  r.unwrapped = true;
+  r.unwrapped_low_path = path;
+}
+
+void report_map_mesh(const MapMeshData& map_mesh, BakeReport& r) {
+  r.curvature_degenerate_triangles = map_mesh.curvature.degenerate_triangles;
+  r.curvature_isolated_vertices = map_mesh.curvature.isolated_vertices;
+  r.id_source = map_mesh.id_source;
+  r.id_names = map_mesh.ids;
+}
+
+void report_low_surface(const SurfaceStats& stats, float low_diagonal, BakeReport& r) {
+  r.low_mesh.zero_area_triangles += stats.mesh.zero_area_triangles;
+  r.low_mesh.zero_length_normals += stats.mesh.zero_length_normals;
+  r.tangents = stats.tangents;
+  r.low_diagonal = low_diagonal;
+}
+
+void report_scene(const HighScene& scene, BakeReport& r) {
+  r.compact_bvh = scene.compact();
+  r.scenes = scene.scene_count();
+}
+
+void report_rays(const RayOptions& rays, const DistanceEstimate& estimate, bool estimated,
+                 const BakeGroups& groups, BakeReport& r) {
+  if (estimated) {
+    r.distances_estimated = true;
+    r.estimate_probes = estimate.probes;
+    r.estimate_probe_misses = estimate.probe_misses;
+  }
+  r.cage_mode = to_string(rays.cage);
+  r.edge_band = rays.cage == CageMode::banded ? rays.edge_band : 0.0f;
+  r.retry_reach = rays.retry_reach;
+  r.front = rays.front;
+  r.back = rays.back;
+  for (std::size_t g = 0; g < groups.groups.size(); ++g) {
+    r.groups.push_back({groups.groups[g], rays.groups[g].front, rays.groups[g].back});
+  }
+  r.unused_high_parts = groups.unused_high_parts;
+}
+
+void report_raster_band(const RasterStats& band, BakeReport& r) {
+  r.raster.covered_texels += band.covered_texels;
+  r.raster.border_samples += band.border_samples;
+  r.raster.overlapping_samples += band.overlapping_samples;
+  r.raster.degenerate_uv_triangles = band.degenerate_uv_triangles;  // the same in every band
+}
+
+void report_tile_rows(const TileData& rows, const std::string& tile_path, BakeReport& r,
+                      BakeReport::Tile& done) {
+  r.tile_index = rows.index;
+  r.tile_count = rows.count;
+  r.tile_row_begin = rows.row_begin;
+  r.tile_row_end = rows.row_end;
+  r.tile_path = tile_path;
+  r.outputs = {tile_path};
+  done.outputs = {tile_path};
+}
+
+void report_finish(Clock::time_point begin, BakeReport& r) {
+  r.total_seconds = std::chrono::duration<double>(Clock::now() - begin).count();
+  r.peak_rss_bytes = peak_rss_bytes();
+}
+
+}  // namespace nmbake::detail

@@ -84,30 +84,31 @@ std::string bake_key_text(const BakeOptions& o) {
   } else {
     line("samples", std::to_string(o.samples));
   }
-  line("space", o.space == NormalSpace::tangent ? "tangent" : "object");
-  line("green", o.green == GreenChannel::up ? "up" : "down");
-  for (const auto& [name, d] : {std::pair{"front", o.front}, std::pair{"back", o.back}}) {
+  line("space", o.encode.space == NormalSpace::tangent ? "tangent" : "object");
+  line("green", o.encode.green == GreenChannel::up ? "up" : "down");
+  for (const auto& [name, d] : {std::pair{"front", o.rays.front}, std::pair{"back", o.rays.back}}) {
     line(name, d.kind == Distance::Kind::automatic ? std::string("auto")
                : d.kind == Distance::Kind::percent ? number(d.value) + "%"
                                                     : number(d.value));
   }
-  line("hit", o.hit == HitRule::first ? "first" : "nearest");
-  line("cage_mode", to_string(o.cage_mode));
-  if (o.cage_mode == CageMode::banded) line("edge_band", number(o.edge_band));
-  line("retry_misses", o.retry_misses == BakeOptions::Retry::on    ? "on"
-                       : o.retry_misses == BakeOptions::Retry::off ? "off"
-                                                                   : "auto");
+  line("hit", o.rays.hit == HitRule::first ? "first" : "nearest");
+  line("cage_mode", to_string(o.rays.cage_mode));
+  if (o.rays.cage_mode == CageMode::banded) line("edge_band", number(o.rays.edge_band));
+  line("retry_misses", o.rays.retry_misses == RetryMisses::on    ? "on"
+                       : o.rays.retry_misses == RetryMisses::off ? "off"
+                                                                 : "auto");
   line("cage", o.cage_path.empty() ? "none" : "mesh");
-  line("ignore_backfaces", o.ignore_backfaces ? "1" : "0");
-  line("high_normals", o.high_normals == HighNormals::smooth ? "smooth" : "face");
-  line("tangent_encode", o.tangent_encode == TangentEncode::inverse ? "inverse" : "transpose");
+  line("ignore_backfaces", o.rays.ignore_backfaces ? "1" : "0");
+  line("high_normals", o.encode.high_normals == HighNormals::smooth ? "smooth" : "face");
+  line("tangent_encode", o.encode.tangent_encode == TangentEncode::inverse ? "inverse" : "transpose");
   line("tangent_basis", to_string(o.tangent_basis));
   // Outputs as engines want them: the preset, and what it resolved to after
   // explicit flags (the rules are what change bytes; the name errs on the
   // side of a miss).
   line("preset", o.preset.empty() ? "none" : o.preset);
-  line("decode", std::string(to_string(o.decode.bitangent)) + " " + word_of(kFrameRuleWords, o.decode.unit_frame) + " " +
-                     word_of(kBlueRuleWords, o.decode.rebuild_blue));
+  line("decode", std::string(to_string(o.encode.decode.bitangent)) + " " +
+                     word_of(kFrameRuleWords, o.encode.decode.unit_frame) + " " +
+                     word_of(kBlueRuleWords, o.encode.decode.rebuild_blue));
   line("dither", o.dither ? "on" : "off");
   // The BVH's quality and layout do not choose other hits, but a key errs on
   // the side of a miss.

@@ -82,13 +82,10 @@ int run_preview_3d(const PreviewFlags& f, const GlobalOptions& global, const Ima
   // How the map was baked, read as `bake` reads it.
   BakeOptions baked;
   if (const Status s = apply_table_flags(f.baked, baked); !s) return fail(s);
-  options.green = baked.green;
-  options.decode = baked.decode;
-  options.space = baked.space;
-  options.hit = baked.hit;
-  options.cage_mode = baked.cage_mode;
-  options.front = baked.front;
-  options.back = baked.back;
+  options.green = baked.encode.green;
+  options.decode = baked.encode.decode;
+  options.space = baked.encode.space;
+  options.rays = baked.rays;
   Mesh low, high;
   LowSurface surface;
   if (const Status s = load_preview_meshes(f.low, f.high, low, surface, high); !s) return fail(s);
@@ -151,7 +148,7 @@ int run_preview(const PreviewFlags& f, const GlobalOptions& global) {
   LitMapOptions options;
   BakeOptions baked;  // the green convention, as `bake` reads it (a preset's, or --green)
   if (const Status s = apply_table_flags(f.baked, baked); !s) return fail(s);
-  options.green = baked.green;
+  options.green = baked.encode.green;
   options.max_size = f.max_size;
   const Image lit = render_lit_map(map, options);
   if (const Status s = write_image(lit, f.output, format); !s) return fail(s);

@@ -231,40 +231,15 @@ Status render_preview(const LowSurface& surface, const Mesh& high, const Image& 
   NMBAKE_TRY(high_scene.build(high.positions, high.indices));
   // The baker's own scene and rays for the reference normals.
   HighScene bake_scene;
-  NMBAKE_TRY(HighScene::build(high, BuildQuality::medium, false, bake_scene));
+  NMBAKE_TRY(HighScene::build(high, BuildQuality::medium, options.rays.ignore_backfaces, bake_scene));
 
   const Bounds low_bounds = bounds_of(surface.position);
   const float diagonal = low_bounds.diagonal();
-  DistanceEstimate estimate;
-  if (options.front.kind == Distance::Kind::automatic || options.back.kind == Distance::Kind::automatic) {
-    estimate = estimate_distances(bake_scene, surface, diagonal);
-  }
-  auto resolve = [&](const Distance& d, float estimated) {
-    switch (d.kind) {
-      case Distance::Kind::absolute:
-        return d.value;
-      case Distance::Kind::percent:
-        return d.value * 0.01f * diagonal;
-      case Distance::Kind::automatic:
-        break;
-    }
-    return estimated;
-  };
+  // The rays on a copy of the surface: the banded cage prepares its edge
+  // band on it (the panels read `surface` itself).
+  LowSurface ray_surface = surface;
   RayOptions rays;
-  rays.cage = options.cage_mode;
-  rays.hit = options.hit;
-  rays.front = resolve(options.front, estimate.front);
-  rays.back = resolve(options.back, estimate.back);
-  if (options.front.kind == Distance::Kind::automatic && options.back.kind == Distance::Kind::automatic) {
-    rays.retry_reach = kProbeReach * diagonal;  // as the bake does (BakeOptions::retry_misses)
-  }
-  LowSurface banded_surface;
-  const LowSurface* ray_surface = &surface;
-  if (rays.cage == CageMode::banded) {
-    banded_surface = surface;
-    prepare_edge_band(banded_surface, edge_band_reach(rays));
-    ray_surface = &banded_surface;
-  }
+  resolve_rays(options.rays, bake_scene, ray_surface, diagonal, 0, rays);
   stats.front = rays.front;
   stats.back = rays.back;
 
@@ -309,7 +284,7 @@ Status render_preview(const LowSurface& surface, const Mesh& high, const Image& 
     }
     Hits bake_hits;
     TraceStats trace_stats;
-    trace(bake_scene, *ray_surface, bake_samples, rays, bake_hits, trace_stats);
+    trace(bake_scene, ray_surface, bake_samples, rays, bake_hits, trace_stats);
 
     std::fill(row_decode_fallbacks.begin(), row_decode_fallbacks.end(), 0);
     std::fill(row_high_fallbacks.begin(), row_high_fallbacks.end(), 0);

@@ -69,15 +69,15 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   o.outputs = {{map, nmbake::PixelFormat::png16}};
   o.width = o.height = 16;
   o.samples = (flags & 2) ? 4 : 1;
-  o.hit = (flags & 4) ? nmbake::HitRule::nearest : nmbake::HitRule::first;
-  o.cage_mode = (flags & 8) ? nmbake::CageMode::interpolated : nmbake::CageMode::averaged;
-  o.space = (flags & 16) ? nmbake::NormalSpace::object : nmbake::NormalSpace::tangent;
+  o.rays.hit = (flags & 4) ? nmbake::HitRule::nearest : nmbake::HitRule::first;
+  o.rays.cage_mode = (flags & 8) ? nmbake::CageMode::interpolated : nmbake::CageMode::averaged;
+  o.encode.space = (flags & 16) ? nmbake::NormalSpace::object : nmbake::NormalSpace::tangent;
   o.padding = 2;
   o.unwrap_gutter = 1;
   if (flags & 32) {
-    o.front = {nmbake::Distance::Kind::percent, static_cast<float>(in.take())};
-    o.back = {nmbake::Distance::Kind::absolute, coordinate(in.take())};
-    if (o.back.value < 0.0f) o.back.value = -o.back.value;
+    o.rays.front = {nmbake::Distance::Kind::percent, static_cast<float>(in.take())};
+    o.rays.back = {nmbake::Distance::Kind::absolute, coordinate(in.take())};
+    if (o.rays.back.value < 0.0f) o.rays.back.value = -o.rays.back.value;
   }
   nmbake::BakeReport report;
   if (nmbake::bake(o, report).is_ok()) {

@@ -123,7 +123,7 @@ int run_map_lab(const std::string& out_dir, int size) {
           if (samples == 4 && rays != 64) continue;
           Case c{"ao", a.scene, std::to_string(rays) + " rays, " + std::to_string(samples) + " spp", "visibility",
                  a.make(), base(samples), nullptr, rays};
-          c.options.front = c.options.back = absolute(0.05f);
+          c.options.rays.front = c.options.rays.back = absolute(0.05f);
           c.options.ao_distance = absolute(a.distance);
           c.options.ao_rays = rays;
           c.score = [a, size, samples](const Image& map, const BakeReport&, const Mesh& low) {
@@ -133,7 +133,7 @@ int run_map_lab(const std::string& out_dir, int size) {
           if (a.scene != "groove" || samples != 1) continue;
           Case b{"bent-normal", a.scene, std::to_string(rays) + " rays, 1 spp", "degrees", a.make(), base(1), nullptr,
                  rays};
-          b.options.front = b.options.back = absolute(0.05f);
+          b.options.rays.front = b.options.rays.back = absolute(0.05f);
           b.options.ao_distance = absolute(a.distance);
           b.options.ao_rays = rays;
           b.score = [size](const Image& map, const BakeReport&, const Mesh& low) {
@@ -175,7 +175,7 @@ int run_map_lab(const std::string& out_dir, int size) {
     for (const std::string scene : {"slab", "sphere"}) {
       Case c{"thickness", scene, "16 rays, 4 spp", "scene units",
              scene == "slab" ? make_slab_scene() : make_displaced_sphere(sp), base(4), nullptr};
-      c.options.front = c.options.back = absolute(0.05f);
+      c.options.rays.front = c.options.rays.back = absolute(0.05f);
       c.options.thickness_distance = absolute(3.0f);
       c.score = [scene, size](const Image& map, const BakeReport&, const Mesh& low) {
         return score_map(map, 0, expected_from_low_points(low, size, size, 4, [&](const glm::dvec3& p) {
