@@ -434,8 +434,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   NMBAKE_TRY(prepare_high_scene(o, r, timer, meshes, scene));
   const RayOptions rays = resolve_bake_rays(o, meshes, scene, r, timer);
   const Prepared prepared{o, meshes.high, scene.high, rays, map_settings(o, r.low_diagonal, scene.map_mesh)};
-  r.maps = o.maps;
-  r.outputs.clear();  // each UDIM tile's files
+  detail::report_map_set(o, r);
   const std::vector<glm::vec2> file_uvs = meshes.udim ? scene.surface.uv : std::vector<glm::vec2>{};
   for (const int tile : meshes.tiles) {
     NMBAKE_TRY(bake_udim_tile(prepared, meshes, file_uvs, scene.surface, tile, r, timer, progress));

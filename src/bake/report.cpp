@@ -383,6 +383,11 @@ void report_rays(const RayOptions& rays, const DistanceEstimate& estimate, bool 
   r.unused_high_parts = groups.unused_high_parts;
 }
 
+void report_map_set(const BakeOptions& o, BakeReport& r) {
+  r.maps = o.maps;
+  r.outputs.clear();
+}
+
 void report_raster_band(const RasterStats& band, BakeReport& r) {
   r.raster.covered_texels += band.covered_texels;
   r.raster.border_samples += band.border_samples;

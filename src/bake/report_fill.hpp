@@ -32,6 +32,8 @@ void report_scene(const HighScene& scene, BakeReport& r);
 // The resolved rays, the estimate when `estimated`, and each group's distances.
 void report_rays(const RayOptions& rays, const DistanceEstimate& estimate, bool estimated,
                  const BakeGroups& groups, BakeReport& r);
+// The map set about to be baked; the outputs then listed UDIM tile by tile.
+void report_map_set(const BakeOptions& o, BakeReport& r);
 // One band's raster counts added (degenerate UV triangles: the same in every band).
 void report_raster_band(const RasterStats& band, BakeReport& r);
 // A tile of rows written to `tile_path` instead of the outputs.
