@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "base/strings.hpp"
 #include "nmbake/job.hpp"
 #include "test_util.hpp"
 
@@ -42,24 +43,7 @@ std::vector<std::string> split(const std::string& text, char separator) {
   return parts;
 }
 
-// A TOML basic string holding `text` exactly.
-std::string toml_string(const std::string& text) {
-  std::string out = "\"";
-  for (const char c : text) {
-    const auto byte = static_cast<unsigned char>(c);
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += c;
-    } else if (byte < 0x20 || byte == 0x7f) {
-      char escape[8];
-      std::snprintf(escape, sizeof escape, "\\u%04x", byte);
-      out += escape;
-    } else {
-      out += c;
-    }
-  }
-  return out + '"';
-}
+std::string toml_string(const std::string& text) { return nmbake::detail::quoted_string(text); }
 
 // One triangle with UVs: plan hashes the meshes, it does not bake them.
 void write_meshes(const test::TempDir& dir) {

@@ -11,6 +11,7 @@
 
 #include <unistd.h>
 
+#include "base/strings.hpp"
 #include "commands.hpp"
 #include "nmbake/bake.hpp"
 #include "nmbake/cache.hpp"
@@ -144,35 +145,15 @@ void print_outcomes(const std::vector<JobOutcome>& outcomes) {
   }
 }
 
-// A JSON string: quotes, backslashes and control bytes escaped (any other
-// byte as it is: the names and paths come from the job file).
-std::string json_string(const std::string& text) {
-  std::string out = "\"";
-  for (const char c : text) {
-    const auto byte = static_cast<unsigned char>(c);
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += c;
-    } else if (byte < 0x20 || byte == 0x7f) {
-      char escaped[8];
-      std::snprintf(escaped, sizeof escaped, "\\u%04x", byte);
-      out += escaped;
-    } else {
-      out += c;
-    }
-  }
-  return out + "\"";
-}
-
 std::string outcomes_json(const std::vector<JobOutcome>& outcomes) {
   std::string out = "{\n  \"bakes\": [";
   for (std::size_t i = 0; i < outcomes.size(); ++i) {
     const JobOutcome& o = outcomes[i];
     out += i == 0 ? "\n" : ",\n";
-    out += "    {\"name\": " + json_string(o.name) + ", \"status\": \"" + state_name(o.state) + "\"";
-    if (o.state == JobOutcome::State::failed) out += ", \"error\": " + json_string(o.message);
+    out += "    {\"name\": " + detail::quoted_string(o.name) + ", \"status\": \"" + state_name(o.state) + "\"";
+    if (o.state == JobOutcome::State::failed) out += ", \"error\": " + detail::quoted_string(o.message);
     out += ", \"outputs\": [";
-    for (std::size_t k = 0; k < o.outputs.size(); ++k) out += (k == 0 ? "" : ", ") + json_string(o.outputs[k]);
+    for (std::size_t k = 0; k < o.outputs.size(); ++k) out += (k == 0 ? "" : ", ") + detail::quoted_string(o.outputs[k]);
     out += "]}";
   }
   return out + "\n  ]\n}\n";
