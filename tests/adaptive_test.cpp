@@ -4,11 +4,10 @@
 #include "nmbake/adaptive.hpp"
 
 #include <gtest/gtest.h>
-
-#include <filesystem>
 #include <tbb/global_control.h>
 
 #include <algorithm>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 

@@ -7,10 +7,10 @@
 
 #include <cstdio>
 
+#include "lab_scenes.hpp"
 #include "nmbake/bake.hpp"
 #include "nmbake/load.hpp"
 #include "nmbake/preview.hpp"
-#include "lab_scenes.hpp"
 #include "scenes.hpp"
 #include "test_util.hpp"
 
@@ -49,11 +49,12 @@ TEST(Appearance, LowEqualsHighScoresZero) {
   EXPECT_GT(samples.sample_count(), 20000u);
   EXPECT_EQ(samples.high_missed, 0u);
   EXPECT_EQ(samples.depth_rejected, 0u);
-  const AppearanceError flat = appearance_error(samples, surface, flat_map(64), NormalSpace::tangent, GreenChannel::up);
+  const AppearanceError flat =
+      appearance_error(samples, surface, flat_map(64), NormalSpace::tangent, GreenChannel::up);
   const AppearanceError bare = appearance_without_map(samples, surface);
   const AppearanceError floor = appearance_floor(samples);
-  std::printf("low = high: flat map %s\n             no map %s\n             floor %s\n", flat.to_text().c_str(),
-              bare.to_text().c_str(), floor.to_text().c_str());
+  std::printf("low = high: flat map %s\n             no map %s\n             floor %s\n",
+              flat.to_text().c_str(), bare.to_text().c_str(), floor.to_text().c_str());
   EXPECT_EQ(flat.decode_fallbacks, 0u);
   EXPECT_LT(flat.mean, 1e-3);
   EXPECT_LT(flat.max, 0.01);
@@ -93,14 +94,17 @@ TEST(Appearance, FlippedGreenIsMuchWorseThanTheRightMap) {
   BoxBake b;
   bake_box(b);
   AppearanceSamples samples;
-  ASSERT_TRUE(render_appearance(b.surface, b.high, b.map.width, b.map.height, small_views(), samples).is_ok());
-  const AppearanceError right = appearance_error(samples, b.surface, b.map, NormalSpace::tangent, GreenChannel::up);
+  ASSERT_TRUE(
+      render_appearance(b.surface, b.high, b.map.width, b.map.height, small_views(), samples).is_ok());
+  const AppearanceError right =
+      appearance_error(samples, b.surface, b.map, NormalSpace::tangent, GreenChannel::up);
   const AppearanceError flipped =
       appearance_error(samples, b.surface, b.map, NormalSpace::tangent, GreenChannel::down);
   const AppearanceError bare = appearance_without_map(samples, b.surface);
   const AppearanceError floor = appearance_floor(samples);
   std::printf("box: right %s\n     green flipped %s\n     no map %s\n     floor %s\n",
-              right.to_text().c_str(), flipped.to_text().c_str(), bare.to_text().c_str(), floor.to_text().c_str());
+              right.to_text().c_str(), flipped.to_text().c_str(), bare.to_text().c_str(),
+              floor.to_text().c_str());
   EXPECT_GT(flipped.mean, 5.0 * right.mean);
   EXPECT_GT(bare.mean, 3.0 * right.mean);
   EXPECT_LT(right.mean, 1.3 * floor.mean);
@@ -111,7 +115,8 @@ TEST(Appearance, SameFiguresForAnyThreadCount) {
   bake_box(b);
   AppearanceError e[2];
   for (int threads : {1, 2}) {
-    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                              static_cast<std::size_t>(threads));
     AppearanceSamples samples;
     ASSERT_TRUE(render_appearance(b.surface, b.high, 128, 128, small_views(), samples).is_ok());
     e[threads - 1] = appearance_error(samples, b.surface, b.map, NormalSpace::tangent, GreenChannel::up);

@@ -1,16 +1,16 @@
 // End-to-end bakes of analytic scenes, scored against the true normal, plus
 // determinism and the bad-input contract of the CLI.
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <glm/geometric.hpp>
 #include <iterator>
 
-#include <gtest/gtest.h>
-#include <glm/geometric.hpp>
-#include <tbb/global_control.h>
-
-#include "nmbake/bake.hpp"
 #include "lab_scenes.hpp"
+#include "nmbake/bake.hpp"
 #include "scenes.hpp"
 #include "score.hpp"
 #include "test_util.hpp"
@@ -101,7 +101,8 @@ TEST(EndToEnd, BandsDoNotChangeTheMap) {
   test::TempDir dir;
   scenes::SphereParams params;
   params.high_cells = 48;
-  BakeOptions o = save_scene(dir, scenes::make_displaced_sphere(params), 200);  // not a multiple of the band height
+  BakeOptions o =
+      save_scene(dir, scenes::make_displaced_sphere(params), 200);  // not a multiple of the band height
   o.outputs = {{dir.file("one.exr"), PixelFormat::exr_float}};
   BakeReport one, many;
   ASSERT_TRUE(bake(o, one).is_ok());
@@ -164,7 +165,8 @@ TEST(EndToEnd, CompactBvhGivesTheSameMap) {
   ASSERT_TRUE(read_image(dir.file("compact.exr"), c).is_ok());
   ASSERT_EQ(a.pixels.size(), c.pixels.size());
   float worst = 0.0f;
-  for (std::size_t i = 0; i < a.pixels.size(); ++i) worst = std::max(worst, std::fabs(a.pixels[i] - c.pixels[i]));
+  for (std::size_t i = 0; i < a.pixels.size(); ++i)
+    worst = std::max(worst, std::fabs(a.pixels[i] - c.pixels[i]));
   EXPECT_LT(worst, 1e-4f);
   EXPECT_NEAR(static_cast<double>(fast.trace.hits), static_cast<double>(compact.trace.hits),
               1e-4 * static_cast<double>(fast.trace.rays));
@@ -232,28 +234,31 @@ TEST_F(CliBake, PngAndExrNeedNoImageModuleAndTiffWithoutItFailsUpFront) {
 }
 
 TEST_F(CliBake, PngAndExrAgreeTo16Bits) {
-  const auto r = bake("--low " + low() + " --high " + high() + " --size 64 -q -o " + dir.file("m.png") + " -o " +
-                      dir.file("m.exr") + " --report " + dir.file("r.json"));
+  const auto r = bake("--low " + low() + " --high " + high() + " --size 64 -q -o " + dir.file("m.png") +
+                      " -o " + dir.file("m.exr") + " --report " + dir.file("r.json"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   Image png, exr;
   ASSERT_TRUE(read_image(dir.file("m.png"), png).is_ok());
   ASSERT_TRUE(read_image(dir.file("m.exr"), exr).is_ok());
   ASSERT_EQ(png.pixels.size(), exr.pixels.size());
   float worst = 0.0f;
-  for (std::size_t i = 0; i < png.pixels.size(); ++i) worst = std::max(worst, std::fabs(png.pixels[i] - exr.pixels[i]));
+  for (std::size_t i = 0; i < png.pixels.size(); ++i)
+    worst = std::max(worst, std::fabs(png.pixels[i] - exr.pixels[i]));
   EXPECT_LE(worst, 0.5f / 65535.0f + 1e-7f);
   EXPECT_EQ(count_non_finite(exr), 0u);
   const std::string json = read_bytes(dir.file("r.json"));
-  for (const char* key : {"\"misses\"", "\"rays\"", "\"seconds\"", "\"peak_rss_bytes\"", "\"tangent_fallbacks\""}) {
+  for (const char* key :
+       {"\"misses\"", "\"rays\"", "\"seconds\"", "\"peak_rss_bytes\"", "\"tangent_fallbacks\""}) {
     EXPECT_NE(json.find(key), std::string::npos) << key;
   }
 }
 
 TEST_F(CliBake, JobFileBakesEveryEntry) {
-  test::write_text(dir.file("job.toml"), "[defaults]\nsize = 32\nsamples = 1\n"
-                                         "[[bake]]\nlow = \"low.obj\"\nhigh = \"high.obj\"\noutputs = [\"j1.png\"]\n"
-                                         "[[bake]]\nlow = \"low.obj\"\nhigh = \"high.obj\"\noutputs = [\"j2.exr\"]\n"
-                                         "space = \"object\"\nreport = \"j2.json\"\n");
+  test::write_text(dir.file("job.toml"),
+                   "[defaults]\nsize = 32\nsamples = 1\n"
+                   "[[bake]]\nlow = \"low.obj\"\nhigh = \"high.obj\"\noutputs = [\"j1.png\"]\n"
+                   "[[bake]]\nlow = \"low.obj\"\nhigh = \"high.obj\"\noutputs = [\"j2.exr\"]\n"
+                   "space = \"object\"\nreport = \"j2.json\"\n");
   const auto r = bake(dir.file("job.toml"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(std::filesystem::exists(dir.file("j1.png")));
@@ -297,7 +302,8 @@ TEST_F(CliBake, BadInputsExitTwoAndWriteNothing) {
       {"--low " + low() + " --high " + high() + " --front -1" + out, "front"},
       {"--low " + low() + " --high " + high() + " -o " + dir.file("no/such/folder/m.png"), "folder"},
       {"--low " + low() + " --high " + high() + " -o " + dir.file("m.bmp"), "extension"},
-      {"--low " + low() + " --high " + high() + " --cage " + dir.file("truncated.obj") + out, "truncated.obj"},
+      {"--low " + low() + " --high " + high() + " --cage " + dir.file("truncated.obj") + out,
+       "truncated.obj"},
   };
   for (const Case& c : cases) {
     const auto r = bake(c.args);
@@ -310,19 +316,22 @@ TEST_F(CliBake, BadInputsExitTwoAndWriteNothing) {
   }
   // A low mesh without UVs is no longer an error: it is unwrapped, and the
   // unwrapped mesh is written beside the map.
-  const auto r = bake("--low " + dir.file("nouv.obj") + " --high " + high() + " --size 64 -o " + dir.file("nouv_map.png"));
+  const auto r = bake("--low " + dir.file("nouv.obj") + " --high " + high() + " --size 64 -o " +
+                      dir.file("nouv_map.png"));
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(std::filesystem::exists(dir.file("nouv_map.png")));
   Mesh unwrapped;
   LoadStats load_stats;
-  ASSERT_TRUE(load_mesh(dir.file("nouv_map_low_uv.obj"), LoadOptions{}, unwrapped, load_stats).is_ok()) << r.output;
+  ASSERT_TRUE(load_mesh(dir.file("nouv_map_low_uv.obj"), LoadOptions{}, unwrapped, load_stats).is_ok())
+      << r.output;
   EXPECT_EQ(unwrapped.triangle_count(), 1u);
   EXPECT_TRUE(unwrapped.has_uvs());
 }
 
 TEST_F(CliBake, CageMeshWithOtherTopologyIsRejected) {
   test::write_text(dir.file("cage.obj"), "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n");
-  const auto r = bake("--low " + low() + " --high " + high() + " --cage " + dir.file("cage.obj") + " -o " + dir.file("m.png"));
+  const auto r = bake("--low " + low() + " --high " + high() + " --cage " + dir.file("cage.obj") + " -o " +
+                      dir.file("m.png"));
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("topology"), std::string::npos) << r.output;
 }

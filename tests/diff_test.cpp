@@ -1,15 +1,16 @@
 // `nmbake diff`: statistics on constructed maps with known angles, formats of
 // different precision, masks, the green flip, the heat map and the exit codes.
-#include <cmath>
-#include <fstream>
-#include <iterator>
+#include "nmbake/diff.hpp"
 
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
+#include <iterator>
 
 #include "nmbake/bake.hpp"
-#include "nmbake/diff.hpp"
 #include "scenes.hpp"
 #include "test_util.hpp"
 
@@ -133,7 +134,8 @@ TEST(Diff, PngAndExrOfOneBakeAgree) {
   std::printf("exr vs png16: %s\n", s.summary_line().c_str());
   EXPECT_LT(s.max, 0.01);
   EXPECT_EQ(s.changed_texels, 0u);  // the float map rounded to 16 bits is the PNG
-  ASSERT_TRUE(diff_files(dir.file("map.png"), dir.file("map_half.exr"), "", DiffOptions{}, s, nullptr).is_ok());
+  ASSERT_TRUE(
+      diff_files(dir.file("map.png"), dir.file("map_half.exr"), "", DiffOptions{}, s, nullptr).is_ok());
   std::printf("png16 vs exr-half: %s\n", s.summary_line().c_str());
   EXPECT_LT(s.max, 0.1);
   EXPECT_EQ(s.quantisation, Quantisation::half);
@@ -172,7 +174,8 @@ TEST(Diff, MaskSelectsTexels) {
 
 TEST(Diff, GreenFlipOfTheSecondMap) {
   const Image a = make_map(0.0f);
-  const Image b = make_map(0.0f, [](int, int) { return false; }, true);
+  const Image b = make_map(
+      0.0f, [](int, int) { return false; }, true);
   DiffStats s;
   ASSERT_TRUE(diff_images(a, b, nullptr, DiffOptions{}, s, nullptr).is_ok());
   EXPECT_GT(s.mean, 10.0);
@@ -231,8 +234,8 @@ TEST(Diff, CommandExitCodes) {
   ASSERT_TRUE(write_image(small, dir.file("small.png"), PixelFormat::png16).is_ok());
   const std::string cli = test::cli_path() + " diff " + dir.file("a.png") + " " + dir.file("b.exr");
 
-  test::CommandResult r = test::run_command(cli + " --max-mean 2.1 --max-p99 2.1 --json " + dir.file("d.json") +
-                                            " --heatmap " + dir.file("heat.png"));
+  test::CommandResult r = test::run_command(cli + " --max-mean 2.1 --max-p99 2.1 --json " +
+                                            dir.file("d.json") + " --heatmap " + dir.file("heat.png"));
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("mean 2.00"), std::string::npos) << r.output;
   EXPECT_NE(read_bytes(dir.file("d.json")).find("\"mean_deg\""), std::string::npos);

@@ -1,14 +1,14 @@
-#include <algorithm>
-#include <cmath>
+#include "nmbake/encode.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
-#include <iostream>
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
+#include <iostream>
 
-#include "nmbake/encode.hpp"
 #include "nmbake/surface.hpp"
 
 namespace nmbake {
@@ -55,7 +55,8 @@ TEST(Encode, InverseRoundTripsThroughDecodeOnSkewedFrames) {
 
 TEST(Encode, SingularFrameFallsBackWithoutNaN) {
   glm::vec3 t;
-  EXPECT_FALSE(world_to_tangent({0, 0, 1}, {0, 0, 1}, {0, 0, 1}, 1.0f, TangentEncode::inverse, t));  // T parallel N
+  EXPECT_FALSE(
+      world_to_tangent({0, 0, 1}, {0, 0, 1}, {0, 0, 1}, 1.0f, TangentEncode::inverse, t));  // T parallel N
   EXPECT_TRUE(std::isfinite(t.x) && std::isfinite(t.y) && std::isfinite(t.z));
   EXPECT_NEAR(glm::length(t), 1.0f, 1e-5f);
   EXPECT_FALSE(world_to_tangent({0, 0, 1}, {0, 0, 0}, {0, 0, 0}, 1.0f, TangentEncode::inverse, t));
@@ -177,7 +178,8 @@ TEST(Encode, FourLanePathMatchesThePerSampleReference) {
       surface.normal.push_back({0.3f * (rnd() - 0.5f), 0.3f * (rnd() - 0.5f), 0.5f + rnd()});
       surface.cage_normal.push_back(surface.normal.back());
       // Skewed, unnormalised tangents; triangles 2 and 5 mirrored.
-      surface.tangent.push_back({0.5f + rnd(), rnd() - 0.5f, rnd() - 0.5f, (t == 2 || t == 5) ? -1.0f : 1.0f});
+      surface.tangent.push_back(
+          {0.5f + rnd(), rnd() - 0.5f, rnd() - 0.5f, (t == 2 || t == 5) ? -1.0f : 1.0f});
     }
   }
   // Triangle 3: the tangent parallel to the normal (a singular frame).
@@ -189,7 +191,8 @@ TEST(Encode, FourLanePathMatchesThePerSampleReference) {
     high.normals.push_back(glm::normalize(glm::vec3(rnd() - 0.5f, rnd() - 0.5f, 1.0f)));
   }
   high.normals[4] = -high.normals[5];  // triangle 1 (vertices 3, 4, 5): zero normal halfway from 4 to 5
-  for (std::uint32_t t = 0; t < 10; ++t) high.indices.insert(high.indices.end(), {3 * t, 3 * t + 1, 3 * t + 2});
+  for (std::uint32_t t = 0; t < 10; ++t)
+    high.indices.insert(high.indices.end(), {3 * t, 3 * t + 1, 3 * t + 2});
 
   for (int spp : {1, 4, 16}) {
     SCOPED_TRACE("spp " + std::to_string(spp));
@@ -201,18 +204,20 @@ TEST(Encode, FourLanePathMatchesThePerSampleReference) {
     const std::size_t count = static_cast<std::size_t>(samples.width) * samples.height * spp;
     for (std::size_t s = 0; s < count; ++s) {
       const float r = rnd();
-      const bool same_as_last = s % spp != 0 && samples.triangle.back() >= 0 && rnd() < 0.8f;  // as rasters do
+      const bool same_as_last =
+          s % spp != 0 && samples.triangle.back() >= 0 && rnd() < 0.8f;  // as rasters do
       if (same_as_last) {
         samples.triangle.push_back(samples.triangle.back());
       } else {
-        samples.triangle.push_back(r < 0.05f ? -1 : static_cast<std::int32_t>(rnd() * low_triangles) % low_triangles);
+        samples.triangle.push_back(
+            r < 0.05f ? -1 : static_cast<std::int32_t>(rnd() * low_triangles) % low_triangles);
       }
       const float bu = rnd(), bv = rnd() * (1.0f - bu);
       samples.bary.push_back({bu, bv});
       const float m = rnd();
       hits.triangle.push_back(m < 0.08f ? -1 : static_cast<std::int32_t>(rnd() * 10) % 10);
       hits.bary.push_back(hits.triangle.back() == 1 && m < 0.3f ? glm::vec2(0.5f, 0.5f)
-                                                                 : glm::vec2(rnd() * 0.5f, rnd() * 0.5f));
+                                                                : glm::vec2(rnd() * 0.5f, rnd() * 0.5f));
       hits.distance.push_back(0.0f);
     }
     samples.coverage.assign(static_cast<std::size_t>(samples.width) * samples.height, 0);
@@ -221,10 +226,11 @@ TEST(Encode, FourLanePathMatchesThePerSampleReference) {
 
     // Every engine decode (preset.hpp) in lanes: the bytes and counts of the
     // per-sample path (which the reference below checks for the default).
-    for (const NormalDecode decode : {NormalDecode{Bitangent::vertex, false, false},
-                                      NormalDecode{Bitangent::pixel, true, false},
-                                      NormalDecode{Bitangent::vertex, true, true}}) {
-      SCOPED_TRACE(std::string("decode ") + to_string(decode.bitangent) + (decode.unit_frame ? " unit" : " raw"));
+    for (const NormalDecode decode :
+         {NormalDecode{Bitangent::vertex, false, false}, NormalDecode{Bitangent::pixel, true, false},
+          NormalDecode{Bitangent::vertex, true, true}}) {
+      SCOPED_TRACE(std::string("decode ") + to_string(decode.bitangent) +
+                   (decode.unit_frame ? " unit" : " raw"));
       EncodeOptions options;
       options.decode = decode;
       Image reference;
@@ -237,7 +243,8 @@ TEST(Encode, FourLanePathMatchesThePerSampleReference) {
         EncodeStats lane_stats;
         detail::encode_in_lanes(surface, samples, high, hits, options, in_lanes, lane_stats, lanes);
         ASSERT_EQ(in_lanes.pixels.size(), reference.pixels.size());
-        EXPECT_EQ(0, std::memcmp(in_lanes.pixels.data(), reference.pixels.data(), in_lanes.pixels.size() * sizeof(float)))
+        EXPECT_EQ(0, std::memcmp(in_lanes.pixels.data(), reference.pixels.data(),
+                                 in_lanes.pixels.size() * sizeof(float)))
             << lanes << " lanes";
         EXPECT_EQ(lane_stats.singular_frames, reference_stats.singular_frames);
         EXPECT_EQ(lane_stats.zero_high_normals, reference_stats.zero_high_normals);
@@ -280,11 +287,13 @@ TEST(Encode, FourLanePathMatchesThePerSampleReference) {
       detail::encode_in_lanes(surface, samples, high, hits, EncodeOptions{}, in_lanes, lane_stats, lanes);
       detail::encode_in_lanes(surface, samples, high, hits, EncodeOptions{}, reference, reference_stats, 1);
       ASSERT_EQ(in_lanes.pixels.size(), reference.pixels.size());
-      EXPECT_EQ(0, std::memcmp(in_lanes.pixels.data(), reference.pixels.data(), in_lanes.pixels.size() * sizeof(float)));
+      EXPECT_EQ(0, std::memcmp(in_lanes.pixels.data(), reference.pixels.data(),
+                               in_lanes.pixels.size() * sizeof(float)));
       EXPECT_EQ(lane_stats.singular_frames, reference_stats.singular_frames);
       EXPECT_EQ(lane_stats.zero_high_normals, reference_stats.zero_high_normals);
       if (lanes == 8) {
-        EXPECT_EQ(0, std::memcmp(image.pixels.data(), in_lanes.pixels.data(), image.pixels.size() * sizeof(float)));
+        EXPECT_EQ(
+            0, std::memcmp(image.pixels.data(), in_lanes.pixels.data(), image.pixels.size() * sizeof(float)));
       }
     }
 
@@ -312,16 +321,20 @@ TEST(Encode, FourLanePathMatchesThePerSampleReference) {
             n = glm::normalize(glm::cross(high.positions[v[1]] - high.positions[v[0]],
                                           high.positions[v[2]] - high.positions[v[0]]));
           }
-          const glm::vec3 N = lerp(surface.normal[base], surface.normal[base + 1], surface.normal[base + 2], samples.bary[s]);
-          const glm::vec4 T = lerp(surface.tangent[base], surface.tangent[base + 1], surface.tangent[base + 2], samples.bary[s]);
+          const glm::vec3 N =
+              lerp(surface.normal[base], surface.normal[base + 1], surface.normal[base + 2], samples.bary[s]);
+          const glm::vec4 T = lerp(surface.tangent[base], surface.tangent[base + 1],
+                                   surface.tangent[base + 2], samples.bary[s]);
           glm::vec3 t;
-          if (!world_to_tangent(n, glm::vec3(T), N, T.w < 0.0f ? -1.0f : 1.0f, TangentEncode::inverse, t)) ++singular;
+          if (!world_to_tangent(n, glm::vec3(T), N, T.w < 0.0f ? -1.0f : 1.0f, TangentEncode::inverse, t))
+            ++singular;
           sum += t;
         }
         expected = glm::normalize(sum);
       }
       const float* p = &image.pixels[texel * 3];
-      for (int c = 0; c < 3; ++c) ASSERT_NEAR(p[c], 0.5f * expected[c] + 0.5f, 2e-6f) << "texel " << texel << " channel " << c;
+      for (int c = 0; c < 3; ++c)
+        ASSERT_NEAR(p[c], 0.5f * expected[c] + 0.5f, 2e-6f) << "texel " << texel << " channel " << c;
     }
     EXPECT_EQ(stats.singular_frames, singular);
     EXPECT_EQ(stats.zero_high_normals, zero_high);

@@ -2,19 +2,20 @@
 // clamp), the cube-sphere atlas layout against nmbake-gen's cube sphere, the
 // cube-sphere normals against the analytic displaced sphere, and a
 // tangent-space cube-sphere map against a real bake of the same sphere.
+#include "nmbake/height2normal.hpp"
+
+#include <gtest/gtest.h>
+
 #include <chrono>
 #include <cmath>
 #include <fstream>
+#include <glm/geometric.hpp>
+#include <glm/trigonometric.hpp>
 #include <iterator>
 #include <numbers>
 
-#include <gtest/gtest.h>
-#include <glm/geometric.hpp>
-#include <glm/trigonometric.hpp>
-
 #include "nmbake/bake.hpp"
 #include "nmbake/diff.hpp"
-#include "nmbake/height2normal.hpp"
 #include "scenes.hpp"
 #include "test_util.hpp"
 
@@ -26,7 +27,9 @@ std::string read_bytes(const std::string& path) {
   return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
 
-glm::dvec3 decode(const float* rgb) { return glm::normalize(glm::dvec3(2.0 * rgb[0] - 1.0, 2.0 * rgb[1] - 1.0, 2.0 * rgb[2] - 1.0)); }
+glm::dvec3 decode(const float* rgb) {
+  return glm::normalize(glm::dvec3(2.0 * rgb[0] - 1.0, 2.0 * rgb[1] - 1.0, 2.0 * rgb[2] - 1.0));
+}
 
 double angle_degrees(const glm::dvec3& a, const glm::dvec3& b) {
   return glm::degrees(std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b)));
@@ -38,11 +41,13 @@ struct Analytic {
   double amplitude, fx, fy, phase;
   int width, height;
   double h(int x, int y) const {
-    const double a = 2.0 * std::numbers::pi * fx * (x + 0.5) / width + phase, b = 2.0 * std::numbers::pi * fy * (y + 0.5) / height;
+    const double a = 2.0 * std::numbers::pi * fx * (x + 0.5) / width + phase,
+                 b = 2.0 * std::numbers::pi * fy * (y + 0.5) / height;
     return amplitude * std::sin(a) * std::cos(b);
   }
   glm::dvec3 normal(int x, int y, double strength) const {
-    const double a = 2.0 * std::numbers::pi * fx * (x + 0.5) / width + phase, b = 2.0 * std::numbers::pi * fy * (y + 0.5) / height;
+    const double a = 2.0 * std::numbers::pi * fx * (x + 0.5) / width + phase,
+                 b = 2.0 * std::numbers::pi * fy * (y + 0.5) / height;
     const double dh_dx = amplitude * std::cos(a) * std::cos(b) * 2.0 * std::numbers::pi * fx / width;
     const double dh_drow = -amplitude * std::sin(a) * std::sin(b) * 2.0 * std::numbers::pi * fy / height;
     return glm::normalize(glm::dvec3(-strength * dh_dx, -strength * -dh_drow, 1.0));
@@ -127,7 +132,8 @@ TEST(Height2Normal, CommandWritesTheSameMapEveryTime) {
   test::TempDir dir;
   const Analytic f{8.0, 1.0, 1.0, 0.3, 128, 96};
   ASSERT_TRUE(write_image(f.image(), dir.file("h.exr"), PixelFormat::exr_float).is_ok());
-  const std::string cmd = test::cli_path() + " height2normal " + dir.file("h.exr") + " --strength 1.5 --border wrap -o ";
+  const std::string cmd =
+      test::cli_path() + " height2normal " + dir.file("h.exr") + " --strength 1.5 --border wrap -o ";
   test::CommandResult r = test::run_command(cmd + dir.file("n1.exr"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   r = test::run_command(cmd + dir.file("n2.exr") + " --threads 1");
@@ -137,25 +143,28 @@ TEST(Height2Normal, CommandWritesTheSameMapEveryTime) {
   ASSERT_TRUE(read_image(dir.file("n1.exr"), map).is_ok());
   EXPECT_LT(max_error(map, f, 1.5, 0), 0.1);
 
-  r = test::run_command(test::cli_path() + " height2normal " + dir.file("missing.exr") + " -o " + dir.file("n.png"));
+  r = test::run_command(test::cli_path() + " height2normal " + dir.file("missing.exr") + " -o " +
+                        dir.file("n.png"));
   EXPECT_EQ(r.exit_code, 2) << r.output;
   r = test::run_command(cmd + dir.file("n.png") + " --border mirror");
   EXPECT_EQ(r.exit_code, 2) << r.output;
-  r = test::run_command(test::cli_path() + " height2normal " + dir.file("h.exr") + " --cube-sphere --space tangent -o " +
-                        dir.file("n.png"));
+  r = test::run_command(test::cli_path() + " height2normal " + dir.file("h.exr") +
+                        " --cube-sphere --space tangent -o " + dir.file("n.png"));
   EXPECT_EQ(r.exit_code, 2) << r.output;  // tangent space needs --low
 }
 
 // The atlas layout is the one of nmbake-gen's cube spheres: every low vertex
 // lies in the direction cube_atlas_point gives for its UV.
 TEST(Height2Normal, CubeAtlasLayoutMatchesGenerator) {
-  const Mesh low = scenes::make_cube_sphere(4, [](const glm::vec3&) { return 2.0f; }, true, scenes::sphere_uv_gutter);
+  const Mesh low = scenes::make_cube_sphere(
+      4, [](const glm::vec3&) { return 2.0f; }, true, scenes::sphere_uv_gutter);
   ASSERT_EQ(kCubeAtlasGutter, scenes::sphere_uv_gutter);
   for (std::size_t i = 0; i < low.vertex_count(); ++i) {
     const CubeTexel c = cube_atlas_point(low.uvs[i].x, low.uvs[i].y, kCubeAtlasGutter);
     ASSERT_LE(std::fabs(c.s), 1.0 + 1e-5);
     ASSERT_LE(std::fabs(c.t), 1.0 + 1e-5);
-    ASSERT_LT(glm::length(cube_direction(c.face, c.s, c.t) - low.positions[i] / 2.0f), 1e-5f) << "vertex " << i;
+    ASSERT_LT(glm::length(cube_direction(c.face, c.s, c.t) - low.positions[i] / 2.0f), 1e-5f)
+        << "vertex " << i;
   }
 }
 
@@ -182,8 +191,9 @@ TEST(Height2Normal, CubeSphereObjectSpaceMatchesAnalyticSphere) {
   CubeSphereOptions options;
   HeightToNormalStats stats;
   Image map;
-  ASSERT_TRUE(cube_sphere_height_to_normal(sphere_atlas(p, width, height, options.uv_gutter), options, nullptr, map,
-                                           stats).is_ok());
+  ASSERT_TRUE(cube_sphere_height_to_normal(sphere_atlas(p, width, height, options.uv_gutter), options,
+                                           nullptr, map, stats)
+                  .is_ok());
   // The same heights with the warp's Jacobian applied to the flat normal
   // instead of to the tangents: the article's warning, measured.
   double worst = 0.0, sum = 0.0, worst_radial = 0.0;
@@ -201,8 +211,10 @@ TEST(Height2Normal, CubeSphereObjectSpaceMatchesAnalyticSphere) {
       ++count;
     }
   }
-  std::printf("cube sphere object space vs analytic: mean %.4f deg, max %.4f deg (the relief tilts normals up to %.2f deg)\n",
-              sum / count, worst, worst_radial);
+  std::printf(
+      "cube sphere object space vs analytic: mean %.4f deg, max %.4f deg (the relief tilts normals up to "
+      "%.2f deg)\n",
+      sum / count, worst, worst_radial);
   EXPECT_LT(sum / count, 0.05);
   EXPECT_LT(worst, 0.5);
   EXPECT_GT(worst_radial, 5.0);  // the relief is there to be found
@@ -232,8 +244,9 @@ TEST(Height2Normal, CubeSphereObjectSpaceMatchesAnalyticSphere) {
     for (int x = 1; x < atlas.width - 1; ++x) {
       const CubeTexel c = cube_atlas_texel(x, y, atlas.width, atlas.height, 0.0f);
       if (std::fabs(c.s) > 1.0 - 2.0 / n || std::fabs(c.t) > 1.0 - 2.0 / n) continue;  // one-sided rows
-      worst = std::max(worst, angle_degrees(decode(face_map.at(x, y)),
-                                            glm::dvec3(scenes::sphere_normal(p, cube_direction(c.face, c.s, c.t)))));
+      worst = std::max(worst,
+                       angle_degrees(decode(face_map.at(x, y)),
+                                     glm::dvec3(scenes::sphere_normal(p, cube_direction(c.face, c.s, c.t)))));
     }
   }
   EXPECT_LT(worst, 0.5);
@@ -311,15 +324,18 @@ TEST(Height2Normal, CubeSphereTangentSpaceMatchesBake) {
   EXPECT_EQ(read_bytes(dir.file("h2n.exr")), read_bytes(dir.file("h2n_again.exr")));
 
   DiffStats s;
-  ASSERT_TRUE(diff_files(dir.file("bake.exr"), dir.file("h2n.exr"), dir.file("mask.png"), DiffOptions{}, s, nullptr).is_ok());
-  std::printf("cube sphere %dx%d, bake (x4, %llu high triangles, %.2f s) vs height2normal (CLI, %.2f s): %s\n", width,
-              height, static_cast<unsigned long long>(report.high_triangles), bake_seconds, h2n_seconds,
-              s.summary_line().c_str());
+  ASSERT_TRUE(
+      diff_files(dir.file("bake.exr"), dir.file("h2n.exr"), dir.file("mask.png"), DiffOptions{}, s, nullptr)
+          .is_ok());
+  std::printf(
+      "cube sphere %dx%d, bake (x4, %llu high triangles, %.2f s) vs height2normal (CLI, %.2f s): %s\n", width,
+      height, static_cast<unsigned long long>(report.high_triangles), bake_seconds, h2n_seconds,
+      s.summary_line().c_str());
   EXPECT_LT(s.mean, 1.0);
   EXPECT_LT(s.p99, 3.0);
   // The gate through the CLI.
-  r = test::run_command(test::cli_path() + " diff " + dir.file("bake.exr") + " " + dir.file("h2n.exr") + " --mask " +
-                        dir.file("mask.png") + " --max-mean 1");
+  r = test::run_command(test::cli_path() + " diff " + dir.file("bake.exr") + " " + dir.file("h2n.exr") +
+                        " --mask " + dir.file("mask.png") + " --max-mean 1");
   EXPECT_EQ(r.exit_code, 0) << r.output;
 }
 

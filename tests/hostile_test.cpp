@@ -3,31 +3,30 @@
 // the reason, writes nothing, and never aborts, hangs or eats the machine.
 // The CLI cases run the built binary; memory cases run it under `ulimit -v`
 // so that the old behaviour (gigabytes, then std::bad_alloc, exit 3) fails.
+#include <gtest/gtest.h>
 #include <sys/mount.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
+#include <tbb/global_control.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstring>
 #include <csignal>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <glm/geometric.hpp>
 #include <iterator>
 #include <thread>
 #include <vector>
 
-#include <gtest/gtest.h>
-#include <glm/geometric.hpp>
-#include <tbb/global_control.h>
-
+#include "load/isolated.hpp"
 #include "nmbake/bake.hpp"
 #include "nmbake/budget.hpp"
 #include "nmbake/cleanup.hpp"
 #include "nmbake/trace.hpp"
-#include "load/isolated.hpp"
 #include "test_util.hpp"
 
 namespace nmbake {
@@ -48,7 +47,9 @@ constexpr bool kSanitized = true;
 #else
 constexpr bool kSanitized = false;
 #endif
-std::string memory_limit(int kb) { return kSanitized ? std::string() : "ulimit -v " + std::to_string(kb) + "; "; }
+std::string memory_limit(int kb) {
+  return kSanitized ? std::string() : "ulimit -v " + std::to_string(kb) + "; ";
+}
 std::string cli() { return quoted(test::cli_path()); }
 
 // A 2 x 2 plane at z = 0.01 made of 8 x 8 quads: the high mesh of every case.
@@ -83,7 +84,8 @@ struct Scene {
     write_text(high, high_plane_obj());
     write_text(low, kLowQuadObj);
   }
-  std::string bake(const std::string& low_path, const std::string& output, const std::string& extra = "") const {
+  std::string bake(const std::string& low_path, const std::string& output,
+                   const std::string& extra = "") const {
     return cli() + " bake --low " + quoted(low_path) + " --high " + quoted(high) + " -o " + quoted(output) +
            " " + extra;
   }
@@ -94,7 +96,9 @@ std::string read_bytes(const std::string& path) {
   return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
 
-bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+bool contains(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
 
 // ---------------------------------------------------------------- Embree
 
@@ -117,16 +121,20 @@ TEST(Hostile, HugeFrontDistanceIsRefused) {
   const std::string out = s.dir.file("front.png");
   test::CommandResult r = run_command(s.bake(s.low, out, "--size 64 --front 1e20"));
   EXPECT_EQ(r.exit_code, 2) << r.output;
-  EXPECT_TRUE(contains(r.output, "front distance 1e+20 is out of range: at most 1e+12 scene units")) << r.output;
+  EXPECT_TRUE(contains(r.output, "front distance 1e+20 is out of range: at most 1e+12 scene units"))
+      << r.output;
   // Within the absolute cap, but 35,000 diagonals: refused with the diagonal.
   r = run_command(s.bake(s.low, out, "--size 64 --back 1e5"));
   EXPECT_EQ(r.exit_code, 2) << r.output;
-  EXPECT_TRUE(contains(r.output, "back distance 100000 is out of range: at most 1000 times the low mesh's diagonal 2.82843"))
+  EXPECT_TRUE(contains(
+      r.output, "back distance 100000 is out of range: at most 1000 times the low mesh's diagonal 2.82843"))
       << r.output;
   EXPECT_FALSE(fs::exists(out));
 
   const std::string job = s.dir.file("job.toml");
-  write_text(job, "[[bake]]\nlow = \"low.obj\"\nhigh = \"high.obj\"\noutputs = [\"front.png\"]\nsize = 64\nfront = 1e30\n");
+  write_text(job,
+             "[[bake]]\nlow = \"low.obj\"\nhigh = \"high.obj\"\noutputs = [\"front.png\"]\nsize = 64\nfront "
+             "= 1e30\n");
   r = run_command(cli() + " bake " + quoted(job));
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_TRUE(contains(r.output, "front distance 1e+30 is out of range")) << r.output;
@@ -181,7 +189,8 @@ TEST(Hostile, RaysEmbreeWouldRefuseAreMissesNotAborts) {
 TEST(Hostile, NeedleChartDoesNotEatMemory) {
   Scene s;
   const std::string low = s.dir.file("needle.obj");
-  write_text(low, "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nv 1e6 1 0\nv 1e6 1.001 0\nf 1 2 3\nf 1 3 4\nf 3 5 6\n");
+  write_text(low,
+             "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nv 1e6 1 0\nv 1e6 1.001 0\nf 1 2 3\nf 1 3 4\nf 3 5 6\n");
   const std::string out = s.dir.file("needle.png");
   // No bound on the time it takes (that depends on the machine and its
   // load): the reason proves the chart was refused before it was
@@ -208,7 +217,9 @@ TEST(Hostile, HugeMapIsRefusedWithTheNumbers) {
   EXPECT_FALSE(fs::exists(out));
   // A job key does the same.
   const std::string job = s.dir.file("job.toml");
-  write_text(job, "[[bake]]\nlow = \"low.obj\"\nhigh = \"high.obj\"\noutputs = [\"big.png\"]\nsize = 16384\nmax_memory = \"1G\"\n");
+  write_text(job,
+             "[[bake]]\nlow = \"low.obj\"\nhigh = \"high.obj\"\noutputs = [\"big.png\"]\nsize = "
+             "16384\nmax_memory = \"1G\"\n");
   r = run_command(cli() + " bake " + quoted(job));
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_TRUE(contains(r.output, "a 16384x16384 map at 4 spp needs about")) << r.output;
@@ -225,7 +236,8 @@ TEST(Hostile, MemorySizesParse) {
   EXPECT_EQ(b, std::uint64_t{8} << 30);
   EXPECT_TRUE(parse_memory_size("1.5g", b));
   EXPECT_EQ(b, std::uint64_t{3} << 29);
-  for (const char* bad : {"", "G", "-1G", "0", "8X", "1e30T", "nan"}) EXPECT_FALSE(parse_memory_size(bad, b)) << bad;
+  for (const char* bad : {"", "G", "-1G", "0", "8X", "1e30T", "nan"})
+    EXPECT_FALSE(parse_memory_size(bad, b)) << bad;
   const MemoryLimit limit = available_memory();
   EXPECT_GT(limit.bytes, 0u);
   EXPECT_FALSE(limit.source.empty());
@@ -300,9 +312,10 @@ TEST(Hostile, AssimpCrashesCountsAndLoopsAreErrors) {
     const std::string out = s.dir.file("out.png");
     // Core files allowed where the system allows them: the child must not
     // write one (on CI a dump outlasted the 20 s deadline).
-    const std::string in_dir = "cd " + quoted(s.dir.path().string()) + " && ulimit -c unlimited 2>/dev/null; ";
-    const test::CommandResult r = run_command(in_dir + memory_limit(3000000) + cli() + " bake --low '" + s.low +
-                                              "' --high '" + mesh + "' -o '" + out + "'");
+    const std::string in_dir =
+        "cd " + quoted(s.dir.path().string()) + " && ulimit -c unlimited 2>/dev/null; ";
+    const test::CommandResult r = run_command(in_dir + memory_limit(3000000) + cli() + " bake --low '" +
+                                              s.low + "' --high '" + mesh + "' -o '" + out + "'");
     EXPECT_EQ(r.exit_code, 2) << c.input << ": " << r.output;
     EXPECT_TRUE(contains(r.output, mesh + ": ")) << r.output;
     const std::vector<const char*>& reasons = kSanitized ? c.sanitized_reasons : c.reasons;
@@ -391,13 +404,16 @@ TEST(Hostile, MalformedChildReplyIsRefusedBeforeItAllocates) {
 // claims more samples than its compression can expand to is refused too.
 TEST(Hostile, ExrHeadersAreBoundedBySideAndCompression) {
   TempDir dir;
-  const std::string input = read_bytes(test::source_dir() + "/tests/fuzz/regressions/image/exr-zip-18743296x9-28gb.bin");
+  const std::string input =
+      read_bytes(test::source_dir() + "/tests/fuzz/regressions/image/exr-zip-18743296x9-28gb.bin");
   const std::string wide = dir.file("wide.exr"), out = dir.file("out.png");
   write_text(wide, input.substr(1));  // the first byte is the harness's
   test::CommandResult r = run_command(cli() + " height2normal '" + wide + "' -o '" + out + "'");
   EXPECT_EQ(r.exit_code, 2) << r.output;
-  EXPECT_TRUE(contains(r.output, "cannot read '" + wide + "': its header says 18743296x9; nmbake reads images of at "
-                                 "most 65536 pixels a side")) << r.output;
+  EXPECT_TRUE(contains(r.output, "cannot read '" + wide +
+                                     "': its header says 18743296x9; nmbake reads images of at "
+                                     "most 65536 pixels a side"))
+      << r.output;
   EXPECT_FALSE(fs::exists(out));
 
   // A real 8x8 ZIP EXR (one chunk of 16 rows) whose data window is patched
@@ -414,7 +430,8 @@ TEST(Hostile, ExrHeadersAreBoundedBySideAndCompression) {
   const std::size_t at = bytes.find(attribute);
   ASSERT_NE(at, std::string::npos);
   const std::int32_t window[4] = {0, 0, 59999, 7};
-  bytes.replace(at + attribute.size() + 4, sizeof window, reinterpret_cast<const char*>(window), sizeof window);
+  bytes.replace(at + attribute.size() + 4, sizeof window, reinterpret_cast<const char*>(window),
+                sizeof window);
   const std::string claimed = dir.file("claimed.exr");
   write_text(claimed, bytes);
   ImageFileInfo info;
@@ -424,7 +441,8 @@ TEST(Hostile, ExrHeadersAreBoundedBySideAndCompression) {
   const Status s = read_image(claimed, read);
   EXPECT_EQ(s.code(), StatusCode::bad_input) << s.message();
   EXPECT_TRUE(contains(s.message(), "its header says 60000x8, which " + std::to_string(bytes.size()) +
-                                    " bytes of openexr cannot hold")) << s.message();
+                                        " bytes of openexr cannot hold"))
+      << s.message();
   // The unpatched file reads.
   EXPECT_TRUE(read_image(exr, read).is_ok());
   EXPECT_EQ(read.width, 8);
@@ -439,14 +457,16 @@ TEST(Hostile, ExrHeadersAreBoundedBySideAndCompression) {
   write_text(claimed, tall);
   Status t = read_image_info(claimed, info);
   EXPECT_EQ(t.code(), StatusCode::bad_input) << t.message();
-  EXPECT_TRUE(contains(t.message(), "its header says 8x65536 in 4096 chunks, whose offsets alone")) << t.message();
+  EXPECT_TRUE(contains(t.message(), "its header says 8x65536 in 4096 chunks, whose offsets alone"))
+      << t.message();
   std::string big = read_bytes(exr);
   const std::uint32_t huge_size = 0x7ffffff0u;
   big.replace(at + attribute.size(), 4, reinterpret_cast<const char*>(&huge_size), 4);
   write_text(claimed, big);
   t = read_image(claimed, read);
   EXPECT_EQ(t.code(), StatusCode::bad_input) << t.message();
-  EXPECT_TRUE(contains(t.message(), "a broken EXR header: attribute 'dataWindow' claims 2147483632 bytes")) << t.message();
+  EXPECT_TRUE(contains(t.message(), "a broken EXR header: attribute 'dataWindow' claims 2147483632 bytes"))
+      << t.message();
 }
 
 // A tile bake holds its own rows only: its memory estimate counts those.
@@ -459,9 +479,11 @@ TEST(Hostile, TileBakeBudgetCountsItsRows) {
   r = run_command(s.bake(s.low, out, "--size 16384 --max-memory 2G --tile 3/64 --tile-file '" + tile + "'"));
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(fs::exists(tile));
-  r = run_command(s.bake(s.low, out, "--size 16384 --max-memory 200M --tile 3/16 --tile-file '" + tile + "'"));
+  r = run_command(
+      s.bake(s.low, out, "--size 16384 --max-memory 200M --tile 3/16 --tile-file '" + tile + "'"));
   EXPECT_EQ(r.exit_code, 2) << r.output;
-  EXPECT_TRUE(contains(r.output, "tile 3/16 (1024 rows) of a 16384x16384 map at 4 spp needs about")) << r.output;
+  EXPECT_TRUE(contains(r.output, "tile 3/16 (1024 rows) of a 16384x16384 map at 4 spp needs about"))
+      << r.output;
 }
 
 TEST(Hostile, ImageHeadersAreCheckedBeforeThePixels) {
@@ -476,7 +498,8 @@ TEST(Hostile, ImageHeadersAreCheckedBeforeThePixels) {
                                        " diff " + quoted(image) + " " + quoted(image)}) {
       const test::CommandResult r = run_command(memory_limit(2000000) + cli() + command);
       EXPECT_EQ(r.exit_code, 2) << command << "\n" << r.output;
-      EXPECT_TRUE(contains(r.output, "cannot read '" + image + "': its header says")) << command << "\n" << r.output;
+      EXPECT_TRUE(contains(r.output, "cannot read '" + image + "': its header says")) << command << "\n"
+                                                                                      << r.output;
       EXPECT_FALSE(fs::exists(out));
     }
   }
@@ -488,7 +511,8 @@ TEST(Hostile, ImageHeadersAreCheckedBeforeThePixels) {
   // took 1.2 GB and over 10 s. The fuzzer's input (its first byte picks the
   // extension) is committed; the rest is the file. The fuzzer had named it
   // .tif: a Targa has no signature, so it is read as one only by its name.
-  std::string tga = read_bytes(test::source_dir() + "/tests/fuzz/regressions/image/targa-header-19789x15104.bin");
+  std::string tga =
+      read_bytes(test::source_dir() + "/tests/fuzz/regressions/image/targa-header-19789x15104.bin");
   ASSERT_EQ(tga.size(), 26u);
   const std::string tga_path = dir.file("header.tga");
   write_text(tga_path, tga.substr(1));
@@ -502,7 +526,8 @@ TEST(Hostile, ImageHeadersAreCheckedBeforeThePixels) {
   // Found by tests/fuzz: a 30-byte WebP claiming 12546 x 13317, which
   // OpenImageIO's WebP reader allocated (670 MB) inside open(), before the
   // header check; only the readers of the formats nmbake reads see a file now.
-  const std::string webp = read_bytes(test::source_dir() + "/tests/fuzz/regressions/image/image-webp-header-12546x13317.bin");
+  const std::string webp =
+      read_bytes(test::source_dir() + "/tests/fuzz/regressions/image/image-webp-header-12546x13317.bin");
   for (const char* name : {"webp.png", "webp.webp", "webp.tga"}) {
     const std::string path = dir.file(name);
     write_text(path, webp.substr(1));
@@ -520,8 +545,9 @@ TEST(Hostile, ImageHeadersAreCheckedBeforeThePixels) {
 TEST(Hostile, DevicesAreNotReadAsImages) {
   TempDir dir;
   const std::string out = dir.file("out.png");
-  for (const std::string& command : {" preview --map /dev/full -o " + quoted(out), std::string(" diff /dev/zero /dev/zero"),
-                                     " height2normal /dev/zero -o " + quoted(out)}) {
+  for (const std::string& command :
+       {" preview --map /dev/full -o " + quoted(out), std::string(" diff /dev/zero /dev/zero"),
+        " height2normal /dev/zero -o " + quoted(out)}) {
     const test::CommandResult r = run_command("timeout 60 " + cli() + command);
     EXPECT_EQ(r.exit_code, 2) << command << "\n" << r.output;
     EXPECT_TRUE(contains(r.output, "not a regular file")) << command << "\n" << r.output;
@@ -548,7 +574,6 @@ TEST(Hostile, EndlessLineIsCapped) {
   EXPECT_EQ(st.message(), zero + ":1: line longer than 64 MiB (no line end): not a mesh file");
 }
 
-
 // ---------------------------------------------------------------- jobs
 
 std::string job_bake(const std::string& name, const std::string& low, const std::string& output,
@@ -570,7 +595,8 @@ TEST(Hostile, JobInputsAreCheckedBeforeTheFirstBake) {
   const std::pair<std::string, std::string> cases[] = {
       {"missing.obj", "missing.obj: the low mesh does not exist"},
       {"", "job.toml:9: low: expected a path"},
-      {"low.xyz", "low.xyz: unknown mesh format '.xyz' (expected .obj, .ply, .gltf, .glb, .fbx, .dae, .3ds or .stl)"},
+      {"low.xyz",
+       "low.xyz: unknown mesh format '.xyz' (expected .obj, .ply, .gltf, .glb, .fbx, .dae, .3ds or .stl)"},
       {"missing.fbx", "missing.fbx: the low mesh does not exist"},
       {"text.glb", "text.glb: not a binary glTF file"},
       {"lo\\u0000w.obj", "lo\\x00w.obj: the low mesh path holds a NUL byte"},
@@ -699,8 +725,8 @@ TEST(Hostile, JobLowMeshMistakesAreFoundBeforeTheFirstBake) {
       {job_bake("second", "named.obj", "second.png") +
            "[[bake.group]]\nname = \"g\"\nlow = [\"bdy_low\"]\nhigh = [\"x\"]\n",
        "named.obj", ": group 'g' names low part 'bdy_low', which the file does not have (parts: 'body_low')"},
-      {job_bake("second", "named.obj", "second.png") + "match = \"name\"\nlow_suffix = \"_lp\"\n", "named.obj",
-       ": --match name: no low part ends in '_lp' (parts: 'body_low')"},
+      {job_bake("second", "named.obj", "second.png") + "match = \"name\"\nlow_suffix = \"_lp\"\n",
+       "named.obj", ": --match name: no low part ends in '_lp' (parts: 'body_low')"},
       {job_bake("second", "udim.obj", "second.png"), "udim.obj",
        ": UVs lie outside [0, 1]^2 (UDIM tiles 1002): put <UDIM> in the output path"},
       {job_bake("second", "quad.glb", "second.png") + "uv_set = 1\n", "quad.glb", "(TEXCOORD_1) is missing"},
@@ -716,7 +742,8 @@ TEST(Hostile, JobLowMeshMistakesAreFoundBeforeTheFirstBake) {
     EXPECT_FALSE(fs::exists(s.dir.file("second.png"))) << c.second;
   }
   // The same second bake fixed: both maps.
-  write_text(job, job_bake("first", "low.obj", "first.png") + job_bake("second", "udim.obj", "second.<UDIM>.png"));
+  write_text(job,
+             job_bake("first", "low.obj", "first.png") + job_bake("second", "udim.obj", "second.<UDIM>.png"));
   const test::CommandResult r = run_command(cli() + " bake -q " + quoted(job));
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(fs::exists(s.dir.file("first.png")));
@@ -734,7 +761,8 @@ TEST(Hostile, FailedBakeStopsTheJobAndSaysWhatFinished) {
   broken += "f 1 2 999\n";  // passes the up-front sniff, fails in the load
   write_text(s.dir.file("broken.obj"), broken);
   const std::string job = s.dir.file("job.toml");
-  write_text(job, job_bake("one", "low.obj", "one.png") + job_bake("two", "low.obj", "two.png", "broken.obj") +
+  write_text(job, job_bake("one", "low.obj", "one.png") +
+                      job_bake("two", "low.obj", "two.png", "broken.obj") +
                       job_bake("three", "low.obj", "three.png"));
   const std::string report = s.dir.file("job.json");
   test::CommandResult r = run_command(cli() + " bake -q " + quoted(job) + " --job-report " + quoted(report));
@@ -747,7 +775,8 @@ TEST(Hostile, FailedBakeStopsTheJobAndSaysWhatFinished) {
   EXPECT_FALSE(fs::exists(s.dir.file("two.png")));
   EXPECT_FALSE(fs::exists(s.dir.file("three.png")));
   const std::string json = read_bytes(report);
-  EXPECT_TRUE(contains(json, "{\"name\": \"one\", \"status\": \"done\", \"outputs\": [\"" + s.dir.file("one.png") + "\"]}"))
+  EXPECT_TRUE(contains(
+      json, "{\"name\": \"one\", \"status\": \"done\", \"outputs\": [\"" + s.dir.file("one.png") + "\"]}"))
       << json;
   EXPECT_TRUE(contains(json, "{\"name\": \"three\", \"status\": \"not run\", \"outputs\": []}")) << json;
 
@@ -756,7 +785,8 @@ TEST(Hostile, FailedBakeStopsTheJobAndSaysWhatFinished) {
   EXPECT_TRUE(contains(r.output, "three: done, wrote " + s.dir.file("three.png"))) << r.output;
   EXPECT_TRUE(fs::exists(s.dir.file("three.png")));
   EXPECT_FALSE(fs::exists(s.dir.file("two.png")));
-  EXPECT_TRUE(contains(read_bytes(report), "\"name\": \"two\", \"status\": \"failed\", \"error\": ")) << read_bytes(report);
+  EXPECT_TRUE(contains(read_bytes(report), "\"name\": \"two\", \"status\": \"failed\", \"error\": "))
+      << read_bytes(report);
 }
 
 // ---------------------------------------------------------------- messages
@@ -806,7 +836,9 @@ TEST(Hostile, MessagesNameThePathOnceAndEscapeFileBytes) {
   EXPECT_FALSE(contains(r.output, "\x1b")) << r.output;
   EXPECT_TRUE(contains(r.output, "\\x1b")) << r.output;
 
-  EXPECT_EQ(printable_text("a\x01" "b\x7f\xc3\xa9\xc2\x9b\xff"), "a\\x01b\\x7f\xc3\xa9\\xc2\\x9b\\xff");
+  EXPECT_EQ(printable_text("a\x01"
+                           "b\x7f\xc3\xa9\xc2\x9b\xff"),
+            "a\\x01b\\x7f\xc3\xa9\\xc2\\x9b\\xff");
 }
 
 // A map side under 16 was refused as "unwrap gutter 4 is out of range" even
@@ -821,14 +853,15 @@ TEST(Hostile, SmallMapOfAMeshWithUvsIsNotAnUnwrapError) {
   write_text(bare, "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nf 1 2 3\n");
   r = run_command(s.bake(bare, s.dir.file("bare.png"), "--size 8"));
   EXPECT_EQ(r.exit_code, 2) << r.output;
-  EXPECT_TRUE(contains(r.output, bare + ": the low mesh has no UVs and a 8x8 map is too small to unwrap it into"))
+  EXPECT_TRUE(
+      contains(r.output, bare + ": the low mesh has no UVs and a 8x8 map is too small to unwrap it into"))
       << r.output;
   // The unwrap command names its input in an unwrap error.
-  r = run_command(cli() + " unwrap " + quoted(bare) + " -o " + quoted(s.dir.file("u.obj")) + " --size 8 --gutter 3");
+  r = run_command(cli() + " unwrap " + quoted(bare) + " -o " + quoted(s.dir.file("u.obj")) +
+                  " --size 8 --gutter 3");
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_TRUE(contains(r.output, bare + ": unwrap: ")) << r.output;
 }
-
 
 // ---------------------------------------------------------------- faults
 
@@ -876,8 +909,9 @@ TEST(Hostile, InterruptedBakeLeavesNothing) {
     const pid_t child = ::fork();
     ASSERT_GE(child, 0);
     if (child == 0) {
-      ::execl(test::cli_path().c_str(), "nmbake", "bake", "-q", "--low", s.low.c_str(), "--high", s.high.c_str(),
-              "-o", out.c_str(), "--size", "4096", "--samples", "1", "--format", "exr-float", nullptr);
+      ::execl(test::cli_path().c_str(), "nmbake", "bake", "-q", "--low", s.low.c_str(), "--high",
+              s.high.c_str(), "-o", out.c_str(), "--size", "4096", "--samples", "1", "--format", "exr-float",
+              nullptr);
       ::_exit(127);
     }
     int status = 0;
@@ -976,8 +1010,8 @@ TEST(Hostile, FullDiskGivesExit2AndNoFile) {
   fs::remove(folder + "/r.json");
   // `ulimit -f` (the file-size limit) fails the write the same way (EFBIG),
   // without the mount: SIGXFSZ is ignored.
-  const test::CommandResult f = run_command("ulimit -f 64; " + s.bake(s.low, s.dir.file("limited.exr"),
-                                                                        "--size 512 --samples 1 -q"));
+  const test::CommandResult f =
+      run_command("ulimit -f 64; " + s.bake(s.low, s.dir.file("limited.exr"), "--size 512 --samples 1 -q"));
   EXPECT_EQ(f.exit_code, 2) << f.output;
   EXPECT_TRUE(contains(f.output, "File too large")) << f.output;
   EXPECT_TRUE(files_with(s.dir.path().string(), "limited").empty());
@@ -988,7 +1022,8 @@ TEST(Hostile, ReadOnlyFolderGivesExit2AndNoFile) {
   const std::string folder = s.dir.file("ro");
   const Mount mount(folder, "size=1m");
   if (!mount.mounted()) GTEST_SKIP() << mount.reason();
-  ASSERT_EQ(::mount(nullptr, folder.c_str(), nullptr, MS_REMOUNT | MS_RDONLY, nullptr), 0) << std::strerror(errno);
+  ASSERT_EQ(::mount(nullptr, folder.c_str(), nullptr, MS_REMOUNT | MS_RDONLY, nullptr), 0)
+      << std::strerror(errno);
   for (const char* name : {"map.png", "map.exr", "map.tif"}) {
     const std::string out = folder + "/" + name;
     const test::CommandResult r = run_command(s.bake(s.low, out, "--size 64 -q"));
@@ -1017,13 +1052,13 @@ TEST(Hostile, ConcurrentWritersNeverTearTheFile) {
         s.bake(s.low, shared, "--size 301 --samples 1 -q --report " + quoted(report)) + "); wait");
     EXPECT_EQ(r.exit_code, 0) << r.output;
     const std::string got = read_bytes(shared);
-    EXPECT_TRUE(got == bytes_a || got == bytes_b) << "round " << round << ": a torn file of " << got.size() << " bytes";
+    EXPECT_TRUE(got == bytes_a || got == bytes_b)
+        << "round " << round << ": a torn file of " << got.size() << " bytes";
     const std::string json = read_bytes(report);
     EXPECT_TRUE(contains(json, "\"width\": 300") != contains(json, "\"width\": 301")) << json;
     EXPECT_TRUE(files_with(s.dir.path().string(), "tmp").empty());
   }
 }
-
 
 // ---------------------------------------------------------------- determinism
 
@@ -1044,16 +1079,18 @@ TEST(Hostile, SameBytesForEveryThreadCountAndBandSize) {
   for (int j = 0; j < n; ++j) {
     for (int i = 0; i < n; ++i) {
       const int a = j * (n + 1) + i + 1, b = a + 1, c = a + n + 1, d = c + 1;
-      low += "f " + std::to_string(a) + "/" + std::to_string(a) + " " + std::to_string(b) + "/" + std::to_string(b) +
-             " " + std::to_string(d) + "/" + std::to_string(d) + "\n";
-      low += "f " + std::to_string(a) + "/" + std::to_string(a) + " " + std::to_string(d) + "/" + std::to_string(d) +
-             " " + std::to_string(c) + "/" + std::to_string(c) + "\n";
+      low += "f " + std::to_string(a) + "/" + std::to_string(a) + " " + std::to_string(b) + "/" +
+             std::to_string(b) + " " + std::to_string(d) + "/" + std::to_string(d) + "\n";
+      low += "f " + std::to_string(a) + "/" + std::to_string(a) + " " + std::to_string(d) + "/" +
+             std::to_string(d) + " " + std::to_string(c) + "/" + std::to_string(c) + "\n";
     }
   }
   const int v = (n + 1) * (n + 1);
-  const auto corner = [](int position, int uv) { return " " + std::to_string(position) + "/" + std::to_string(uv); };
-  low += "v 0 0 0\nv 0.5 0.5 0\nv 1 1 0\n";           // collinear: zero area
-  low += "v 1e6 0 0\nv 1e6 1 0.5\nv 0 1e6 0\n";       // huge
+  const auto corner = [](int position, int uv) {
+    return " " + std::to_string(position) + "/" + std::to_string(uv);
+  };
+  low += "v 0 0 0\nv 0.5 0.5 0\nv 1 1 0\n";      // collinear: zero area
+  low += "v 1e6 0 0\nv 1e6 1 0.5\nv 0 1e6 0\n";  // huge
   low += "vt 0.8 0.8\nvt 0.9 0.85\nvt 0.95 0.95\nvt 0.75 0.95\nvt 0.99 0.75\nvt 0.85 0.99\nvt 0.9 0.9\n";
   const int p = v + 1, t = v + 1;
   low += "f" + corner(p, t) + corner(p + 1, t + 1) + corner(p + 2, t + 2) + "\n";
@@ -1075,11 +1112,13 @@ TEST(Hostile, SameBytesForEveryThreadCountAndBandSize) {
   o.padding = 3;
   std::string reference;
   for (const int threads : {1, 2, 3, 7}) {
-    for (const std::size_t band : {std::size_t{0}, std::size_t{1001}, std::size_t{4097}, std::size_t{12345}}) {
+    for (const std::size_t band :
+         {std::size_t{0}, std::size_t{1001}, std::size_t{4097}, std::size_t{12345}}) {
       SCOPED_TRACE(testing::Message() << threads << " threads, band " << band);
       const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
       o.band_samples = band;
-      const std::string out = s.dir.file("map_" + std::to_string(threads) + "_" + std::to_string(band) + ".exr");
+      const std::string out =
+          s.dir.file("map_" + std::to_string(threads) + "_" + std::to_string(band) + ".exr");
       o.outputs = {{out, PixelFormat::exr_float}};
       BakeReport report;
       const Status st = bake(o, report);

@@ -4,6 +4,7 @@
 #include "nmbake/image.hpp"
 
 #include <gtest/gtest.h>
+#include <zlib.h>
 
 #include <algorithm>
 #include <cmath>
@@ -18,18 +19,15 @@
 #include <string>
 #include <vector>
 
-#include "test_util.hpp"
 #include "image/deflate_huffman.hpp"
 #include "image/exr.hpp"
 #include "image/png.hpp"
 #include "image/quantise.hpp"
-
-#include <zlib.h>
+#include "test_util.hpp"
 // Imath's half is the reference for ours; its computed conversions, so
 // nothing to link.
 #define IMATH_HALF_NO_LOOKUP_TABLE
 #include <Imath/half.h>
-
 #include <tbb/global_control.h>
 
 namespace nmbake {
@@ -90,8 +88,8 @@ std::vector<PngChunk> png_chunks(const std::string& path) {
   return chunks;
 }
 
-const PixelFormat all_formats[] = {PixelFormat::png8,      PixelFormat::png16,     PixelFormat::tiff16,
-                                   PixelFormat::exr_half,  PixelFormat::exr_float, PixelFormat::exr_float_piz,
+const PixelFormat all_formats[] = {PixelFormat::png8,     PixelFormat::png16,     PixelFormat::tiff16,
+                                   PixelFormat::exr_half, PixelFormat::exr_float, PixelFormat::exr_float_piz,
                                    PixelFormat::tga8};
 
 const char* extension_of(PixelFormat format) {
@@ -219,9 +217,12 @@ TEST(ImageWrite, FilesHoldTheRequestedType) {
     const char* data_type;
     const char* compression;  // nullptr: not checked
   } cases[] = {
-      {PixelFormat::png8, "png", "uint8", nullptr},        {PixelFormat::png16, "png", "uint16", nullptr},
-      {PixelFormat::tiff16, "tiff", "uint16", "zip"},      {PixelFormat::exr_half, "openexr", "half", "zip"},
-      {PixelFormat::exr_float, "openexr", "float", "zip"},  {PixelFormat::exr_float_piz, "openexr", "float", "piz"},
+      {PixelFormat::png8, "png", "uint8", nullptr},
+      {PixelFormat::png16, "png", "uint16", nullptr},
+      {PixelFormat::tiff16, "tiff", "uint16", "zip"},
+      {PixelFormat::exr_half, "openexr", "half", "zip"},
+      {PixelFormat::exr_float, "openexr", "float", "zip"},
+      {PixelFormat::exr_float_piz, "openexr", "float", "piz"},
       {PixelFormat::tga8, "targa", "uint8", nullptr},
   };
   for (const auto& c : cases) {
@@ -361,8 +362,7 @@ TEST(ImageWrite, FailedWriteLeavesExistingFileUntouched) {
   ASSERT_FALSE(status.is_ok());
   EXPECT_EQ(status.code(), StatusCode::io);
   EXPECT_NE(status.message().find(path), std::string::npos) << status.message();
-  EXPECT_NE(status.message().find("channels"), std::string::npos)
-      << status.message();
+  EXPECT_NE(status.message().find("channels"), std::string::npos) << status.message();
   EXPECT_EQ(read_bytes(path), "previous bake");
   EXPECT_EQ(list_dir(dir.path()), std::vector<std::string>{"map.png"});
 }
@@ -491,7 +491,8 @@ TEST(ImagePng, ManyRowGroupsRoundTrip) {
     for (PixelFormat format : {PixelFormat::png8, PixelFormat::png16}) {
       SCOPED_TRACE(std::string(to_string(format)) + ", " + std::to_string(channels) + " channels");
       const int width = 301;
-      const std::size_t row_bytes = static_cast<std::size_t>(width) * channels * (format == PixelFormat::png16 ? 2 : 1);
+      const std::size_t row_bytes =
+          static_cast<std::size_t>(width) * channels * (format == PixelFormat::png16 ? 2 : 1);
       const int height = static_cast<int>(3 * image_detail::kPngGroupBytes / row_bytes + 5);
       const Image image = make_image(width, height, channels);
       const std::string path = dir.file("groups" + std::to_string(channels) + to_string(format) + ".png");
@@ -532,9 +533,9 @@ std::vector<std::uint8_t> inflate_raw(const std::vector<std::uint8_t>& stream, s
 
 TEST(DeflateHuffman, InflatesToTheInput) {
   std::vector<std::vector<std::uint8_t>> inputs;
-  inputs.emplace_back();                                   // empty
-  inputs.emplace_back(1, std::uint8_t{7});                 // one byte
-  inputs.emplace_back(200000, std::uint8_t{0});            // one value only, several blocks
+  inputs.emplace_back();                         // empty
+  inputs.emplace_back(1, std::uint8_t{7});       // one byte
+  inputs.emplace_back(200000, std::uint8_t{0});  // one value only, several blocks
   std::vector<std::uint8_t> all_values(256 * 1000), noise(300001), skewed(150000);
   for (std::size_t i = 0; i < all_values.size(); ++i) all_values[i] = static_cast<std::uint8_t>(i);
   std::uint32_t h = 12345;
@@ -645,11 +646,13 @@ TEST(ImageDither, KeepsTheMeanWithinOneStep) {
   }
   // Exact steps stay exact: k / 255 is k with or without the pattern.
   Image steps = make_image(256, 3, 3);
-  for (std::size_t i = 0; i < steps.pixels.size(); ++i) steps.pixels[i] = static_cast<float>(i % 256) / 255.0f;
+  for (std::size_t i = 0; i < steps.pixels.size(); ++i)
+    steps.pixels[i] = static_cast<float>(i % 256) / 255.0f;
   ASSERT_TRUE(write_image(steps, dir.file("steps.png"), PixelFormat::png8, WriteOptions{true}).is_ok());
   Image back;
   ASSERT_TRUE(read_image(dir.file("steps.png"), back).is_ok());
-  for (std::size_t i = 0; i < back.pixels.size(); ++i) ASSERT_EQ(std::lround(back.pixels[i] * 255.0f), static_cast<long>(i % 256));
+  for (std::size_t i = 0; i < back.pixels.size(); ++i)
+    ASSERT_EQ(std::lround(back.pixels[i] * 255.0f), static_cast<long>(i % 256));
   // The same pixels in PNG and TGA.
   const Image image = make_image(37, 29, 3);
   ASSERT_TRUE(write_image(image, dir.file("d.png"), PixelFormat::png8, WriteOptions{true}).is_ok());
@@ -709,8 +712,9 @@ TEST(ImageExr, ManyChunksRoundTripBitExact) {
         ASSERT_EQ(back.height, image.height);
         ASSERT_EQ(back.pixels.size(), image.pixels.size());
         for (std::size_t i = 0; i < image.pixels.size(); ++i) {
-          const float expected =
-              format == PixelFormat::exr_float ? image.pixels[i] : static_cast<float>(Imath::half(image.pixels[i]));
+          const float expected = format == PixelFormat::exr_float
+                                     ? image.pixels[i]
+                                     : static_cast<float>(Imath::half(image.pixels[i]));
           ASSERT_EQ(std::memcmp(&back.pixels[i], &expected, sizeof expected), 0)
               << "value " << i << ": wrote " << image.pixels[i] << ", read " << back.pixels[i];
         }
@@ -758,9 +762,10 @@ TEST(ImageExr, FloatToHalfMatchesImath) {
     std::memcpy(&f, &b, sizeof f);
     check(f);
   }
-  for (const float f : {0.0f, -0.0f, 65504.0f, 65519.99f, 65520.0f, 1e30f, std::numeric_limits<float>::infinity(),
-                        -std::numeric_limits<float>::infinity(), std::numeric_limits<float>::quiet_NaN(),
-                        std::numeric_limits<float>::denorm_min(), 5.96e-8f, 2.98e-8f, 2.99e-8f}) {
+  for (const float f :
+       {0.0f, -0.0f, 65504.0f, 65519.99f, 65520.0f, 1e30f, std::numeric_limits<float>::infinity(),
+        -std::numeric_limits<float>::infinity(), std::numeric_limits<float>::quiet_NaN(),
+        std::numeric_limits<float>::denorm_min(), 5.96e-8f, 2.98e-8f, 2.99e-8f}) {
     check(f);
   }
 }
@@ -860,11 +865,13 @@ TEST(ImageWrite, DitheredLanesAreTheScalarDither) {
 TEST(ImageWrite, IntegerFilesStoreTheMappedValues) {
   TempDir dir;
   Image raw = make_image(67, 43, 1);
-  for (std::size_t i = 0; i < raw.pixels.size(); ++i) raw.pixels[i] = 3.0f * std::sin(0.37f * static_cast<float>(i));
+  for (std::size_t i = 0; i < raw.pixels.size(); ++i)
+    raw.pixels[i] = 3.0f * std::sin(0.37f * static_cast<float>(i));
   const float scale = 0.5f / 3.5f, offset = 0.5f;  // some values clamp: range 3.5 < |v| never, 3 < 3.5
   Image mapped = raw;
   for (float& v : mapped.pixels) v = v * scale + offset;
-  for (const PixelFormat format : {PixelFormat::png8, PixelFormat::png16, PixelFormat::tiff16, PixelFormat::tga8}) {
+  for (const PixelFormat format :
+       {PixelFormat::png8, PixelFormat::png16, PixelFormat::tiff16, PixelFormat::tga8}) {
     for (const bool dither : {false, true}) {
       SCOPED_TRACE(std::string(to_string(format)) + (dither ? " dithered" : ""));
       WriteOptions options;

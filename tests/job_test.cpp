@@ -1,6 +1,7 @@
+#include "nmbake/job.hpp"
+
 #include <gtest/gtest.h>
 
-#include "nmbake/job.hpp"
 #include "test_util.hpp"
 
 namespace nmbake {
@@ -78,11 +79,13 @@ TEST(Job, RejectsBadValuesAndSyntax) {
   test::TempDir dir;
   const std::string path = dir.file("job.toml");
   std::vector<BakeJob> jobs;
-  test::write_text(path, "[[bake]]\nlow = \"l.obj\"\nhigh = \"h.obj\"\noutputs = [\"a.png\"]\nspace = \"world\"\n");
+  test::write_text(path,
+                   "[[bake]]\nlow = \"l.obj\"\nhigh = \"h.obj\"\noutputs = [\"a.png\"]\nspace = \"world\"\n");
   EXPECT_FALSE(load_job_file(path, jobs).is_ok());
   test::write_text(path, "[[bake]]\nlow = \"l.obj\"\nhigh = \"h.obj\"\noutputs = [\"a.bmp\"]\n");
   EXPECT_FALSE(load_job_file(path, jobs).is_ok());
-  test::write_text(path, "[[bake]]\nlow = \"l.obj\"\nhigh = \"h.obj\"\noutputs = [\"a.png\"]\nbvh = \"small\"\n");
+  test::write_text(path,
+                   "[[bake]]\nlow = \"l.obj\"\nhigh = \"h.obj\"\noutputs = [\"a.png\"]\nbvh = \"small\"\n");
   EXPECT_FALSE(load_job_file(path, jobs).is_ok());
   test::write_text(path, "[[bake]]\nlow = \"l.obj\"\noutputs = [\"a.png\"]\n");  // no high
   EXPECT_FALSE(load_job_file(path, jobs).is_ok());

@@ -3,28 +3,26 @@
 // buffers, every rejection), files no one here wrote (Debian's
 // assimp-testmodels), FBX files made with Assimp's exporter, the glTF writer
 // round trip, and bakes of the same asset as OBJ and as glTF.
+#include <assimp/scene.h>
+#include <gtest/gtest.h>
 #include <sys/stat.h>
 
-#include <gtest/gtest.h>
-
 #include <algorithm>
+#include <assimp/Exporter.hpp>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <glm/geometric.hpp>
 #include <iterator>
 #include <limits>
+#include <nlohmann/json.hpp>
 #include <numbers>
 #include <set>
 #include <string>
 #include <vector>
-
-#include <assimp/Exporter.hpp>
-#include <assimp/scene.h>
-#include <glm/geometric.hpp>
-#include <nlohmann/json.hpp>
 
 #include "fbx_write.hpp"
 #include "nmbake/job.hpp"
@@ -53,7 +51,9 @@ Loaded load(const std::string& path, LoadOptions options = {}) {
   return result;
 }
 
-bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+bool contains(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
 
 void expect_near(const glm::vec3& actual, const glm::vec3& expected, float tolerance = 1e-6f) {
   EXPECT_NEAR(actual.x, expected.x, tolerance);
@@ -66,7 +66,8 @@ std::string base64(const std::string& bytes) {
   std::string out;
   std::size_t i = 0;
   for (; i + 2 < bytes.size(); i += 3) {
-    const unsigned v = (static_cast<unsigned char>(bytes[i]) << 16) | (static_cast<unsigned char>(bytes[i + 1]) << 8) |
+    const unsigned v = (static_cast<unsigned char>(bytes[i]) << 16) |
+                       (static_cast<unsigned char>(bytes[i + 1]) << 8) |
                        static_cast<unsigned char>(bytes[i + 2]);
     for (int s = 18; s >= 0; s -= 6) out.push_back(kAlphabet[(v >> s) & 63]);
   }
@@ -106,7 +107,8 @@ class GltfFile {
   int unsigned_shorts(const std::vector<std::uint16_t>& values, int components, bool normalized) {
     static const char* const kTypes[] = {"", "SCALAR", "VEC2", "VEC3", "VEC4"};
     const int view = add_view(values.data(), values.size() * sizeof(std::uint16_t));
-    const int a = add_accessor(view, 5123, kTypes[components], values.size() / static_cast<std::size_t>(components));
+    const int a =
+        add_accessor(view, 5123, kTypes[components], values.size() / static_cast<std::size_t>(components));
     doc_["accessors"][static_cast<std::size_t>(a)]["normalized"] = normalized;
     return a;
   }
@@ -133,11 +135,12 @@ class GltfFile {
   void write_gltf(const TempDir& dir, const std::string& name, const std::string& bin_name = "") {
     json doc = doc_;
     if (bin_name.empty()) {
-      doc["buffers"] = json::array(
-          {{{"byteLength", bytes_.size()}, {"uri", "data:application/octet-stream;base64," + base64(bytes_)}}});
+      doc["buffers"] = json::array({{{"byteLength", bytes_.size()},
+                                     {"uri", "data:application/octet-stream;base64," + base64(bytes_)}}});
     } else {
       doc["buffers"] = json::array({{{"byteLength", bytes_.size()}, {"uri", bin_name}}});
-      std::ofstream(dir.file(bin_name), std::ios::binary).write(bytes_.data(), static_cast<std::streamsize>(bytes_.size()));
+      std::ofstream(dir.file(bin_name), std::ios::binary)
+          .write(bytes_.data(), static_cast<std::streamsize>(bytes_.size()));
     }
     write_text(dir.file(name), doc.dump());
   }
@@ -150,7 +153,8 @@ class GltfFile {
     return static_cast<int>(doc_["bufferViews"].size()) - 1;
   }
   int add_accessor(int view, int component_type, const char* type, std::size_t count) {
-    doc_["accessors"].push_back({{"bufferView", view}, {"componentType", component_type}, {"type", type}, {"count", count}});
+    doc_["accessors"].push_back(
+        {{"bufferView", view}, {"componentType", component_type}, {"type", type}, {"count", count}});
     return static_cast<int>(doc_["accessors"].size()) - 1;
   }
 
@@ -183,10 +187,12 @@ TEST(LoadGltf, NodeHierarchyWithRotationAndScaleGivesWorldSpace) {
   TempDir dir;
   GltfFile file;
   const Triangle t = add_triangle(file);
-  const int mesh = file.mesh({{"POSITION", t.positions}, {"NORMAL", t.normals}, {"TEXCOORD_0", t.uvs}}, t.indices, "tri");
+  const int mesh =
+      file.mesh({{"POSITION", t.positions}, {"NORMAL", t.normals}, {"TEXCOORD_0", t.uvs}}, t.indices, "tri");
   // Parent: a quarter turn about +z (quaternion x, y, z, w) and scale 2;
   // child: moved by (1, 0, 0) in the parent's frame, non-uniform scale.
-  const int child = file.node({{"name", "blade"}, {"mesh", mesh}, {"translation", {1, 0, 0}}, {"scale", {1, 3, 1}}});
+  const int child =
+      file.node({{"name", "blade"}, {"mesh", mesh}, {"translation", {1, 0, 0}}, {"scale", {1, 3, 1}}});
   const int parent = file.node({{"name", "handle"},
                                 {"children", {child}},
                                 {"rotation", {0, 0, std::sqrt(0.5), std::sqrt(0.5)}},
@@ -219,10 +225,12 @@ TEST(LoadGltf, MatrixNodesMirrorFlipsWindingAndTangentSign) {
   GltfFile file;
   const Triangle t = add_triangle(file);
   const int mesh = file.mesh(
-      {{"POSITION", t.positions}, {"NORMAL", t.normals}, {"TEXCOORD_0", t.uvs}, {"TANGENT", t.tangents}}, t.indices);
+      {{"POSITION", t.positions}, {"NORMAL", t.normals}, {"TEXCOORD_0", t.uvs}, {"TANGENT", t.tangents}},
+      t.indices);
   // Column-major: x -> -x (a mirror), then translated by (0, 0, 5).
   file.node({{"name", "plain"}, {"mesh", mesh}});
-  file.node({{"name", "mirrored"}, {"mesh", mesh}, {"matrix", {-1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 5, 1}}});
+  file.node(
+      {{"name", "mirrored"}, {"mesh", mesh}, {"matrix", {-1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 5, 1}}});
   file.scene({0, 1});
   file.write_gltf(dir, "mirror.gltf");
   LoadOptions options;
@@ -279,7 +287,8 @@ TEST(LoadGltf, VertexColoursAreReadAndEncoded) {
   const int positions_a = file.floats({0, 0, 0, 1, 0, 0, 0, 1, 0}, 3);
   const int positions_b = file.floats({5, 0, 0, 6, 0, 0, 5, 1, 0}, 3);
   const int positions_c = file.floats({9, 0, 0, 10, 0, 0, 9, 1, 0}, 3);
-  const int rgba = file.floats({0.0f, 0.5f, 1.0f, 0.25f, 1.0f, 1.0f, 1.0f, 1.0f, 0.002f, 0.0f, 0.0f, 1.0f}, 4);
+  const int rgba =
+      file.floats({0.0f, 0.5f, 1.0f, 0.25f, 1.0f, 1.0f, 1.0f, 1.0f, 0.002f, 0.0f, 0.0f, 1.0f}, 4);
   const int rgb16 = file.unsigned_shorts({65535, 32768, 0, 0, 0, 0, 65535, 65535, 65535}, 3, true);
   const int mesh_a = file.mesh({{"POSITION", positions_a}, {"COLOR_0", rgba}}, indices, "a");
   const int mesh_b = file.mesh({{"POSITION", positions_b}}, indices, "b");
@@ -309,7 +318,7 @@ TEST(LoadGltf, VertexColoursAreReadAndEncoded) {
   expect_colour(colour_at({0, 0, 0}), {0.0f, half, 1.0f, 0.25f});
   expect_colour(colour_at({1, 0, 0}), {1.0f, 1.0f, 1.0f, 1.0f});
   expect_colour(colour_at({0, 1, 0}), {12.92f * 0.002f, 0.0f, 0.0f, 1.0f});  // the curve's linear toe
-  expect_colour(colour_at({5, 0, 0}), {1.0f, 1.0f, 1.0f, 1.0f});              // no COLOR_0: white
+  expect_colour(colour_at({5, 0, 0}), {1.0f, 1.0f, 1.0f, 1.0f});             // no COLOR_0: white
   expect_colour(colour_at({9, 0, 0}), {1.0f, half16, 0.0f, 1.0f});
   expect_colour(colour_at({9, 1, 0}), {1.0f, 1.0f, 1.0f, 1.0f});
   // Not asked for: none read.
@@ -357,10 +366,13 @@ TEST(LoadGltf, StripsFansNormalizedUvsAndSparseAccessors) {
   json sparse_positions = file.doc()["accessors"][static_cast<std::size_t>(positions)];
   const int values_view = file.floats({2, 2, 0}, 3);
   const int index_view = file.indices({2});
-  sparse_positions["sparse"] = {{"count", 1},
-                                {"indices", {{"bufferView", file.doc()["accessors"][static_cast<std::size_t>(index_view)]["bufferView"]},
-                                             {"componentType", 5125}}},
-                                {"values", {{"bufferView", file.doc()["accessors"][static_cast<std::size_t>(values_view)]["bufferView"]}}}};
+  sparse_positions["sparse"] = {
+      {"count", 1},
+      {"indices",
+       {{"bufferView", file.doc()["accessors"][static_cast<std::size_t>(index_view)]["bufferView"]},
+        {"componentType", 5125}}},
+      {"values",
+       {{"bufferView", file.doc()["accessors"][static_cast<std::size_t>(values_view)]["bufferView"]}}}};
   file.doc()["accessors"].push_back(sparse_positions);
   file.doc()["meshes"][static_cast<std::size_t>(fan)]["primitives"][0]["attributes"]["POSITION"] =
       file.doc()["accessors"].size() - 1;
@@ -412,11 +424,14 @@ TEST(LoadGltf, RejectsBrokenFilesNamingFilePartAndReason) {
   const std::string path = dir.file("broken.gltf");
   // Sanity: unbroken, it loads.
   ASSERT_TRUE(load_broken(dir, [](GltfFile&, const Triangle&) {}).status.is_ok());
-  expect_bad_input(load_broken(dir, [](GltfFile& f, const Triangle&) { f.doc()["accessors"][4]["count"] = 4; }), path,
-                   {"part 'body'", "do not fit"});
+  expect_bad_input(
+      load_broken(dir, [](GltfFile& f, const Triangle&) { f.doc()["accessors"][4]["count"] = 4; }), path,
+      {"part 'body'", "do not fit"});
   // A hostile count is refused before anything is sized from it.
-  expect_bad_input(load_broken(dir, [](GltfFile& f, const Triangle&) { f.doc()["accessors"][0]["count"] = 1000000000000; }),
-                   path, {"POSITION", "do not fit"});
+  expect_bad_input(
+      load_broken(dir,
+                  [](GltfFile& f, const Triangle&) { f.doc()["accessors"][0]["count"] = 1000000000000; }),
+      path, {"POSITION", "do not fit"});
   expect_bad_input(load_broken(dir,
                                [](GltfFile& f, const Triangle&) {
                                  f.doc()["accessors"][0].erase("bufferView");
@@ -441,7 +456,8 @@ TEST(LoadGltf, RejectsBrokenFilesNamingFilePartAndReason) {
   expect_bad_input(load_broken(dir,
                                [](GltfFile& f, const Triangle&) {
                                  f.doc()["meshes"][0]["primitives"][0]["extensions"] = {
-                                     {"KHR_draco_mesh_compression", {{"bufferView", 0}, {"attributes", {{"POSITION", 0}}}}}};
+                                     {"KHR_draco_mesh_compression",
+                                      {{"bufferView", 0}, {"attributes", {{"POSITION", 0}}}}}};
                                }),
                    path, {"part 'body'", "Draco-compressed meshes are not supported"});
   expect_bad_input(load_broken(dir,
@@ -452,16 +468,24 @@ TEST(LoadGltf, RejectsBrokenFilesNamingFilePartAndReason) {
                    path, {"Draco-compressed meshes are not supported"});
   LoadOptions second_set;
   second_set.uv_set = 1;
-  expect_bad_input(load_broken(dir, [](GltfFile&, const Triangle&) {}, second_set), path,
-                   {"part 'body'", "TEXCOORD_1", "has: TEXCOORD_0"});
-  expect_bad_input(load_broken(dir, [](GltfFile& f, const Triangle& t) { f.node({{"name", "body"}, {"mesh", 0}}), f.scene({0, 1}), (void)t; }),
+  expect_bad_input(load_broken(
+                       dir, [](GltfFile&, const Triangle&) {}, second_set),
+                   path, {"part 'body'", "TEXCOORD_1", "has: TEXCOORD_0"});
+  expect_bad_input(load_broken(dir,
+                               [](GltfFile& f, const Triangle& t) {
+                                 f.node({{"name", "body"}, {"mesh", 0}}), f.scene({0, 1}), (void)t;
+                               }),
                    path, {"two parts are named 'body'"});
-  expect_bad_input(load_broken(dir, [](GltfFile& f, const Triangle&) { f.doc()["nodes"][0]["children"] = {0}; }), path,
-                   {"reached twice"});
-  expect_bad_input(load_broken(dir, [](GltfFile& f, const Triangle&) { f.doc()["accessors"][0]["componentType"] = 5123; }),
-                   path, {"POSITION", "unsigned short"});
-  expect_bad_input(load_broken(dir, [](GltfFile& f, const Triangle&) { f.doc()["meshes"][0]["primitives"][0]["mode"] = 1; }),
-                   path, {"no triangles"});
+  expect_bad_input(
+      load_broken(dir, [](GltfFile& f, const Triangle&) { f.doc()["nodes"][0]["children"] = {0}; }), path,
+      {"reached twice"});
+  expect_bad_input(
+      load_broken(dir, [](GltfFile& f, const Triangle&) { f.doc()["accessors"][0]["componentType"] = 5123; }),
+      path, {"POSITION", "unsigned short"});
+  expect_bad_input(
+      load_broken(dir,
+                  [](GltfFile& f, const Triangle&) { f.doc()["meshes"][0]["primitives"][0]["mode"] = 1; }),
+      path, {"no triangles"});
   // A missing external buffer: named by tinygltf's message with its file.
   {
     GltfFile file;
@@ -577,11 +601,13 @@ TEST(LoadGltf, ExceptionsInsideTinygltfAreBadInput) {
   while (json_chunk.size() % 4 != 0) json_chunk += ' ';
   const auto u32 = [](std::uint32_t v) { return std::string(reinterpret_cast<const char*>(&v), 4); };
   const std::string bin(4, '\0');
-  const std::string glb = "glTF" + u32(2) + u32(static_cast<std::uint32_t>(28 + json_chunk.size() + bin.size())) +
+  const std::string glb = "glTF" + u32(2) +
+                          u32(static_cast<std::uint32_t>(28 + json_chunk.size() + bin.size())) +
                           u32(static_cast<std::uint32_t>(json_chunk.size())) + "JSON" + json_chunk +
                           u32(static_cast<std::uint32_t>(bin.size())) + std::string("BIN\0", 4) + bin;
   write_text(dir.file("zero.glb"), glb);
-  expect_bad_input(load(dir.file("zero.glb")), dir.file("zero.glb"), {"glTF: the file is broken (tinygltf: "});
+  expect_bad_input(load(dir.file("zero.glb")), dir.file("zero.glb"),
+                   {"glTF: the file is broken (tinygltf: "});
 }
 
 // A buffer's uri is read only from a regular file under the glTF's folder:
@@ -690,14 +716,15 @@ fs::path test_models() {
   return {};
 }
 
-#define REQUIRE_TEST_MODELS()                                                                         \
-  const fs::path models = test_models();                                                              \
+#define REQUIRE_TEST_MODELS()            \
+  const fs::path models = test_models(); \
   if (models.empty()) GTEST_SKIP() << "the assimp-testmodels package is not installed (tools/setup)"
 
 TEST(LoadFormatsModels, BoxTexturedInEveryGltfFlavour) {
   REQUIRE_TEST_MODELS();
-  for (const char* file : {"glTF2/BoxTextured-glTF/BoxTextured.gltf", "glTF2/BoxTextured-glTF-Binary/BoxTextured.glb",
-                           "glTF2/BoxTextured-glTF-Embedded/BoxTextured.gltf"}) {
+  for (const char* file :
+       {"glTF2/BoxTextured-glTF/BoxTextured.gltf", "glTF2/BoxTextured-glTF-Binary/BoxTextured.glb",
+        "glTF2/BoxTextured-glTF-Embedded/BoxTextured.gltf"}) {
     SCOPED_TRACE(file);
     const Loaded r = load((models / file).string());
     ASSERT_TRUE(r.status.is_ok()) << r.status.message();
@@ -720,7 +747,9 @@ TEST(LoadFormatsModels, AssetGeneratorPrimitiveModes) {
   // and lines have nothing to bake.
   const fs::path folder = models / "glTF2/glTF-Asset-Generator/Mesh_PrimitiveMode";
   for (int n = 0; n <= 15; ++n) {
-    const std::string path = (folder / ("Mesh_PrimitiveMode_" + std::string(n < 10 ? "0" : "") + std::to_string(n) + ".gltf")).string();
+    const std::string path =
+        (folder / ("Mesh_PrimitiveMode_" + std::string(n < 10 ? "0" : "") + std::to_string(n) + ".gltf"))
+            .string();
     SCOPED_TRACE(path);
     const Loaded r = load(path);
     const bool points_or_lines = (n >= 0 && n <= 3) || (n >= 7 && n <= 10);
@@ -755,8 +784,9 @@ TEST(LoadFormatsModels, FbxCubesFromMayaAnd3dsMax) {
   // Maya's unit cube in centimetres (binary), 3ds Max's 1.2 box standing on
   // its base in metres (ASCII, UnitScaleFactor 100, originally inches),
   // each a cube of 6 faces of 4 split vertices.
-  for (const Case& c : {Case{"FBX/phong_cube.fbx", "pCube1", {-0.5f, -0.5f, -0.5f}, {0.5f, 0.5f, 0.5f}, 0.01},
-                        Case{"FBX/embedded_ascii/box.FBX", "Box001", {-0.6f, -0.6f, 0.0f}, {0.6f, 0.6f, 1.2f}, 1.0}}) {
+  for (const Case& c :
+       {Case{"FBX/phong_cube.fbx", "pCube1", {-0.5f, -0.5f, -0.5f}, {0.5f, 0.5f, 0.5f}, 0.01},
+        Case{"FBX/embedded_ascii/box.FBX", "Box001", {-0.6f, -0.6f, 0.0f}, {0.6f, 0.6f, 1.2f}, 1.0}}) {
     SCOPED_TRACE(c.file);
     const Loaded r = load((models / c.file).string());
     ASSERT_TRUE(r.status.is_ok()) << r.status.message();
@@ -783,7 +813,8 @@ TEST(LoadFormatsModels, FbxFileTangentsAreMikkTSpacesWithTheSameSign) {
   // Exporters that write MikkTSpace tangents (3ds Max, Blender): read back
   // through --tangents file they must give MikkTSpace's frame, which checks
   // the sign taken from the file's (T, B, N) handedness.
-  for (const char* file : {"FBX/embedded_ascii/box.FBX", "FBX/box_orphant_embedded_texture.fbx", "FBX/huesitos.fbx"}) {
+  for (const char* file :
+       {"FBX/embedded_ascii/box.FBX", "FBX/box_orphant_embedded_texture.fbx", "FBX/huesitos.fbx"}) {
     SCOPED_TRACE(file);
     LoadOptions options;
     options.keep_tangents = true;
@@ -801,16 +832,18 @@ TEST(LoadFormatsModels, FbxFileTangentsAreMikkTSpacesWithTheSameSign) {
     ASSERT_EQ(mikk.size(), from_file.size());
     for (std::size_t c = 0; c < mikk.size(); ++c) {
       EXPECT_EQ(mikk[c].w, from_file[c].w) << "corner " << c;
-      EXPECT_GT(glm::dot(glm::vec3(mikk[c]), glm::vec3(from_file[c])), std::cos(0.1 * std::numbers::pi / 180)) << "corner " << c;
+      EXPECT_GT(glm::dot(glm::vec3(mikk[c]), glm::vec3(from_file[c])), std::cos(0.1 * std::numbers::pi / 180))
+          << "corner " << c;
     }
   }
 }
 
 TEST(LoadFormatsModels, BrokenGltfModelsAreBadInput) {
   REQUIRE_TEST_MODELS();
-  for (const char* file : {"glTF2/IndexOutOfRange/IndexOutOfRange.gltf", "glTF2/IndexOutOfRange/AllIndicesOutOfRange.gltf",
-                           "glTF2/MissingBin/BoxTextured.gltf", "glTF2/BoxWithInfinites-glTF-Binary/BoxWithInfinites.glb",
-                           "glTF2/RecursiveNodes/RecursiveNodes.gltf", "glTF2/draco/2CylinderEngine.gltf"}) {
+  for (const char* file :
+       {"glTF2/IndexOutOfRange/IndexOutOfRange.gltf", "glTF2/IndexOutOfRange/AllIndicesOutOfRange.gltf",
+        "glTF2/MissingBin/BoxTextured.gltf", "glTF2/BoxWithInfinites-glTF-Binary/BoxWithInfinites.glb",
+        "glTF2/RecursiveNodes/RecursiveNodes.gltf", "glTF2/draco/2CylinderEngine.gltf"}) {
     SCOPED_TRACE(file);
     const std::string path = (models / file).string();
     const Loaded r = load(path);
@@ -824,8 +857,10 @@ void load_every_file(const fs::path& folder, const std::vector<std::string>& ext
   std::size_t rejected = 0;
   for (const fs::directory_entry& entry : fs::recursive_directory_iterator(folder)) {
     std::string extension = entry.path().extension().string();
-    std::transform(extension.begin(), extension.end(), extension.begin(), [](unsigned char c) { return std::tolower(c); });
-    if (!entry.is_regular_file() || std::find(extensions.begin(), extensions.end(), extension) == extensions.end()) {
+    std::transform(extension.begin(), extension.end(), extension.begin(),
+                   [](unsigned char c) { return std::tolower(c); });
+    if (!entry.is_regular_file() ||
+        std::find(extensions.begin(), extensions.end(), extension) == extensions.end()) {
       continue;
     }
     SCOPED_TRACE(entry.path().string());
@@ -891,14 +926,15 @@ void make_quad_scene(aiScene& scene) {
   mesh->mFaces[0].mIndices = new unsigned[4]{0, 1, 2, 3};
   mesh->mMaterialIndex = 0;
   scene.mNumMeshes = 1;
-  scene.mMeshes = new aiMesh*[1]{mesh};
+  scene.mMeshes = new aiMesh* [1] { mesh };
   scene.mNumMaterials = 1;
-  scene.mMaterials = new aiMaterial*[1]{new aiMaterial()};
+  scene.mMaterials = new aiMaterial* [1] { new aiMaterial() };
   scene.mRootNode = new aiNode("root");
   auto* node = new aiNode("crate");
   // Scale 2, a quarter turn about +z, moved by (10, 0, 0).
-  node->mTransformation = aiMatrix4x4(aiVector3D(2, 2, 2), aiQuaternion(aiVector3D(0, 0, 1), std::numbers::pi_v<float> / 2),
-                                      aiVector3D(10, 0, 0));
+  node->mTransformation =
+      aiMatrix4x4(aiVector3D(2, 2, 2), aiQuaternion(aiVector3D(0, 0, 1), std::numbers::pi_v<float> / 2),
+                  aiVector3D(10, 0, 0));
   node->mNumMeshes = 1;
   node->mMeshes = new unsigned[1]{0};
   aiNode* children[] = {node};
@@ -999,8 +1035,8 @@ TEST(LoadFbx, BrokenFbxIsBadInputWithAssimpsReason) {
   const std::string missing = dir.file("missing.fbx");
   expect_bad_input(load(missing), missing, {"cannot open"});
   // Nothing of Assimp's reaches the terminal: the CLI prints one line.
-  const test::CommandResult run = test::run_command(test::cli_path() + " bake --low " + path + " --high " + path +
-                                                    " -o " + dir.file("x.png") + " 2>&1");
+  const test::CommandResult run = test::run_command(test::cli_path() + " bake --low " + path + " --high " +
+                                                    path + " -o " + dir.file("x.png") + " 2>&1");
   EXPECT_EQ(run.exit_code, 2);
   EXPECT_EQ(std::count(run.output.begin(), run.output.end(), '\n'), 1) << run.output;
   EXPECT_TRUE(contains(run.output, path + ": Assimp: ")) << run.output;
@@ -1106,7 +1142,8 @@ TEST(LoadFormatsModels, MaterialsAndColoursOfExportedFiles) {
 // ---- bakes: the same asset as OBJ and as glTF; file tangents ----
 
 std::string bake_args(const std::string& low, const std::string& high, const std::string& out) {
-  return test::cli_path() + " bake -q --low " + low + " --high " + high + " -o " + out + " --size 128 --samples 1";
+  return test::cli_path() + " bake -q --low " + low + " --high " + high + " -o " + out +
+         " --size 128 --samples 1";
 }
 
 bool same_bytes(const std::string& a, const std::string& b) {
@@ -1120,7 +1157,9 @@ bool same_bytes(const std::string& a, const std::string& b) {
 TEST(LoadFormatsBake, ObjTransformedTwoPartGltfAndFbxBakeTheSameMap) {
   TempDir dir;
   const std::string out = dir.path().string();
-  ASSERT_EQ(test::run_command(test::gen_path() + " box --out-dir " + out + " --high-cells 24 --low-cells 2").exit_code, 0);
+  ASSERT_EQ(test::run_command(test::gen_path() + " box --out-dir " + out + " --high-cells 24 --low-cells 2")
+                .exit_code,
+            0);
   const std::string low_obj = dir.file("box_low.obj");
   const std::string high = dir.file("box_high.ply");
   Loaded low = load(low_obj);
@@ -1144,9 +1183,12 @@ TEST(LoadFormatsBake, ObjTransformedTwoPartGltfAndFbxBakeTheSameMap) {
   const int normal_accessor = file.floats(normals, 3);
   const int uv_accessor = file.floats(uvs, 2);
   const std::size_t half = low.mesh.triangle_count() / 2 * 3;
-  const std::vector<std::uint32_t> first(low.mesh.indices.begin(), low.mesh.indices.begin() + static_cast<std::ptrdiff_t>(half));
-  const std::vector<std::uint32_t> second(low.mesh.indices.begin() + static_cast<std::ptrdiff_t>(half), low.mesh.indices.end());
-  const json attributes = {{"POSITION", position_accessor}, {"NORMAL", normal_accessor}, {"TEXCOORD_0", uv_accessor}};
+  const std::vector<std::uint32_t> first(low.mesh.indices.begin(),
+                                         low.mesh.indices.begin() + static_cast<std::ptrdiff_t>(half));
+  const std::vector<std::uint32_t> second(low.mesh.indices.begin() + static_cast<std::ptrdiff_t>(half),
+                                          low.mesh.indices.end());
+  const json attributes = {
+      {"POSITION", position_accessor}, {"NORMAL", normal_accessor}, {"TEXCOORD_0", uv_accessor}};
   const int mesh_a = file.mesh(attributes, file.indices(first), "a");
   const int mesh_b = file.mesh(attributes, file.indices(second), "b");
   const json matrix = {0, 2, 0, 0, -2, 0, 0, 0, 0, 0, 2, 0, 0, 0, 0, 1};
@@ -1161,12 +1203,14 @@ TEST(LoadFormatsBake, ObjTransformedTwoPartGltfAndFbxBakeTheSameMap) {
   EXPECT_EQ(gltf.mesh.indices, low.mesh.indices);
 
   ASSERT_EQ(test::run_command(bake_args(low_obj, high, dir.file("obj.png"))).exit_code, 0);
-  const test::CommandResult baked = test::run_command(bake_args(dir.file("box_low.gltf"), high, dir.file("gltf.png")));
+  const test::CommandResult baked =
+      test::run_command(bake_args(dir.file("box_low.gltf"), high, dir.file("gltf.png")));
   ASSERT_EQ(baked.exit_code, 0) << baked.output;
   // UVs went through 1 - (1 - v), which may move them by an ulp: the maps
   // agree within the 16-bit floor rather than byte for byte.
-  const test::CommandResult diff = test::run_command(test::cli_path() + " diff " + dir.file("obj.png") + " " +
-                                                     dir.file("gltf.png") + " --max-max 0.05 --max-mean 0.001");
+  const test::CommandResult diff =
+      test::run_command(test::cli_path() + " diff " + dir.file("obj.png") + " " + dir.file("gltf.png") +
+                        " --max-max 0.05 --max-mean 0.001");
   EXPECT_EQ(diff.exit_code, 0) << diff.output;
   std::printf("OBJ vs transformed two-part glTF: %s\n", diff.output.c_str());
 
@@ -1184,8 +1228,8 @@ TEST(LoadFormatsBake, ObjTransformedTwoPartGltfAndFbxBakeTheSameMap) {
   model.rotation_degrees = {0, 0, 90};
   model.scaling = {2, 2, 2};
   ASSERT_TRUE(gen::write_fbx_binary(dir.file("box_low.fbx"), local, model).is_ok());
-  const test::CommandResult fbx = test::run_command(bake_args(dir.file("box_low.fbx"), high, dir.file("fbx.png")) +
-                                                    " --report " + dir.file("fbx.json"));
+  const test::CommandResult fbx = test::run_command(
+      bake_args(dir.file("box_low.fbx"), high, dir.file("fbx.png")) + " --report " + dir.file("fbx.json"));
   ASSERT_EQ(fbx.exit_code, 0) << fbx.output;
   // The report carries the units: the FBX says centimetres, the PLY nothing.
   std::ifstream report_file(dir.file("fbx.json"));
@@ -1196,8 +1240,9 @@ TEST(LoadFormatsBake, ObjTransformedTwoPartGltfAndFbxBakeTheSameMap) {
   // more (0.1407 against 0.1404: another probe lands on the 99.5th
   // percentile), which widens the banded cage's band around the hard edges
   // as much: half of the texels move by a 16-bit step (0.0017 degrees).
-  const test::CommandResult fbx_diff = test::run_command(test::cli_path() + " diff " + dir.file("obj.png") + " " +
-                                                         dir.file("fbx.png") + " --max-max 0.05 --max-mean 0.002");
+  const test::CommandResult fbx_diff =
+      test::run_command(test::cli_path() + " diff " + dir.file("obj.png") + " " + dir.file("fbx.png") +
+                        " --max-max 0.05 --max-mean 0.002");
   EXPECT_EQ(fbx_diff.exit_code, 0) << fbx_diff.output;
   std::printf("OBJ vs transformed FBX (cm): %s\n", fbx_diff.output.c_str());
 }
@@ -1205,11 +1250,15 @@ TEST(LoadFormatsBake, ObjTransformedTwoPartGltfAndFbxBakeTheSameMap) {
 TEST(LoadFormatsBake, WrittenMikkTSpaceTangentsBakeLikeMikkTSpace) {
   TempDir dir;
   const std::string out = dir.path().string();
-  ASSERT_EQ(test::run_command(test::gen_path() + " sphere --out-dir " + out + " --high-cells 32 --low-cells 3").exit_code, 0);
+  ASSERT_EQ(
+      test::run_command(test::gen_path() + " sphere --out-dir " + out + " --high-cells 32 --low-cells 3")
+          .exit_code,
+      0);
   const std::string low_obj = dir.file("sphere_low.obj");
   const std::string high = dir.file("sphere_high.ply");
   const std::string glb = dir.file("low_tangents.glb");
-  const test::CommandResult wrote = test::run_command(test::cli_path() + " tangents " + low_obj + " --write " + glb);
+  const test::CommandResult wrote =
+      test::run_command(test::cli_path() + " tangents " + low_obj + " --write " + glb);
   ASSERT_EQ(wrote.exit_code, 0) << wrote.output;
   LoadOptions options;
   options.keep_tangents = true;
@@ -1223,26 +1272,34 @@ TEST(LoadFormatsBake, WrittenMikkTSpaceTangentsBakeLikeMikkTSpace) {
     EXPECT_NEAR(glm::length(glm::vec3(t)), 1.0f, 1e-5f);
     EXPECT_TRUE(t.w == 1.0f || t.w == -1.0f);
   }
-  ASSERT_EQ(test::run_command(bake_args(glb, high, dir.file("mikk.png")) + " --tangents mikktspace").exit_code, 0);
-  const test::CommandResult file_run = test::run_command(bake_args(glb, high, dir.file("file.png")) + " --tangents file");
+  ASSERT_EQ(
+      test::run_command(bake_args(glb, high, dir.file("mikk.png")) + " --tangents mikktspace").exit_code, 0);
+  const test::CommandResult file_run =
+      test::run_command(bake_args(glb, high, dir.file("file.png")) + " --tangents file");
   ASSERT_EQ(file_run.exit_code, 0) << file_run.output;
-  const test::CommandResult diff = test::run_command(test::cli_path() + " diff " + dir.file("mikk.png") + " " +
-                                                     dir.file("file.png") + " --max-max 0.05 --max-mean 0.001");
+  const test::CommandResult diff =
+      test::run_command(test::cli_path() + " diff " + dir.file("mikk.png") + " " + dir.file("file.png") +
+                        " --max-max 0.05 --max-mean 0.001");
   EXPECT_EQ(diff.exit_code, 0) << diff.output;
-  std::printf("--tangents file vs mikktspace: %s%s\n", same_bytes(dir.file("mikk.png"), dir.file("file.png")) ? "byte-identical; " : "",
+  std::printf("--tangents file vs mikktspace: %s%s\n",
+              same_bytes(dir.file("mikk.png"), dir.file("file.png")) ? "byte-identical; " : "",
               diff.output.c_str());
   // The file's tangents are really used: with every sign flipped the map
   // differs (so the comparison above can fail).
   Mesh flipped = reloaded.mesh;
   for (glm::vec4& t : flipped.tangents) t.w = -t.w;
   ASSERT_TRUE(save_mesh(dir.file("flipped.glb"), flipped).is_ok());
-  ASSERT_EQ(test::run_command(bake_args(dir.file("flipped.glb"), high, dir.file("flipped.png")) + " --tangents file").exit_code, 0);
-  EXPECT_EQ(test::run_command(test::cli_path() + " diff " + dir.file("mikk.png") + " " + dir.file("flipped.png") +
-                              " --max-max 0.05 --max-mean 0.001")
+  ASSERT_EQ(test::run_command(bake_args(dir.file("flipped.glb"), high, dir.file("flipped.png")) +
+                              " --tangents file")
+                .exit_code,
+            0);
+  EXPECT_EQ(test::run_command(test::cli_path() + " diff " + dir.file("mikk.png") + " " +
+                              dir.file("flipped.png") + " --max-max 0.05 --max-mean 0.001")
                 .exit_code,
             1);
   // A mesh without tangents cannot be baked with --tangents file.
-  const test::CommandResult no_tangents = test::run_command(bake_args(low_obj, high, dir.file("none.png")) + " --tangents file");
+  const test::CommandResult no_tangents =
+      test::run_command(bake_args(low_obj, high, dir.file("none.png")) + " --tangents file");
   EXPECT_EQ(no_tangents.exit_code, 2);
   EXPECT_TRUE(contains(no_tangents.output, "has no tangents")) << no_tangents.output;
 }
@@ -1250,35 +1307,48 @@ TEST(LoadFormatsBake, WrittenMikkTSpaceTangentsBakeLikeMikkTSpace) {
 TEST(LoadFormatsBake, UvSetPicksTheGltfTexcoordSet) {
   TempDir dir;
   const std::string out = dir.path().string();
-  ASSERT_EQ(test::run_command(test::gen_path() + " box --out-dir " + out + " --high-cells 24 --low-cells 2").exit_code, 0);
+  ASSERT_EQ(test::run_command(test::gen_path() + " box --out-dir " + out + " --high-cells 24 --low-cells 2")
+                .exit_code,
+            0);
   Loaded low = load(dir.file("box_low.obj"));
   ASSERT_TRUE(low.status.is_ok()) << low.status.message();
   // TEXCOORD_0 is garbage (every corner at one point), TEXCOORD_1 the real
   // layout: only --uv-set 1 bakes the OBJ's map.
   std::vector<float> positions, normals, uvs, flat;
   for (std::size_t v = 0; v < low.mesh.vertex_count(); ++v) {
-    positions.insert(positions.end(), {low.mesh.positions[v].x, low.mesh.positions[v].y, low.mesh.positions[v].z});
+    positions.insert(positions.end(),
+                     {low.mesh.positions[v].x, low.mesh.positions[v].y, low.mesh.positions[v].z});
     normals.insert(normals.end(), {low.mesh.normals[v].x, low.mesh.normals[v].y, low.mesh.normals[v].z});
     uvs.insert(uvs.end(), {low.mesh.uvs[v].x, 1.0f - low.mesh.uvs[v].y});
     flat.insert(flat.end(), {0.5f, 0.5f});
   }
   GltfFile file;
-  const json attributes = {{"POSITION", file.floats(positions, 3)}, {"NORMAL", file.floats(normals, 3)},
-                           {"TEXCOORD_0", file.floats(flat, 2)}, {"TEXCOORD_1", file.floats(uvs, 2)}};
+  const json attributes = {{"POSITION", file.floats(positions, 3)},
+                           {"NORMAL", file.floats(normals, 3)},
+                           {"TEXCOORD_0", file.floats(flat, 2)},
+                           {"TEXCOORD_1", file.floats(uvs, 2)}};
   file.node({{"name", "box"}, {"mesh", file.mesh(attributes, file.indices(low.mesh.indices))}});
   file.scene({0});
   file.write_gltf(dir, "two_sets.gltf");
   const std::string gltf = dir.file("two_sets.gltf");
-  ASSERT_EQ(test::run_command(bake_args(dir.file("box_low.obj"), dir.file("box_high.ply"), dir.file("obj.png"))).exit_code, 0);
+  ASSERT_EQ(
+      test::run_command(bake_args(dir.file("box_low.obj"), dir.file("box_high.ply"), dir.file("obj.png")))
+          .exit_code,
+      0);
   const test::CommandResult set1 =
       test::run_command(bake_args(gltf, dir.file("box_high.ply"), dir.file("set1.png")) + " --uv-set 1");
   ASSERT_EQ(set1.exit_code, 0) << set1.output;
   EXPECT_EQ(test::run_command(test::cli_path() + " diff " + dir.file("obj.png") + " " + dir.file("set1.png") +
-                              " --max-max 0.05 --max-mean 0.001").exit_code, 0);
+                              " --max-max 0.05 --max-mean 0.001")
+                .exit_code,
+            0);
   ASSERT_EQ(test::run_command(bake_args(gltf, dir.file("box_high.ply"), dir.file("set0.png"))).exit_code, 0);
   EXPECT_EQ(test::run_command(test::cli_path() + " diff " + dir.file("obj.png") + " " + dir.file("set0.png") +
-                              " --max-max 0.05 --max-mean 0.001").exit_code, 1);
-  const test::CommandResult set2 = test::run_command(bake_args(gltf, dir.file("box_high.ply"), dir.file("set2.png")) + " --uv-set 2");
+                              " --max-max 0.05 --max-mean 0.001")
+                .exit_code,
+            1);
+  const test::CommandResult set2 =
+      test::run_command(bake_args(gltf, dir.file("box_high.ply"), dir.file("set2.png")) + " --uv-set 2");
   EXPECT_EQ(set2.exit_code, 2);
   EXPECT_TRUE(contains(set2.output, "TEXCOORD_0, TEXCOORD_1")) << set2.output;
 }
@@ -1286,14 +1356,17 @@ TEST(LoadFormatsBake, UvSetPicksTheGltfTexcoordSet) {
 TEST(LoadFormatsBake, JobFilesTakeTangentsAndUvSet) {
   TempDir dir;
   const std::string path = dir.file("job.toml");
-  write_text(path, "[[bake]]\nlow = \"l.glb\"\nhigh = \"h.ply\"\noutputs = [\"a.png\"]\ntangents = \"file\"\nuv_set = 1\n");
+  write_text(path,
+             "[[bake]]\nlow = \"l.glb\"\nhigh = \"h.ply\"\noutputs = [\"a.png\"]\ntangents = "
+             "\"file\"\nuv_set = 1\n");
   std::vector<BakeJob> jobs;
   const Status s = load_job_file(path, jobs);
   ASSERT_TRUE(s.is_ok()) << s.message();
   ASSERT_EQ(jobs.size(), 1u);
   EXPECT_EQ(jobs[0].options.tangent_basis, TangentBasis::file);
   EXPECT_EQ(jobs[0].options.uv_set, 1);
-  write_text(path, "[[bake]]\nlow = \"l.glb\"\nhigh = \"h.ply\"\noutputs = [\"a.png\"]\ntangents = \"lengyel\"\n");
+  write_text(path,
+             "[[bake]]\nlow = \"l.glb\"\nhigh = \"h.ply\"\noutputs = [\"a.png\"]\ntangents = \"lengyel\"\n");
   EXPECT_FALSE(load_job_file(path, jobs).is_ok());
   write_text(path, "[[bake]]\nlow = \"l.glb\"\nhigh = \"h.ply\"\noutputs = [\"a.png\"]\nuv_set = -1\n");
   EXPECT_FALSE(load_job_file(path, jobs).is_ok());

@@ -3,17 +3,16 @@
 // loaded with one and two threads, must give the same arrays, counters and
 // error messages as the reference.
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <cmath>
-#include <cstdio>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <limits>
 #include <string>
 #include <vector>
-
-#include <tbb/global_control.h>
 
 #include "nmbake/load.hpp"
 #include "test_util.hpp"
@@ -57,11 +56,11 @@ class PlyBytes {
 struct GridPly {
   int side = 60;
   bool big_endian = false;
-  bool doubles = false;      // vertex values as float64 (the generic stride decode)
+  bool doubles = false;  // vertex values as float64 (the generic stride decode)
   bool with_uvs = true;
   std::vector<int> quad_cells;
-  int nan_vertex = -1;       // this vertex's y is NaN
-  int bad_index_face = -1;   // this face's last index is out of range
+  int nan_vertex = -1;      // this vertex's y is NaN
+  int bad_index_face = -1;  // this face's last index is out of range
 
   std::string bytes() const {
     const int vertex_count = side * side;
@@ -69,15 +68,19 @@ struct GridPly {
     const int face_count = 2 * cell_count - static_cast<int>(quad_cells.size());
     PlyBytes file(big_endian);
     const char* type = doubles ? "double" : "float";
-    std::string header = std::string("ply\nformat ") + (big_endian ? "binary_big_endian" : "binary_little_endian") +
+    std::string header = std::string("ply\nformat ") +
+                         (big_endian ? "binary_big_endian" : "binary_little_endian") +
                          " 1.0\nelement vertex " + std::to_string(vertex_count) + "\n";
-    for (const char* name : {"x", "y", "z", "nx", "ny", "nz"}) header += std::string("property ") + type + " " + name + "\n";
+    for (const char* name : {"x", "y", "z", "nx", "ny", "nz"})
+      header += std::string("property ") + type + " " + name + "\n";
     if (with_uvs) header += std::string("property ") + type + " u\nproperty " + type + " v\n";
-    header += "element face " + std::to_string(face_count) + "\nproperty list uchar int vertex_indices\nend_header\n";
+    header += "element face " + std::to_string(face_count) +
+              "\nproperty list uchar int vertex_indices\nend_header\n";
     file.text(header);
     for (int v = 0; v < vertex_count; ++v) {
       const float x = static_cast<float>(v % side) + 0.001f * static_cast<float>((v * 7919) % 997);
-      const float y = v == nan_vertex ? std::numeric_limits<float>::quiet_NaN() : static_cast<float>(v / side);
+      const float y =
+          v == nan_vertex ? std::numeric_limits<float>::quiet_NaN() : static_cast<float>(v / side);
       const float z = std::sin(static_cast<float>(v) * 0.37f);
       float values[8] = {x, y, z, 0.0f, z, 1.0f, x / static_cast<float>(side), y / static_cast<float>(side)};
       for (int i = 0; i < (with_uvs ? 8 : 6); ++i) {
@@ -126,7 +129,8 @@ struct Loaded {
 
 Loaded load(const std::string& path, bool serial, int threads, std::size_t block_bytes = 1000,
             LoadOptions options = {}) {
-  tbb::global_control control(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
+  tbb::global_control control(tbb::global_control::max_allowed_parallelism,
+                              static_cast<std::size_t>(threads));
   options.serial = serial;
   options.block_bytes = block_bytes;
   Loaded result;
@@ -172,7 +176,8 @@ TEST(LoadParallelPly, BlocksMatchTheReferenceInBothByteOrders) {
   TempDir dir;
   for (const bool big_endian : {false, true}) {
     for (const bool doubles : {false, true}) {
-      SCOPED_TRACE(std::string(big_endian ? "big" : "little") + " endian, " + (doubles ? "doubles" : "floats"));
+      SCOPED_TRACE(std::string(big_endian ? "big" : "little") + " endian, " +
+                   (doubles ? "doubles" : "floats"));
       GridPly grid;
       grid.big_endian = big_endian;
       grid.doubles = doubles;
@@ -223,7 +228,8 @@ TEST(LoadParallelPly, ErrorsInLateBlocksNameTheSameByte) {
       grid.bad_index_face = 6000;
       write_text(path, grid.bytes());
       const Loaded reference = expect_blocks_match_reference(path);
-      EXPECT_NE(reference.status.message().find("face 6000: vertex index 3600 out of range"), std::string::npos)
+      EXPECT_NE(reference.status.message().find("face 6000: vertex index 3600 out of range"),
+                std::string::npos)
           << reference.status.message();
     }
     {
@@ -311,8 +317,8 @@ struct GridObj {
         const int d = a + side;
         const int face_row = row - 1;
         if ((a % 7) == 0) {
-          out.push_back("f " + corner(a, face_row) + " " + corner(b, face_row) + " " + corner(c, face_row) + " " +
-                        corner(d, face_row));
+          out.push_back("f " + corner(a, face_row) + " " + corner(b, face_row) + " " + corner(c, face_row) +
+                        " " + corner(d, face_row));
         } else {
           out.push_back("f " + corner(a, face_row) + " " + corner(b, face_row) + " " + corner(c, face_row));
           out.push_back("f\t" + corner(a, face_row) + "  " + corner(c, face_row) + " " + corner(d, face_row));
@@ -524,15 +530,18 @@ TEST(LoadParallelValidate, FirstBadElementIsReportedWithTwoThreads) {
   const std::size_t vertex_count = 300000;
   mesh.positions.assign(vertex_count, glm::vec3(1.0f));
   mesh.indices.assign(3 * 200000, 0u);
-  for (std::size_t i = 0; i < mesh.indices.size(); ++i) mesh.indices[i] = static_cast<std::uint32_t>(i % vertex_count);
+  for (std::size_t i = 0; i < mesh.indices.size(); ++i)
+    mesh.indices[i] = static_cast<std::uint32_t>(i % vertex_count);
   tbb::global_control control(tbb::global_control::max_allowed_parallelism, 2);
   mesh.positions[250000].y = std::numeric_limits<float>::infinity();
   mesh.positions[170001].z = std::numeric_limits<float>::quiet_NaN();
-  EXPECT_NE(validate_mesh(mesh, "m").message().find("m: vertex 170001 has a non-finite position"), std::string::npos);
+  EXPECT_NE(validate_mesh(mesh, "m").message().find("m: vertex 170001 has a non-finite position"),
+            std::string::npos);
   mesh.positions.assign(vertex_count, glm::vec3(1.0f));
   mesh.indices[590000] = 300000;
   mesh.indices[400001] = 300001;
-  EXPECT_NE(validate_mesh(mesh, "m").message().find("m: triangle 133333 refers to vertex 300001"), std::string::npos)
+  EXPECT_NE(validate_mesh(mesh, "m").message().find("m: triangle 133333 refers to vertex 300001"),
+            std::string::npos)
       << validate_mesh(mesh, "m").message();
 }
 

@@ -1,6 +1,8 @@
 // Tests of the load stage: tiny hand-written OBJ and PLY files with exact
 // expectations, every rejection with its file and place, and save/load round
 // trips.
+#include "nmbake/load.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -10,13 +12,11 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <glm/geometric.hpp>
 #include <limits>
 #include <string>
 #include <vector>
 
-#include <glm/geometric.hpp>
-
-#include "nmbake/load.hpp"
 #include "test_util.hpp"
 
 namespace nmbake {
@@ -37,7 +37,8 @@ Loaded load(const std::string& path, LoadOptions options = {}) {
   return result;
 }
 
-Loaded load_text(const TempDir& dir, const std::string& name, const std::string& text, LoadOptions options = {}) {
+Loaded load_text(const TempDir& dir, const std::string& name, const std::string& text,
+                 LoadOptions options = {}) {
   const std::string path = dir.file(name);
   write_text(path, text);
   return load(path, options);
@@ -87,7 +88,9 @@ std::vector<std::uint32_t> indices_of(const Mesh& mesh) { return mesh.indices; }
 
 // Corner attributes of triangle corner `corner`, for tests where the vertex
 // numbering is an implementation choice.
-glm::vec3 corner_position(const Mesh& mesh, std::size_t corner) { return mesh.positions[mesh.indices[corner]]; }
+glm::vec3 corner_position(const Mesh& mesh, std::size_t corner) {
+  return mesh.positions[mesh.indices[corner]];
+}
 
 // ------------------------------------------------------------------- OBJ
 
@@ -109,7 +112,8 @@ TEST(LoadObj, PositionsOnlyTriangle) {
 
 TEST(LoadObj, EveryCornerForm) {
   TempDir dir;
-  const std::string data = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0.25 0.5\nvt 1 0\nvt 0 1\nvn 0 0 1\nvn 0 0 2\nvn 0 0 3\n";
+  const std::string data =
+      "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0.25 0.5\nvt 1 0\nvt 0 1\nvn 0 0 1\nvn 0 0 2\nvn 0 0 3\n";
   {
     const Loaded r = load_text(dir, "vt.obj", data + "f 1/1 2/2 3/3\n");
     ASSERT_TRUE(r.status.is_ok()) << r.status.message();
@@ -165,9 +169,10 @@ TEST(LoadObj, NegativeIndicesAreRelativeToDefinitionsSoFar) {
 
 TEST(LoadObj, PolygonsAreFanTriangulated) {
   TempDir dir;
-  const Loaded r = load_text(dir, "poly.obj",
-                             "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 3 0 0\nv 3 1 0\nv 2.5 2 0\nv 2 1 0\n"
-                             "f 1 2 3 4\nf 5 6 7 8 9\n");
+  const Loaded r =
+      load_text(dir, "poly.obj",
+                "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 3 0 0\nv 3 1 0\nv 2.5 2 0\nv 2 1 0\n"
+                "f 1 2 3 4\nf 5 6 7 8 9\n");
   ASSERT_TRUE(r.status.is_ok()) << r.status.message();
   EXPECT_EQ(indices_of(r.mesh), (std::vector<std::uint32_t>{0, 1, 2, 0, 2, 3, 4, 5, 6, 4, 6, 7, 4, 7, 8}));
   EXPECT_EQ(r.stats.polygons, 2u);
@@ -401,7 +406,8 @@ TEST(LoadObj, FileLargerThanTheReadBuffer) {
 
 // Loads `text` and expects a bad_input whose message starts with
 // "PATH:LINE: " and contains `reason`.
-void expect_obj_error(const std::string& text, int line, const std::string& reason, LoadOptions options = {}) {
+void expect_obj_error(const std::string& text, int line, const std::string& reason,
+                      LoadOptions options = {}) {
   TempDir dir;
   const std::string path = dir.file("bad.obj");
   write_text(path, text);
@@ -450,7 +456,8 @@ TEST(LoadObjErrors, BadIndices) {
 
 TEST(LoadObjErrors, CornersMustAgreeOnKeptAttributes) {
   const std::string data = std::string(kTriangle) + "vt 0 0\nvn 0 0 1\n";
-  expect_obj_error(data + "f 1/1 2/1 3\n", 6, "corner '3' has no texture coordinate index but earlier corners do");
+  expect_obj_error(data + "f 1/1 2/1 3\n", 6,
+                   "corner '3' has no texture coordinate index but earlier corners do");
   expect_obj_error(data + "f 1 2 3\nf 1//1 2//1 3//1\n", 7, "has normal index but earlier corners do not");
   // An attribute that is not kept may come and go.
   TempDir dir;
@@ -462,7 +469,8 @@ TEST(LoadObjErrors, CornersMustAgreeOnKeptAttributes) {
 
 TEST(LoadObjErrors, NoTriangles) {
   TempDir dir;
-  for (const std::string& text : {std::string(), std::string(kTriangle), std::string(kTriangle) + "f 1 2\nl 1 2 3\n"}) {
+  for (const std::string& text :
+       {std::string(), std::string(kTriangle), std::string(kTriangle) + "f 1 2\nl 1 2 3\n"}) {
     const std::string path = dir.file("empty.obj");
     write_text(path, text);
     Mesh mesh;
@@ -487,8 +495,9 @@ TEST(LoadErrors, MissingFileAndUnknownExtension) {
   write_text(xyz, "0 0 0\n");
   status = load_mesh(xyz, {}, mesh, stats);
   EXPECT_EQ(status.code(), StatusCode::bad_input);
-  EXPECT_EQ(status.message(),
-            xyz + ": unknown mesh format '.xyz' (expected .obj, .ply, .gltf, .glb, .fbx, .dae, .3ds or .stl)");
+  EXPECT_EQ(
+      status.message(),
+      xyz + ": unknown mesh format '.xyz' (expected .obj, .ply, .gltf, .glb, .fbx, .dae, .3ds or .stl)");
 
   // Extensions are case-insensitive.
   const std::string upper = dir.file("TRI.OBJ");
@@ -586,7 +595,8 @@ TEST(LoadPly, BinaryLittleEndianFastPath) {
   }
   file.put<std::uint8_t>(3).put<std::int32_t>(0).put<std::int32_t>(1).put<std::int32_t>(2);
   // A quad inside the fast path's layout.
-  file.put<std::uint8_t>(4).put<std::int32_t>(0).put<std::int32_t>(1).put<std::int32_t>(2).put<std::int32_t>(3);
+  file.put<std::uint8_t>(4).put<std::int32_t>(0).put<std::int32_t>(1).put<std::int32_t>(2).put<std::int32_t>(
+      3);
   const std::string path = dir.file("fast.ply");
   write_text(path, file.data());
   const Loaded r = load(path);
@@ -615,7 +625,8 @@ TEST(LoadPly, BinaryBigEndianDoublesAndSmallTypes) {
   for (int i = 0; i < 3; ++i) {
     file.put(xyz[i][0]).put(xyz[i][1]).put(xyz[i][2]);
     file.put<std::uint8_t>(200).put<std::uint8_t>(100);
-    file.put<std::uint16_t>(static_cast<std::uint16_t>(1000 + i)).put<std::int16_t>(static_cast<std::int16_t>(-i));
+    file.put<std::uint16_t>(static_cast<std::uint16_t>(1000 + i))
+        .put<std::int16_t>(static_cast<std::int16_t>(-i));
   }
   file.put<std::uint16_t>(3).put<std::int16_t>(2).put<std::int16_t>(1).put<std::int16_t>(0);
   const std::string path = dir.file("be.ply");
@@ -647,9 +658,17 @@ TEST(LoadPly, BinaryGenericPathSkipsListsAndElements) {
                          "property list uchar uchar tags\n"
                          "property float u\nproperty float v\n"
                          "property int8 padding\n"));
-    file.put<std::uint8_t>(1).put<std::uint8_t>(3).put<std::uint32_t>(0).put<std::uint32_t>(1).put<std::uint32_t>(2);
+    file.put<std::uint8_t>(1)
+        .put<std::uint8_t>(3)
+        .put<std::uint32_t>(0)
+        .put<std::uint32_t>(1)
+        .put<std::uint32_t>(2);
     file.put<std::int32_t>(2).put<std::int8_t>(-1).put<std::int8_t>(5);
-    file.put<std::uint8_t>(0).put<std::uint8_t>(3).put<std::uint32_t>(2).put<std::uint32_t>(1).put<std::uint32_t>(3);
+    file.put<std::uint8_t>(0)
+        .put<std::uint8_t>(3)
+        .put<std::uint32_t>(2)
+        .put<std::uint32_t>(1)
+        .put<std::uint32_t>(3);
     file.put<std::int32_t>(0);
     file.put<std::uint8_t>(2).put(1.0).put(2.0).put<std::int32_t>(7);
     file.put<std::uint8_t>(0).put<std::int32_t>(8);
@@ -672,12 +691,13 @@ TEST(LoadPly, BinaryGenericPathSkipsListsAndElements) {
 
 TEST(LoadPly, OptionsDropNormalsAndUvs) {
   TempDir dir;
-  const std::string text = ply_header("ascii",
-                                      "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-                                      "property float nx\nproperty float ny\nproperty float nz\n"
-                                      "property float u\nproperty float v\n"
-                                      "element face 1\nproperty list uchar uint vertex_indices\n") +
-                           "0 0 0 0 0 1 0 0\n1 0 0 0 0 1 1 0\n0 1 0 0 0 1 0 1\n3 0 1 2\n";
+  const std::string text =
+      ply_header("ascii",
+                 "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                 "property float nx\nproperty float ny\nproperty float nz\n"
+                 "property float u\nproperty float v\n"
+                 "element face 1\nproperty list uchar uint vertex_indices\n") +
+      "0 0 0 0 0 1 0 0\n1 0 0 0 0 1 1 0\n0 1 0 0 0 1 0 1\n3 0 1 2\n";
   LoadOptions options;
   options.keep_normals = false;
   options.keep_uvs = false;
@@ -730,7 +750,8 @@ TEST(LoadPlyErrors, BinaryProblemsNameTheByteOffset) {
     vertices(file, 0.0f);
     file.put<std::uint8_t>(3).put<std::int32_t>(-1).put<std::int32_t>(1).put<std::int32_t>(2);
     write_text(path, file.data());
-    expect_message(load_status(path), path + ": byte " + std::to_string(body + 36 + 1) + ": ", "vertex index -1");
+    expect_message(load_status(path), path + ": byte " + std::to_string(body + 36 + 1) + ": ",
+                   "vertex index -1");
   }
   {
     Bytes file(false);
@@ -738,7 +759,8 @@ TEST(LoadPlyErrors, BinaryProblemsNameTheByteOffset) {
     vertices(file, std::numeric_limits<float>::quiet_NaN());
     file.put<std::uint8_t>(3).put<std::int32_t>(0).put<std::int32_t>(1).put<std::int32_t>(2);
     write_text(path, file.data());
-    expect_message(load_status(path), path + ": byte " + std::to_string(body + 16) + ": ", "vertex 1: non-finite");
+    expect_message(load_status(path), path + ": byte " + std::to_string(body + 16) + ": ",
+                   "vertex 1: non-finite");
   }
   {
     // Truncated inside the face list: the header still fits the body.
@@ -775,17 +797,20 @@ TEST(LoadPlyErrors, HeaderAndAsciiProblemsNameTheLine) {
          "unknown property type 'float128'");
   expect("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n0 0\n", 3,
          "lacks one of the properties x, y, z");
-  expect("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
-         "property float u\nend_header\n0 0 0 0\n",
-         3, "has property 'u' but not 'v'");
-  expect("ply\nformat ascii 1.0\nelement vertex 1\nelement face 1\nend_header\n0 0\n", 3, "element 'vertex' lacks");
+  expect(
+      "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
+      "property float u\nend_header\n0 0 0 0\n",
+      3, "has property 'u' but not 'v'");
+  expect("ply\nformat ascii 1.0\nelement vertex 1\nelement face 1\nend_header\n0 0\n", 3,
+         "element 'vertex' lacks");
   const std::string header = ply_header("ascii", kFastHeader);  // 9 lines
   expect(header + "0 0 0\n1 0 0\n0 1 zero\n3 0 1 2\n", 12, "bad number 'zero'");
   expect(header + "0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", 13, "face 0: vertex index 3 out of range (3 vertices)");
   expect(header + "0 0 0\n1 0 0\n0 1 nan\n3 0 1 2\n", 12, "NaN or Inf");
   expect(header + "0 0 0\n1 0 0\n0 1 0\n3 0 1\n", 13, "file ends inside face 0 of 1");
-  write_text(path, "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-                   "end_header\n0 0 0 1 0 0 0 1 0\n");
+  write_text(path,
+             "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+             "end_header\n0 0 0 1 0 0 0 1 0\n");
   expect_message(load_status(path), path + ": no triangles", "no element 'face'");
   write_text(path, header + "0 0 0\n1 0 0\n0 1 0\n2 0 1\n");
   expect_message(load_status(path), path + ": no triangles", "1 faces with fewer than 3 corners");
@@ -833,7 +858,8 @@ TEST(SaveMesh, RoundTripIsBitExact) {
   }
   // Only the two targets remain: no temporary files are left behind.
   std::vector<std::string> names;
-  for (const auto& entry : std::filesystem::directory_iterator(dir.path())) names.push_back(entry.path().filename());
+  for (const auto& entry : std::filesystem::directory_iterator(dir.path()))
+    names.push_back(entry.path().filename());
   std::sort(names.begin(), names.end());
   EXPECT_EQ(names, (std::vector<std::string>{"round.obj", "round.ply"}));
 }
@@ -847,7 +873,8 @@ TEST(SaveMesh, LargeRoundTripCrossesBufferRefills) {
       const float fx = static_cast<float>(x) / 7.0f;
       const float fy = static_cast<float>(y) / 3.0f;
       mesh.positions.emplace_back(fx, fy, std::sin(fx) * std::cos(fy));
-      mesh.normals.push_back(glm::normalize(glm::vec3(-std::cos(fx) * std::cos(fy), std::sin(fx) * std::sin(fy), 1.0f)));
+      mesh.normals.push_back(
+          glm::normalize(glm::vec3(-std::cos(fx) * std::cos(fy), std::sin(fx) * std::sin(fy), 1.0f)));
       mesh.uvs.emplace_back(static_cast<float>(x) / side, static_cast<float>(y) / side);
     }
   }
@@ -865,7 +892,8 @@ TEST(SaveMesh, LargeRoundTripCrossesBufferRefills) {
     ASSERT_TRUE(r.status.is_ok()) << r.status.message();
     EXPECT_GT(r.stats.bytes, std::uint64_t{4} << 20) << name;
     ASSERT_EQ(r.mesh.vertex_count(), mesh.vertex_count());
-    EXPECT_TRUE(bitwise_equal(r.mesh.positions.data(), mesh.positions.data(), 12 * mesh.vertex_count())) << name;
+    EXPECT_TRUE(bitwise_equal(r.mesh.positions.data(), mesh.positions.data(), 12 * mesh.vertex_count()))
+        << name;
     EXPECT_TRUE(bitwise_equal(r.mesh.normals.data(), mesh.normals.data(), 12 * mesh.vertex_count())) << name;
     EXPECT_TRUE(bitwise_equal(r.mesh.uvs.data(), mesh.uvs.data(), 8 * mesh.vertex_count())) << name;
     EXPECT_EQ(r.mesh.indices, mesh.indices) << name;
@@ -931,7 +959,8 @@ TEST(LoadBenchmark, DISABLED_LoadSpeed) {
   }
   auto report = [](const char* what, const Loaded& r, double seconds) {
     std::printf("load %-16s %8.1f MB  %6.3f s  %7.1f MB/s  %6.2f Mtri/s\n", what,
-                static_cast<double>(r.stats.bytes) / 1e6, seconds, static_cast<double>(r.stats.bytes) / 1e6 / seconds,
+                static_cast<double>(r.stats.bytes) / 1e6, seconds,
+                static_cast<double>(r.stats.bytes) / 1e6 / seconds,
                 static_cast<double>(r.stats.triangles) / 1e6 / seconds);
   };
   {
@@ -940,13 +969,14 @@ TEST(LoadBenchmark, DISABLED_LoadSpeed) {
     text.reserve(std::size_t{120} << 20);
     char line[128];
     for (const glm::vec3& p : grid.positions) {
-      text.append(line, static_cast<std::size_t>(std::snprintf(line, sizeof(line), "v %.9g %.9g %.9g\n", p.x, p.y, p.z)));
+      text.append(line, static_cast<std::size_t>(
+                            std::snprintf(line, sizeof(line), "v %.9g %.9g %.9g\n", p.x, p.y, p.z)));
     }
     text += "vn 0 0 1\n";
     for (std::size_t t = 0; t < grid.triangle_count(); ++t) {
-      text.append(line, static_cast<std::size_t>(std::snprintf(line, sizeof(line), "f %u//1 %u//1 %u//1\n",
-                                                               grid.indices[3 * t] + 1, grid.indices[3 * t + 1] + 1,
-                                                               grid.indices[3 * t + 2] + 1)));
+      text.append(line, static_cast<std::size_t>(std::snprintf(
+                            line, sizeof(line), "f %u//1 %u//1 %u//1\n", grid.indices[3 * t] + 1,
+                            grid.indices[3 * t + 1] + 1, grid.indices[3 * t + 2] + 1)));
     }
     const std::string path = dir.file("split.obj");
     write_text(path, text);

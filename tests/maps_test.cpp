@@ -1,19 +1,19 @@
 // The map set (maps.hpp): every map against an analytic answer
 // (tools/gen/map_lab.hpp), stability, determinism, the <MAP> token, and the
 // normal map unchanged by it all.
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <functional>
-#include <iterator>
-
-#include <gtest/gtest.h>
 #include <glm/geometric.hpp>
+#include <iterator>
 #include <nlohmann/json.hpp>
-#include <tbb/global_control.h>
-#include <tbb/task_arena.h>
 
 #include "lab_scenes.hpp"
 #include "map_lab.hpp"
@@ -151,7 +151,6 @@ TEST(Maps, HeightMatchesTheAnalyticSurface) {
   }
 }
 
-
 // The three closed forms of map_lab.hpp: mean cosine-weighted visibility
 // error per texel against the ray count. Low-discrepancy rays rotated per
 // texel: the error falls faster than 1/sqrt(N) and is unbiased.
@@ -260,10 +259,12 @@ TEST(Maps, CurvatureMatchesSphereAndTorus) {
       ASSERT_TRUE(load_mesh(o.low_path, LoadOptions{true, true}, low, ls).is_ok());
       MeshStats ms;
       prepare_low_normals(low, ms);
-      const scenes::ExpectedMap want = scenes::expected_curvature(scene, low, 96, 96, o.samples, rays_of(report));
+      const scenes::ExpectedMap want =
+          scenes::expected_curvature(scene, low, 96, 96, o.samples, rays_of(report));
       const scenes::MapError e = scenes::score_map(read_map(dir, MapKind::curvature), 0, want);
       std::printf("curvature %s (%s normals): %s (auto range %.4f)\n", scene.c_str(),
-                  analytic_normals ? "analytic" : "computed", e.to_text().c_str(), report.map_reports[0].figure("range"));
+                  analytic_normals ? "analytic" : "computed", e.to_text().c_str(),
+                  report.map_reports[0].figure("range"));
       EXPECT_EQ(e.texels, 96u * 96u);
       EXPECT_EQ(e.non_finite, 0u);
       if (analytic_normals) {
@@ -300,12 +301,13 @@ TEST(Maps, ThicknessMatchesSlabAndSphere) {
     Mesh low;
     LoadStats ls;
     ASSERT_TRUE(load_mesh(o.low_path, LoadOptions{true, true}, low, ls).is_ok());
-    const scenes::ExpectedMap want = scenes::expected_from_low_points(low, 64, 64, o.samples, [&](const glm::dvec3& p) {
-      if (scene == "sphere") return scenes::sphere_thickness(1.0);
-      const double margin = 0.05;  // > T tan(15 deg): rays from nearer the sides leave through them
-      const bool inside = p.x > margin && p.x < 1.0 - margin && p.y > margin && p.y < 1.0 - margin;
-      return inside ? static_cast<double>(scenes::kSlabThickness) : std::nan("");
-    });
+    const scenes::ExpectedMap want =
+        scenes::expected_from_low_points(low, 64, 64, o.samples, [&](const glm::dvec3& p) {
+          if (scene == "sphere") return scenes::sphere_thickness(1.0);
+          const double margin = 0.05;  // > T tan(15 deg): rays from nearer the sides leave through them
+          const bool inside = p.x > margin && p.x < 1.0 - margin && p.y > margin && p.y < 1.0 - margin;
+          return inside ? static_cast<double>(scenes::kSlabThickness) : std::nan("");
+        });
     const scenes::MapError e = scenes::score_map(read_map(dir, MapKind::thickness), 0, want);
     std::printf("thickness %s: %s (without exit %.0f)\n", scene.c_str(), e.to_text().c_str(),
                 report.map_reports[0].figure("samples_without_exit"));
@@ -317,11 +319,10 @@ TEST(Maps, ThicknessMatchesSlabAndSphere) {
   }
 }
 
-
 // Every map but vertex-color (the lab scenes have no colours).
-const std::vector<MapKind> kAllMaps = {MapKind::normal,    MapKind::height,        MapKind::ao,
-                                       MapKind::bent_normal, MapKind::curvature,   MapKind::thickness,
-                                       MapKind::position,  MapKind::object_normal, MapKind::miss,
+const std::vector<MapKind> kAllMaps = {MapKind::normal,      MapKind::height,        MapKind::ao,
+                                       MapKind::bent_normal, MapKind::curvature,     MapKind::thickness,
+                                       MapKind::position,    MapKind::object_normal, MapKind::miss,
                                        MapKind::id};
 
 std::size_t count_non_finite(const Image& image) {
@@ -391,13 +392,15 @@ TEST(Maps, StableNearHardEdgesAndInTheSlotAndTheSameForAnyThreadCount) {
     o.ao_rays = 16;
     o.ao_distance = {Distance::Kind::absolute, 1.0f};
     o.maps = kAllMaps;
-    o.outputs = {{dir.file("a_<MAP>.exr"), PixelFormat::exr_float}, {dir.file("a_<MAP>.png"), PixelFormat::png16}};
+    o.outputs = {{dir.file("a_<MAP>.exr"), PixelFormat::exr_float},
+                 {dir.file("a_<MAP>.png"), PixelFormat::png16}};
     BakeReport one, two;
     {
       tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 1);
       ASSERT_TRUE(bake(o, one).is_ok());
     }
-    o.outputs = {{dir.file("b_<MAP>.exr"), PixelFormat::exr_float}, {dir.file("b_<MAP>.png"), PixelFormat::png16}};
+    o.outputs = {{dir.file("b_<MAP>.exr"), PixelFormat::exr_float},
+                 {dir.file("b_<MAP>.png"), PixelFormat::png16}};
     o.band_samples = 64 * 4 * 32;  // bands of 32 rows
     {
       tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 2);
@@ -436,7 +439,6 @@ TEST(Maps, StableNearHardEdgesAndInTheSlotAndTheSameForAnyThreadCount) {
   }
 }
 
-
 // The command line: <MAP> names each map's file, `.png` takes each map's own
 // depth and channels unless --format says otherwise; mistakes are exit 2
 // with nothing written.
@@ -462,8 +464,8 @@ class MapsCli : public ::testing::Test {
 };
 
 TEST_F(MapsCli, TokenNamesEveryMapInItsOwnFormat) {
-  const auto r = bake("--map normal,height --map ao,curvature,miss -o '" + dir.file("t_<MAP>.png") + "' -o '" +
-                      dir.file("t_<MAP>.exr") + "' --ao-rays 8");
+  const auto r = bake("--map normal,height --map ao,curvature,miss -o '" + dir.file("t_<MAP>.png") +
+                      "' -o '" + dir.file("t_<MAP>.exr") + "' --ao-rays 8");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("maps normal, height, ao, curvature, miss"), std::string::npos) << r.output;
   const struct {
@@ -505,7 +507,8 @@ TEST_F(MapsCli, MistakesAreExit2AndWriteNothing) {
     EXPECT_NE(r.output.find(c.says), std::string::npos) << c.args << "\n" << r.output;
   }
   std::size_t files = 0;
-  for (const auto& entry : std::filesystem::directory_iterator(dir.path())) files += entry.path().extension() != ".obj";
+  for (const auto& entry : std::filesystem::directory_iterator(dir.path()))
+    files += entry.path().extension() != ".obj";
   EXPECT_EQ(files, 0u);
 }
 
@@ -529,8 +532,8 @@ TEST_F(MapsCli, HeightPngIsTheExrThroughTheReportedRange) {
     ASSERT_NEAR(png.pixels[i], 0.5 + exr.pixels[i] / (2.0 * range), 0.51 / 65535.0);
   }
   // A given range clamps and counts what lies beyond it.
-  const auto given = bake("--map height -o '" + dir.file("g.png") + "' --height-range 0.001 --report " +
-                          dir.file("g.json"));
+  const auto given =
+      bake("--map height -o '" + dir.file("g.png") + "' --height-range 0.001 --report " + dir.file("g.json"));
   ASSERT_EQ(given.exit_code, 0) << given.output;
   EXPECT_NE(read_bytes(dir.file("g.json")).find("\"range_given\": 1.0"), std::string::npos);
 }
@@ -546,8 +549,8 @@ TEST_F(MapsCli, UdimTilesTimesMapsAndTheCache) {
   ASSERT_TRUE(save_mesh(dir.file("low1002.obj"), low).is_ok());
   const std::string maps = "--map normal,height,miss ";
   ASSERT_EQ(bake(maps + "-o '" + dir.file("plain_<MAP>.png") + "'").exit_code, 0);
-  const auto udim = test::run_command(test::cli_path() + " bake --low " + dir.file("low1002.obj") + " --high " +
-                                      dir.file("high.obj") + " --size 32 " + maps + "-o '" +
+  const auto udim = test::run_command(test::cli_path() + " bake --low " + dir.file("low1002.obj") +
+                                      " --high " + dir.file("high.obj") + " --size 32 " + maps + "-o '" +
                                       dir.file("tiled.<UDIM>_<MAP>.png") + "'");
   ASSERT_EQ(udim.exit_code, 0) << udim.output;
   for (const char* map : {"normal", "height", "miss"}) {
@@ -558,7 +561,8 @@ TEST_F(MapsCli, UdimTilesTimesMapsAndTheCache) {
   const std::string cache = "--cache " + dir.file("cache") + " ";
   const auto first = bake(cache + maps + "-o '" + dir.file("c_<MAP>.png") + "'");
   ASSERT_EQ(first.exit_code, 0) << first.output;
-  for (const char* map : {"normal", "height", "miss"}) std::filesystem::remove(dir.file(std::string("c_") + map + ".png"));
+  for (const char* map : {"normal", "height", "miss"})
+    std::filesystem::remove(dir.file(std::string("c_") + map + ".png"));
   const auto second = bake(cache + maps + "-o '" + dir.file("c_<MAP>.png") + "'");
   ASSERT_EQ(second.exit_code, 0) << second.output;
   EXPECT_NE(second.output.find("cached"), std::string::npos) << second.output;
@@ -622,7 +626,8 @@ TEST(MapsDilate, ModesAndLayers) {
       const std::size_t t = static_cast<std::size_t>(y) * w + x;
       cov[t] = (x - 12) * (x - 12) + (y - 11) * (y - 11) < 60 || (x > 28 && y > 4 && y < 18);
       for (Image* image : {&a, &b, &c}) {
-        for (int k = 0; k < image->channels; ++k) image->pixels[t * image->channels + k] = cov[t] ? next() : 0.0f;
+        for (int k = 0; k < image->channels; ++k)
+          image->pixels[t * image->channels + k] = cov[t] ? next() : 0.0f;
       }
     }
   }
@@ -660,8 +665,10 @@ TEST(Maps, VertexColorIsTheHighMeshsColourAtTheHit) {
   LoadStats ls;
   ASSERT_TRUE(load_mesh(o.low_path, LoadOptions{true, true}, low, ls).is_ok());
   for (int c = 0; c < 3; ++c) {
-    const scenes::MapError e = scenes::score_map(
-        map, c, scenes::expected_from_low_points(low, 32, 32, 4, [c](const glm::dvec3& p) { return c == 0 ? p.x : c == 1 ? p.y : 0.5; }));
+    const scenes::MapError e =
+        scenes::score_map(map, c, scenes::expected_from_low_points(low, 32, 32, 4, [c](const glm::dvec3& p) {
+                            return c == 0 ? p.x : c == 1 ? p.y : 0.5;
+                          }));
     EXPECT_EQ(e.texels, 32u * 32u);
     EXPECT_LT(e.max, 1e-5) << "channel " << c;
   }
@@ -674,7 +681,8 @@ TEST(Maps, VertexColorIsTheHighMeshsColourAtTheHit) {
   const Image from_glb = read_map(glb_dir, MapKind::vertex_color);
   ASSERT_EQ(from_glb.pixels.size(), map.pixels.size());
   float largest = 0.0f;
-  for (std::size_t i = 0; i < map.pixels.size(); ++i) largest = std::max(largest, std::abs(from_glb.pixels[i] - map.pixels[i]));
+  for (std::size_t i = 0; i < map.pixels.size(); ++i)
+    largest = std::max(largest, std::abs(from_glb.pixels[i] - map.pixels[i]));
   EXPECT_LT(largest, 1e-5f);
 }
 
@@ -684,8 +692,9 @@ TEST(Maps, IdColoursEachPartByName) {
   test::TempDir dir;
   scenes::ScenePair wall = scenes::make_wall_scene();
   const std::uint32_t floor_high = 8 * 8 * 2;
-  wall.high.parts = {{"floor_high", 0, floor_high},
-                     {"wall_high", floor_high, static_cast<std::uint32_t>(wall.high.triangle_count()) - floor_high}};
+  wall.high.parts = {
+      {"floor_high", 0, floor_high},
+      {"wall_high", floor_high, static_cast<std::uint32_t>(wall.high.triangle_count()) - floor_high}};
   wall.low.parts = {{"floor_low", 0, static_cast<std::uint32_t>(wall.low.triangle_count())}};
   ASSERT_TRUE(save_mesh(dir.file("low.obj"), wall.low).is_ok());
   ASSERT_TRUE(save_mesh(dir.file("high.obj"), wall.high).is_ok());
@@ -703,7 +712,8 @@ TEST(Maps, IdColoursEachPartByName) {
     const Image id = read_map(dir, MapKind::id);
     std::size_t other = 0;
     for (int y = 0; y < 16; ++y) {
-      for (int x = 0; x < 16; ++x) other += glm::vec3(id.at(x, y)[0], id.at(x, y)[1], id.at(x, y)[2]) != floor;
+      for (int x = 0; x < 16; ++x)
+        other += glm::vec3(id.at(x, y)[0], id.at(x, y)[1], id.at(x, y)[2]) != floor;
     }
     EXPECT_EQ(other, 0u) << to_string(mode);
     EXPECT_EQ(report.id_source, IdSource::part);  // the file has no materials
@@ -885,11 +895,12 @@ TEST(Maps, VertexColorFromColladaAndObjEqualsPly) {
 // largest value, alpha is optional (1), and nothing is read unless asked.
 TEST(MapsLoad, PlyVertexColours) {
   test::TempDir dir;
-  test::write_text(dir.file("c.ply"),
-                   "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-                   "property uchar red\nproperty uchar green\nproperty uchar blue\nelement face 1\n"
-                   "property list uchar int vertex_indices\nend_header\n"
-                   "0 0 0 255 0 51\n1 0 0 0 255 0\n0 1 0 0 0 255\n3 0 1 2\n");
+  test::write_text(
+      dir.file("c.ply"),
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "property uchar red\nproperty uchar green\nproperty uchar blue\nelement face 1\n"
+      "property list uchar int vertex_indices\nend_header\n"
+      "0 0 0 255 0 51\n1 0 0 0 255 0\n0 1 0 0 0 255\n3 0 1 2\n");
   Mesh mesh;
   LoadStats stats;
   LoadOptions options{false, false};
@@ -944,9 +955,10 @@ TEST(MapsJob, IdSourceInJobFilesAndTheKey) {
 // the maps baked, and a normal bake's key text is what it was before maps.
 TEST(MapsJob, MapsInJobFilesAndTheKey) {
   test::TempDir dir;
-  test::write_text(dir.file("job.toml"), "[defaults]\nao_rays = 32\nao_distance = \"5%\"\nheight_range = 0.5\n"
-                                         "[[bake]]\nlow = \"low.obj\"\nhigh = \"high.ply\"\nmaps = [\"normal\", \"ao\"]\n"
-                                         "outputs = [\"m_<MAP>.png\", { path = \"m_<MAP>.tif\", format = \"tiff16\" }]\n");
+  test::write_text(dir.file("job.toml"),
+                   "[defaults]\nao_rays = 32\nao_distance = \"5%\"\nheight_range = 0.5\n"
+                   "[[bake]]\nlow = \"low.obj\"\nhigh = \"high.ply\"\nmaps = [\"normal\", \"ao\"]\n"
+                   "outputs = [\"m_<MAP>.png\", { path = \"m_<MAP>.tif\", format = \"tiff16\" }]\n");
   std::vector<BakeJob> jobs;
   const Status s = load_job_file(dir.file("job.toml"), jobs);
   ASSERT_TRUE(s.is_ok()) << s.message();
@@ -978,8 +990,9 @@ TEST(MapsJob, MapsInJobFilesAndTheKey) {
   EXPECT_EQ(plain.find("ao_"), std::string::npos) << plain;
   EXPECT_EQ(plain.find("id_source"), std::string::npos) << plain;
 
-  test::write_text(dir.file("bad.toml"), "[[bake]]\nlow = \"low.obj\"\nhigh = \"high.ply\"\nmaps = [\"normal\", 3]\n"
-                                         "outputs = [\"m.png\"]\n");
+  test::write_text(dir.file("bad.toml"),
+                   "[[bake]]\nlow = \"low.obj\"\nhigh = \"high.ply\"\nmaps = [\"normal\", 3]\n"
+                   "outputs = [\"m.png\"]\n");
   const Status bad = load_job_file(dir.file("bad.toml"), jobs);
   EXPECT_EQ(bad.code(), StatusCode::bad_input);
   EXPECT_NE(bad.message().find("bad.toml:4"), std::string::npos) << bad.message();
@@ -999,7 +1012,8 @@ TEST(Maps, OtherBakeGroupsDoNotShadow) {
                 {"wall_high", floor_high, static_cast<std::uint32_t>(high.triangle_count()) - floor_high}};
   const std::uint32_t floor_low = static_cast<std::uint32_t>(low.triangle_count());
   const std::uint32_t base = static_cast<std::uint32_t>(low.positions.size());
-  for (const glm::vec3 p : {glm::vec3(-5, 0, 0), glm::vec3(-4, 0, 0), glm::vec3(-4, 1, 0), glm::vec3(-5, 1, 0)}) {
+  for (const glm::vec3 p :
+       {glm::vec3(-5, 0, 0), glm::vec3(-4, 0, 0), glm::vec3(-4, 1, 0), glm::vec3(-5, 1, 0)}) {
     low.positions.push_back(p);
     low.normals.emplace_back(0, 0, 1);
     low.uvs.emplace_back(0.99f + 0.005f * (p.x + 5.0f), 0.99f + 0.005f * p.y);
@@ -1026,7 +1040,8 @@ TEST(Maps, OtherBakeGroupsDoNotShadow) {
       foot += ao.at(0, y)[0] / 56.0;
       shadowed += ao.at(0, y)[0] < 1.0f;
     }
-    std::printf("match %s: %zu groups, AO at the wall's foot %.3f\n", to_string(mode), report.groups.size(), foot);
+    std::printf("match %s: %zu groups, AO at the wall's foot %.3f\n", to_string(mode), report.groups.size(),
+                foot);
     if (mode == MatchMode::automatic) {
       EXPECT_EQ(report.groups.size(), 2u);
       EXPECT_EQ(shadowed, 0);
@@ -1045,7 +1060,8 @@ TEST(MapsCurvature, VertexCurvatureIsTheSameForAnyTaskCountAndVertexOrder) {
   const int rings = 60, segments = 90;
   for (int i = 0; i <= rings; ++i) {
     for (int j = 0; j < segments; ++j) {
-      const float theta = 3.14159265f * static_cast<float>(i) / rings, phi = 6.2831853f * static_cast<float>(j) / segments;
+      const float theta = 3.14159265f * static_cast<float>(i) / rings,
+                  phi = 6.2831853f * static_cast<float>(j) / segments;
       const float r = 1.0f + 0.1f * std::sin(3.0f * phi) * std::sin(2.0f * theta);  // bumps: curvature varies
       sphere.positions.emplace_back(r * std::sin(theta) * std::cos(phi), r * std::sin(theta) * std::sin(phi),
                                     r * std::cos(theta));
@@ -1158,9 +1174,10 @@ TEST(MapsFinish, CurvatureRangeAndClampedCountMatchASort) {
     std::vector<float> covered;
     for (std::size_t i = 0; i < image.pixels.size(); ++i) {
       const std::uint32_t r = next();
-      float v = (static_cast<float>(r % 100000) / 1000.0f - 50.0f) * std::pow(10.0f, static_cast<float>(trial % 3) - 1.0f);
+      float v = (static_cast<float>(r % 100000) / 1000.0f - 50.0f) *
+                std::pow(10.0f, static_cast<float>(trial % 3) - 1.0f);
       if (r % 7 == 0) v = 0.0f;
-      if (r % 11 == 0) v = trial == 4 ? 3e-40f : 2.5f;  // many equal values (ties)
+      if (r % 11 == 0) v = trial == 4 ? 3e-40f : 2.5f;                         // many equal values (ties)
       if (trial == 5) v = (r % 2 ? 1.0f : -1.0f) * static_cast<float>(r % 5);  // five values only
       coverage[i] = r % 5 != 0;
       image.pixels[i] = coverage[i] ? v : 1e6f;
@@ -1169,7 +1186,8 @@ TEST(MapsFinish, CurvatureRangeAndClampedCountMatchASort) {
     std::sort(covered.begin(), covered.end());
     const std::size_t rank = std::min(covered.size() - 1, covered.size() * 99 / 100);
     const float want = covered[rank];
-    const auto above = static_cast<double>(covered.end() - std::upper_bound(covered.begin(), covered.end(), want));
+    const auto above =
+        static_cast<double>(covered.end() - std::upper_bound(covered.begin(), covered.end(), want));
     DilateStats stats;
     set.finish(coverage, 0, stats);
     const MapReport report = set.reports(1001).front();
@@ -1196,7 +1214,8 @@ TEST(MapsFinish, RangeTooSmallForItsScaleIsFlat) {
       MapSet set(settings, 8, 0, 8);
       for (const MapKind map : settings.maps) {
         Image& image = set.image(map);
-        for (std::size_t i = 0; i < image.pixels.size(); ++i) image.pixels[i] = i % 3 == 0 ? 0.0f : (i % 2 ? tiny : -tiny);
+        for (std::size_t i = 0; i < image.pixels.size(); ++i)
+          image.pixels[i] = i % 3 == 0 ? 0.0f : (i % 2 ? tiny : -tiny);
       }
       std::vector<std::uint8_t> coverage(64, 1);
       DilateStats stats;

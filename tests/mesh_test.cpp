@@ -1,14 +1,13 @@
 // Tests of the mesh utilities: validation, area-weighted and averaged
 // normals with their fallbacks, bounds, Embree padding.
+#include "nmbake/mesh.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <glm/geometric.hpp>
 #include <limits>
 #include <string>
-
-#include <glm/geometric.hpp>
-
-#include "nmbake/mesh.hpp"
 
 namespace nmbake {
 namespace {
@@ -159,7 +158,8 @@ Mesh split_cube() {
       }
       auto even = [](const glm::vec3& p) { return (int(p.x > 0) + int(p.y > 0) + int(p.z > 0)) % 2 == 0; };
       const std::uint32_t first = even(corners[0]) ? 0 : 1;
-      const std::uint32_t q[4] = {base + first, base + (first + 1) % 4, base + (first + 2) % 4, base + (first + 3) % 4};
+      const std::uint32_t q[4] = {base + first, base + (first + 1) % 4, base + (first + 2) % 4,
+                                  base + (first + 3) % 4};
       mesh.indices.insert(mesh.indices.end(), {q[0], q[1], q[2], q[0], q[2], q[3]});
     }
   }

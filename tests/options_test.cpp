@@ -1,5 +1,7 @@
 // The option table (options.hpp): every option reads the same values, and
 // gives the same options, as a command-line flag and as a job-file key.
+#include "nmbake/options.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -9,7 +11,6 @@
 #include <string>
 #include <vector>
 
-#include "nmbake/options.hpp"
 #include "nmbake/preset.hpp"
 #include "test_util.hpp"
 
@@ -112,7 +113,8 @@ TEST(OptionTable, EveryWordAndValueGivesTheSameOptionsAsAFlagAndAsAJobKey) {
         toml += toml_value(value) + "\n";
       }
       write_text(job, toml);
-      const test::CommandResult by_key = run_command(test::cli_path() + " bake --print-options " + squote(job));
+      const test::CommandResult by_key =
+          run_command(test::cli_path() + " bake --print-options " + squote(job));
       ASSERT_EQ(by_flag.exit_code, 0) << flag << "\n" << by_flag.output;
       ASSERT_EQ(by_key.exit_code, 0) << toml << "\n" << by_key.output;
       EXPECT_EQ(by_flag.output, by_key.output) << flag << "\n" << toml;
@@ -120,8 +122,10 @@ TEST(OptionTable, EveryWordAndValueGivesTheSameOptionsAsAFlagAndAsAJobKey) {
       // unless the value is the default.
       const bool is_default = spec.show(BakeOptions{}) == value || (spec.is_switch && value == "false");
       if (!is_default && key != "size" && key != "tbn") {
-        EXPECT_EQ(by_flag.output.find("\"" + key + "\":\"" + spec.show(BakeOptions{}) + "\""), std::string::npos)
-            << flag << ": the option kept its default\n" << by_flag.output;
+        EXPECT_EQ(by_flag.output.find("\"" + key + "\":\"" + spec.show(BakeOptions{}) + "\""),
+                  std::string::npos)
+            << flag << ": the option kept its default\n"
+            << by_flag.output;
       }
       ++tried;
     }
@@ -135,8 +139,9 @@ TEST(OptionTable, AnUnknownWordIsRefusedTheSameWayByBoth) {
   for (const OptionSpec& spec : bake_option_table()) {
     const std::string words = spec.words();
     if (words.empty()) continue;
-    const test::CommandResult by_flag = run_command(test::cli_path() + " bake --print-options --low l.obj --high h.ply -o o.png " +
-                                                    flag_of(spec) + " nonsense");
+    const test::CommandResult by_flag =
+        run_command(test::cli_path() + " bake --print-options --low l.obj --high h.ply -o o.png " +
+                    flag_of(spec) + " nonsense");
     EXPECT_EQ(by_flag.exit_code, 2) << flag_of(spec);
     // (a list of maps names the word it does not know)
     const std::string unknown = spec.key == "maps" ? "unknown map 'nonsense': " : "";
@@ -147,7 +152,8 @@ TEST(OptionTable, AnUnknownWordIsRefusedTheSameWayByBoth) {
                         " = 'nonsense'\n");
     const test::CommandResult by_key = run_command(test::cli_path() + " bake --print-options " + squote(job));
     EXPECT_EQ(by_key.exit_code, 2) << spec.key;
-    EXPECT_NE(by_key.output.find(job + ":5: " + std::string(spec.key) + ": " + unknown + "expected one of: " + words),
+    EXPECT_NE(by_key.output.find(job + ":5: " + std::string(spec.key) + ": " + unknown +
+                                 "expected one of: " + words),
               std::string::npos)
         << by_key.output;
   }
@@ -184,9 +190,9 @@ TEST(OptionTable, EveryWordTableNamesEveryValueOnce) {
   expect_table_complete({IdSource::automatic, IdSource::part, IdSource::material});
   expect_table_complete({PixelFormat::png8, PixelFormat::png16, PixelFormat::tiff16, PixelFormat::exr_half,
                          PixelFormat::exr_float, PixelFormat::exr_float_piz, PixelFormat::tga8});
-  expect_table_complete({MapKind::normal, MapKind::height, MapKind::ao, MapKind::bent_normal, MapKind::curvature,
-                         MapKind::thickness, MapKind::position, MapKind::object_normal, MapKind::vertex_color,
-                         MapKind::id, MapKind::miss});
+  expect_table_complete({MapKind::normal, MapKind::height, MapKind::ao, MapKind::bent_normal,
+                         MapKind::curvature, MapKind::thickness, MapKind::position, MapKind::object_normal,
+                         MapKind::vertex_color, MapKind::id, MapKind::miss});
   // The aliases still read: green's OpenGL and DirectX names.
   GreenChannel green = GreenChannel::up;
   EXPECT_TRUE(parse_word("directx", green));
@@ -199,7 +205,8 @@ TEST(OptionTable, EveryWordTableNamesEveryValueOnce) {
 TEST(OptionTable, OptionsNotInADefaultsTableAreRefusedThere) {
   TempDir dir;
   const std::string job = dir.file("job.toml");
-  write_text(job, "[defaults]\nlow = 'l.obj'\n[[bake]]\nlow = 'l.obj'\nhigh = 'h.ply'\noutputs = ['o.png']\n");
+  write_text(job,
+             "[defaults]\nlow = 'l.obj'\n[[bake]]\nlow = 'l.obj'\nhigh = 'h.ply'\noutputs = ['o.png']\n");
   const test::CommandResult r = run_command(test::cli_path() + " bake --print-options " + squote(job));
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.output.find(job + ":2: unknown key \"low\" in [defaults]"), std::string::npos) << r.output;

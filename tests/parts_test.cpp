@@ -1,18 +1,19 @@
 // Parts, bake groups and UDIM tiles: OBJ o/g parts, name matching, explicit
 // groups, and end-to-end bakes where parts must not bleed into each other and
 // tiles must equal the tile baked alone.
+#include "nmbake/parts.hpp"
+
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <fstream>
 #include <functional>
 #include <iterator>
 #include <sstream>
 
-#include <gtest/gtest.h>
-
 #include "nmbake/bake.hpp"
 #include "nmbake/diff.hpp"
 #include "nmbake/job.hpp"
-#include "nmbake/parts.hpp"
 #include "nmbake/udim.hpp"
 #include "test_util.hpp"
 
@@ -116,7 +117,8 @@ TEST(LoadParts, ObjObjectsNameParts) {
 
 TEST(LoadParts, ObjGroupsNamePartsWhenThereAreNoObjects) {
   test::TempDir dir;
-  test::write_text(dir.file("g.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\ng  a_low \nf 1 2 3\ng b low\nf 1 2 3\nf 1 2 3\n");
+  test::write_text(dir.file("g.obj"),
+                   "v 0 0 0\nv 1 0 0\nv 0 1 0\ng  a_low \nf 1 2 3\ng b low\nf 1 2 3\nf 1 2 3\n");
   const Mesh mesh = load(dir.file("g.obj"));
   ASSERT_EQ(mesh.parts.size(), 2u);
   EXPECT_EQ(mesh.parts[0].name, "a_low");  // blanks trimmed
@@ -239,8 +241,13 @@ Mesh with_parts(const std::vector<std::pair<std::string, std::uint32_t>>& parts)
 
 TEST(MatchParts, SuffixesNumberedDuplicatesAndCase) {
   const Mesh low = with_parts({{"body_low", 2}, {"Mag_LOW", 1}, {"body_low", 1}});
-  const Mesh high = with_parts({{"Mag_High", 1}, {"body_high", 3}, {"body_high.001", 2}, {"body_high_2", 1},
-                                {"bodyx_high", 1}, {"mag_high", 1}, {"stray", 1}});
+  const Mesh high = with_parts({{"Mag_High", 1},
+                                {"body_high", 3},
+                                {"body_high.001", 2},
+                                {"body_high_2", 1},
+                                {"bodyx_high", 1},
+                                {"mag_high", 1},
+                                {"stray", 1}});
   BakeGroups g;
   ASSERT_TRUE(match_parts(low, high, MatchOptions{}, "low.obj", "high.obj", g).is_ok());
   ASSERT_EQ(g.groups.size(), 2u);
@@ -309,8 +316,8 @@ TEST(MatchParts, NoSuffixOrMatchOffIsOneGroupOfEverything) {
   MatchOptions custom;
   custom.low_suffix = "_lp";
   custom.high_suffix = "_hp";
-  ASSERT_TRUE(match_parts(with_parts({{"a_lp", 1}, {"b_lp", 1}}), with_parts({{"a_hp", 1}, {"b_hp", 1}}), custom,
-                          "l", "h", g)
+  ASSERT_TRUE(match_parts(with_parts({{"a_lp", 1}, {"b_lp", 1}}), with_parts({{"a_hp", 1}, {"b_hp", 1}}),
+                          custom, "l", "h", g)
                   .is_ok());
   EXPECT_EQ(g.groups.size(), 2u);
 }
@@ -395,11 +402,12 @@ TEST(JobGroups, PartListedTwiceOrLowPartInTwoGroupsNamesJobGroupAndPart) {
 
 TEST(JobGroups, ParsesGroupTablesAndMatchKeys) {
   test::TempDir dir;
-  test::write_text(dir.file("job.toml"),
-                   "[defaults]\nlow_suffix = \"_lp\"\nunmatched = \"all\"\n"
-                   "[[bake]]\nlow = \"l.obj\"\nhigh = \"h.obj\"\noutputs = [\"m.png\"]\nmatch = \"name\"\n"
-                   "[[bake.group]]\nname = \"body\"\nlow = [\"body_lp\"]\nhigh = [\"body_hp\", \"bolts_hp\"]\n"
-                   "[[bake.group]]\nlow = [\"mag_lp\"]\nhigh = [\"mag_hp\"]\n");
+  test::write_text(
+      dir.file("job.toml"),
+      "[defaults]\nlow_suffix = \"_lp\"\nunmatched = \"all\"\n"
+      "[[bake]]\nlow = \"l.obj\"\nhigh = \"h.obj\"\noutputs = [\"m.png\"]\nmatch = \"name\"\n"
+      "[[bake.group]]\nname = \"body\"\nlow = [\"body_lp\"]\nhigh = [\"body_hp\", \"bolts_hp\"]\n"
+      "[[bake.group]]\nlow = [\"mag_lp\"]\nhigh = [\"mag_hp\"]\n");
   std::vector<BakeJob> jobs;
   const Status s = load_job_file(dir.file("job.toml"), jobs);
   ASSERT_TRUE(s.is_ok()) << s.message();
@@ -430,9 +438,13 @@ struct BleedScene {
   test::TempDir dir;
   Plate a_low{"a_low", 8, 0, 0.1f, 0, 0.1f, 0, 0.02f, 0.48f, 0.02f, 0.98f, {}};
   Plate b_low{"b_low", 8, 0, 0.1f, 0, 0.1f, 0.001f, 0.52f, 0.98f, 0.02f, 0.98f, {}};
-  Plate a_high{"a_high", 96, 0, 0.1f, 0, 0.1f, 0, 0, 0, 0, 0,
-               [](float x, float y) { return 0.0003f * std::sin(120.0f * x) * std::cos(90.0f * y); }};
-  Plate b_high{"b_high", 96, 0, 0.1f, 0, 0.1f, 0.001f, 0, 0, 0, 0, [](float x, float) { return 0.0002f * std::sin(200.0f * x); }};
+  Plate a_high{
+      "a_high", 96, 0,
+      0.1f,     0,  0.1f,
+      0,        0,  0,
+      0,        0,  [](float x, float y) { return 0.0003f * std::sin(120.0f * x) * std::cos(90.0f * y); }};
+  Plate b_high{"b_high", 96, 0, 0.1f, 0, 0.1f,
+               0.001f,   0,  0, 0,    0, [](float x, float) { return 0.0002f * std::sin(200.0f * x); }};
 
   BleedScene() {
     test::write_text(dir.file("low.obj"), plates_obj({a_low, b_low}));
@@ -489,9 +501,9 @@ DiffStats diff_half(const std::string& a, const std::string& b, bool left) {
 TEST(BakeGroupsEndToEnd, MatchedPartsDoNotBleedAndUnmatchedDo) {
   BleedScene scene;
   BakeReport report;
-  for (const auto& [low, high, out] : {std::tuple{"a_low.obj", "a_high.obj", "a.png"},
-                                       std::tuple{"b_low.obj", "b_high.obj", "b.png"},
-                                       std::tuple{"low.obj", "high.obj", "matched.png"}}) {
+  for (const auto& [low, high, out] :
+       {std::tuple{"a_low.obj", "a_high.obj", "a.png"}, std::tuple{"b_low.obj", "b_high.obj", "b.png"},
+        std::tuple{"low.obj", "high.obj", "matched.png"}}) {
     const Status s = bake(scene.options(low, high, out), report);
     ASSERT_TRUE(s.is_ok()) << s.message();
   }
@@ -614,9 +626,9 @@ TEST(BakeGroupsEndToEnd, MasksAndScenePerGroupGiveTheSameBytes) {
 TEST(BakeGroupsEndToEnd, CliListsUnmatchedPartsAndWritesNothing) {
   BleedScene scene;
   test::write_text(scene.dir.file("high2.obj"), plates_obj({scene.a_high}));
-  const test::CommandResult r =
-      test::run_command(test::cli_path() + " bake --low " + scene.dir.file("low.obj") + " --high " +
-                        scene.dir.file("high2.obj") + " --size 64 -o " + scene.dir.file("x.png") + " -q 2>&1");
+  const test::CommandResult r = test::run_command(
+      test::cli_path() + " bake --low " + scene.dir.file("low.obj") + " --high " +
+      scene.dir.file("high2.obj") + " --size 64 -o " + scene.dir.file("x.png") + " -q 2>&1");
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("'b_low'"), std::string::npos) << r.output;
   EXPECT_FALSE(std::filesystem::exists(scene.dir.file("x.png")));
@@ -657,7 +669,8 @@ TEST(BakeGroupsEndToEnd, CagePartsAreMatchedByName) {
   swapped.cage_path = scene.dir.file("cage_wrong.obj");
   s = bake(swapped, report);
   ASSERT_FALSE(s.is_ok());
-  EXPECT_NE(s.message().find("no cage part for low part 'a_low' (expected 'a_cage')"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("no cage part for low part 'a_low' (expected 'a_cage')"), std::string::npos)
+      << s.message();
 }
 
 // -------------------------------------------------------------- UDIM
@@ -682,7 +695,18 @@ TEST(Udim, EachTileEqualsTheTileBakedAlone) {
   for (int k = 0; k < 3; ++k) {
     const glm::vec2 o = udim_offset(tiles[k]);
     const float x0 = 1.2f * static_cast<float>(k);
-    low.push_back({"p" + std::to_string(k), 6, x0, x0 + 1, 0, 1, 0, o.x + 0.05f, o.x + 0.95f, o.y + 0.05f, o.y + 0.95f, {}});
+    low.push_back({"p" + std::to_string(k),
+                   6,
+                   x0,
+                   x0 + 1,
+                   0,
+                   1,
+                   0,
+                   o.x + 0.05f,
+                   o.x + 0.95f,
+                   o.y + 0.05f,
+                   o.y + 0.95f,
+                   {}});
     high.push_back({"h" + std::to_string(k), 64, x0, x0 + 1, 0, 1, 0, 0, 0, 0, 0, bumps});
   }
   test::write_text(dir.file("low.obj"), plates_obj(low));
@@ -693,7 +717,8 @@ TEST(Udim, EachTileEqualsTheTileBakedAlone) {
   o.width = o.height = 96;
   o.rays.front = {Distance::Kind::absolute, 0.05f};
   o.rays.back = {Distance::Kind::absolute, 0.05f};
-  o.outputs = {{dir.file("n.<UDIM>.png"), PixelFormat::png16}, {dir.file("n_<UDIM>.exr"), PixelFormat::exr_half}};
+  o.outputs = {{dir.file("n.<UDIM>.png"), PixelFormat::png16},
+               {dir.file("n_<UDIM>.exr"), PixelFormat::exr_half}};
   BakeReport report;
   Status s = bake(o, report);
   ASSERT_TRUE(s.is_ok()) << s.message();

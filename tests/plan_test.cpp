@@ -14,7 +14,6 @@
 #include <string>
 #include <vector>
 
-#include "base/strings.hpp"
 #include "nmbake/job.hpp"
 #include "test_util.hpp"
 
@@ -43,7 +42,7 @@ std::vector<std::string> split(const std::string& text, char separator) {
   return parts;
 }
 
-std::string toml_string(const std::string& text) { return nmbake::detail::quoted_string(text); }
+std::string toml_string(const std::string& text) { return quoted_string(text); }
 
 // One triangle with UVs: plan hashes the meshes, it does not bake them.
 void write_meshes(const test::TempDir& dir) {

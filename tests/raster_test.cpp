@@ -534,7 +534,8 @@ namespace {
 // the reference. Every byte must agree: triangles, barycentrics, coverage and
 // the counters, on meshes with shared edges, overlaps, slivers, borders and
 // bands.
-void expect_same_as_per_sample(const LowSurface& s, int w, int h, int spp, int row_begin = 0, int row_end = -1) {
+void expect_same_as_per_sample(const LowSurface& s, int w, int h, int spp, int row_begin = 0,
+                               int row_end = -1) {
   TexelSamples lanes, reference;
   RasterStats lane_stats, reference_stats;
   nmbake::rasterize(s, w, h, spp, lanes, lane_stats, row_begin, row_end);
@@ -556,9 +557,15 @@ TEST(RasterLanes, FourLanesEqualPerSample) {
     expect_same_as_per_sample(mesh, 192, 160, spp, 64, 128);
   }
   // Odd sizes, a sliver, a degenerate and a triangle hanging off the map.
-  const LowSurface odd = surface_from_uvs({{0.05f, 0.1f}, {0.95f, 0.83f}, {0.5f, 0.4651f},
-                                           {0.1f, 0.1f}, {0.1f, 0.1f}, {0.3f, 0.3f},
-                                           {-0.2f, 0.5f}, {0.6f, 1.3f}, {0.4f, -0.1f}});
+  const LowSurface odd = surface_from_uvs({{0.05f, 0.1f},
+                                           {0.95f, 0.83f},
+                                           {0.5f, 0.4651f},
+                                           {0.1f, 0.1f},
+                                           {0.1f, 0.1f},
+                                           {0.3f, 0.3f},
+                                           {-0.2f, 0.5f},
+                                           {0.6f, 1.3f},
+                                           {0.4f, -0.1f}});
   for (const int spp : {4, 16, 64}) expect_same_as_per_sample(odd, 77, 53, spp);
   // The lanes really ran: most samples of the mesh are strictly inside a triangle.
   TexelSamples ts;

@@ -15,9 +15,9 @@
 #include <tuple>
 #include <vector>
 
-#include "nmbake/load.hpp"
 #include "hard_scenes.hpp"
 #include "lab_scenes.hpp"
+#include "nmbake/load.hpp"
 #include "noise.hpp"
 #include "test_util.hpp"
 
@@ -556,7 +556,8 @@ TEST(ScenesHard, RevolvedProfileDistanceIsExact) {
     };
     double worst = 0.0, worst_angle = 0.0;
     for (int i = 0; i < 3000; ++i) {
-      const glm::dvec2 q(0.013 + 1.1 * std::fmod(0.7548776662 * (i + 1), 1.0), -0.95 + 1.9 * std::fmod(0.5698402910 * (i + 1), 1.0));
+      const glm::dvec2 q(0.013 + 1.1 * std::fmod(0.7548776662 * (i + 1), 1.0),
+                         -0.95 + 1.9 * std::fmod(0.5698402910 * (i + 1), 1.0));
       double near = 1e9;
       for (const glm::dvec2& d : dense) near = std::min(near, glm::length(q - d));
       glm::dvec2 n;
@@ -566,8 +567,12 @@ TEST(ScenesHard, RevolvedProfileDistanceIsExact) {
       EXPECT_EQ(sd < 0.0, inside(q)) << q.x << " " << q.y;
       // The gradient of the field at q, by central differences.
       const double h = 1e-6;
-      const glm::dvec2 g((profile.signed_distance(q + glm::dvec2(h, 0), nullptr) - profile.signed_distance(q - glm::dvec2(h, 0), nullptr)) / (2 * h),
-                         (profile.signed_distance(q + glm::dvec2(0, h), nullptr) - profile.signed_distance(q - glm::dvec2(0, h), nullptr)) / (2 * h));
+      const glm::dvec2 g((profile.signed_distance(q + glm::dvec2(h, 0), nullptr) -
+                          profile.signed_distance(q - glm::dvec2(h, 0), nullptr)) /
+                             (2 * h),
+                         (profile.signed_distance(q + glm::dvec2(0, h), nullptr) -
+                          profile.signed_distance(q - glm::dvec2(0, h), nullptr)) /
+                             (2 * h));
       if (std::fabs(glm::length(g) - 1.0) > 1e-3) continue;  // on a medial axis
       // Nearest to a sharp corner, the gradient points from the corner.
       bool corner = false;
@@ -578,7 +583,8 @@ TEST(ScenesHard, RevolvedProfileDistanceIsExact) {
           corner = true;
       }
       if (corner) continue;
-      worst_angle = std::max(worst_angle, std::acos(std::clamp(glm::dot(glm::normalize(g), n), -1.0, 1.0)) / kDegree);
+      worst_angle =
+          std::max(worst_angle, std::acos(std::clamp(glm::dot(glm::normalize(g), n), -1.0, 1.0)) / kDegree);
     }
     EXPECT_LT(worst, 1e-4);
     EXPECT_LT(worst_angle, 0.01);
@@ -620,7 +626,8 @@ TEST(ScenesHard, MeshesAreClosedOutwardAndOnTheirSurface) {
       std::size_t against = 0;
       for (std::size_t t = 0; t < m->triangle_count(); ++t) {
         const std::uint32_t* v = &m->indices[3 * t];
-        const glm::vec3 face = glm::cross(m->positions[v[1]] - m->positions[v[0]], m->positions[v[2]] - m->positions[v[0]]);
+        const glm::vec3 face =
+            glm::cross(m->positions[v[1]] - m->positions[v[0]], m->positions[v[2]] - m->positions[v[0]]);
         if (glm::dot(face, m->normals[v[0]] + m->normals[v[1]] + m->normals[v[2]]) <= 0.0f) ++against;
       }
       EXPECT_EQ(against, 0u);
@@ -636,7 +643,8 @@ TEST(ScenesHard, MeshesAreClosedOutwardAndOnTheirSurface) {
         n = scenes::box_normal(b, x);
         return scenes::box_field(b, x);
       }
-      const scenes::RevolveProfile profile((name == "bowl" ? scenes::bowl_params() : scenes::cylinder_params()).profile);
+      const scenes::RevolveProfile profile(
+          (name == "bowl" ? scenes::bowl_params() : scenes::cylinder_params()).profile);
       n = scenes::revolve_normal(profile, x);
       return scenes::revolve_field(profile, x);
     };

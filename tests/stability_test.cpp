@@ -1,14 +1,14 @@
 // Where methods fail: small scenes at the edges of what a bake must survive,
 // each asserting behaviour (issue 3, "stability suite"). Every bake's map is
 // checked for NaN/Inf.
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <string>
-
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
-#include <gtest/gtest.h>
+#include <string>
 
 #include "eval.hpp"
 #include "hard_scenes.hpp"
@@ -33,7 +33,8 @@ struct Baked {
 };
 
 // Writes the meshes, bakes an EXR with `o` (paths filled in), reads it back.
-Baked bake_meshes(const test::TempDir& dir, const Mesh& low, const Mesh& high, BakeOptions o, const Mesh* cage = nullptr) {
+Baked bake_meshes(const test::TempDir& dir, const Mesh& low, const Mesh& high, BakeOptions o,
+                  const Mesh* cage = nullptr) {
   EXPECT_TRUE(save_mesh(dir.file("low.obj"), low).is_ok());
   EXPECT_TRUE(save_mesh(dir.file("high.ply"), high).is_ok());
   o.low_path = dir.file("low.obj");
@@ -53,8 +54,8 @@ Baked bake_meshes(const test::TempDir& dir, const Mesh& low, const Mesh& high, B
 }
 
 // Scores a map with the lab evaluator (truth along the bake's rays).
-scenes::EvalResult score(const scenes::TrueSurface& truth, const Mesh& low, const Baked& b, CageMode cage_mode,
-                         int truth_samples = 4, const Mesh* cage = nullptr) {
+scenes::EvalResult score(const scenes::TrueSurface& truth, const Mesh& low, const Baked& b,
+                         CageMode cage_mode, int truth_samples = 4, const Mesh* cage = nullptr) {
   scenes::EvalOptions e;
   e.samples = truth_samples;
   e.rays.cage = cage_mode;
@@ -94,9 +95,12 @@ TEST(StabilityDegenerate, ZeroUvAreaAndZeroAreaFacesHaveFallbacks) {
   scenes::ScenePair s = small_heightfield();
   // A triangle with all three UVs on a line, one with a repeated vertex, and
   // one with collinear positions: each must be counted, never produce a NaN.
-  add_triangle(s.low, {0.1f, 0.1f, 0.0f}, {0.2f, 0.1f, 0.0f}, {0.1f, 0.2f, 0.0f}, {0.3f, 0.3f}, {0.4f, 0.4f}, {0.5f, 0.5f});
-  add_triangle(s.low, {0.5f, 0.5f, 0.0f}, {0.5f, 0.5f, 0.0f}, {0.6f, 0.5f, 0.0f}, {0.5f, 0.5f}, {0.5f, 0.5f}, {0.6f, 0.5f});
-  add_triangle(s.low, {0.2f, 0.2f, 0.0f}, {0.3f, 0.3f, 0.0f}, {0.4f, 0.4f, 0.0f}, {0.2f, 0.6f}, {0.3f, 0.65f}, {0.4f, 0.6f});
+  add_triangle(s.low, {0.1f, 0.1f, 0.0f}, {0.2f, 0.1f, 0.0f}, {0.1f, 0.2f, 0.0f}, {0.3f, 0.3f}, {0.4f, 0.4f},
+               {0.5f, 0.5f});
+  add_triangle(s.low, {0.5f, 0.5f, 0.0f}, {0.5f, 0.5f, 0.0f}, {0.6f, 0.5f, 0.0f}, {0.5f, 0.5f}, {0.5f, 0.5f},
+               {0.6f, 0.5f});
+  add_triangle(s.low, {0.2f, 0.2f, 0.0f}, {0.3f, 0.3f, 0.0f}, {0.4f, 0.4f, 0.0f}, {0.2f, 0.6f}, {0.3f, 0.65f},
+               {0.4f, 0.6f});
   const Baked b = bake_meshes(dir, s.low, s.high, small_options());
   ASSERT_TRUE(b.status.is_ok()) << b.status.message();
   EXPECT_GE(b.report.raster.degenerate_uv_triangles, 2u);
@@ -193,9 +197,12 @@ TEST(StabilitySeam, DecodedNormalsAgreeAcrossUvSeams) {
           w[from] = 1.0f - g;
           w[to] = g;
           const std::size_t base = 3 * tri;
-          const glm::vec2 uv = w[0] * surface.uv[base] + w[1] * surface.uv[base + 1] + w[2] * surface.uv[base + 2];
-          const glm::vec4 T = w[0] * surface.tangent[base] + w[1] * surface.tangent[base + 1] + w[2] * surface.tangent[base + 2];
-          const glm::vec3 N = w[0] * surface.normal[base] + w[1] * surface.normal[base + 1] + w[2] * surface.normal[base + 2];
+          const glm::vec2 uv =
+              w[0] * surface.uv[base] + w[1] * surface.uv[base + 1] + w[2] * surface.uv[base + 2];
+          const glm::vec4 T = w[0] * surface.tangent[base] + w[1] * surface.tangent[base + 1] +
+                              w[2] * surface.tangent[base + 2];
+          const glm::vec3 N =
+              w[0] * surface.normal[base] + w[1] * surface.normal[base + 1] + w[2] * surface.normal[base + 2];
           return tangent_to_world(sample_bilinear(b.map, uv), glm::vec3(T), N, T.w < 0.0f ? -1.0f : 1.0f);
         };
         const glm::vec3 na = side(a.tri, a.k, (a.k + 1) % 3, f);
@@ -225,7 +232,8 @@ TEST(StabilityHardEdge, BandedAndAveragedCagesLeaveNoGapsAlongHardEdges) {
     EXPECT_EQ(b.report.trace.misses, 0u);
     const auto truth = scenes::make_true_surface("box");
     const scenes::EvalResult r = score(*truth, s.low, b, cage);
-    std::printf("box, %s cage: %s\n", cage == CageMode::banded ? "banded" : "averaged", r.error.to_text().c_str());
+    std::printf("box, %s cage: %s\n", cage == CageMode::banded ? "banded" : "averaged",
+                r.error.to_text().c_str());
     EXPECT_EQ(r.without_truth, 0u);
     // What is left is the bevel's tessellation (64 cells per face, ~2.5
     // degrees per facet across the bevel), not gaps: a gap would be ~45 degrees.
@@ -271,8 +279,8 @@ TEST(StabilityDimple, MissesBeyondTheEstimatedDistanceAreRetried) {
   const scenes::Expected expected = scenes::compute_expected(*truth, s.low, nullptr, 256, 256, e);
   const scenes::EvalResult rb = scenes::evaluate(expected, before.map, e);
   const scenes::EvalResult ra = scenes::evaluate(expected, after.map, e);
-  std::printf("dimple: worst texel %.1f deg without retry, %.1f with; over 5 deg %.4f%% / %.4f%%\n", rb.error.max,
-              ra.error.max, 100.0 * rb.error.over_5deg, 100.0 * ra.error.over_5deg);
+  std::printf("dimple: worst texel %.1f deg without retry, %.1f with; over 5 deg %.4f%% / %.4f%%\n",
+              rb.error.max, ra.error.max, 100.0 * rb.error.over_5deg, 100.0 * ra.error.over_5deg);
   EXPECT_LT(ra.error.over_5deg, rb.error.over_5deg);
 }
 
@@ -293,7 +301,8 @@ TEST(StabilityConcave, NearestWinsInAGrooveFirstWinsOverAThinPlate) {
     const auto truth = scenes::make_true_surface("slot");
     const scenes::EvalResult rf = score(*truth, s.low, first, CageMode::banded);
     const scenes::EvalResult rn = score(*truth, s.low, nearest, CageMode::banded);
-    std::printf("groove, first:   %s\ngroove, nearest: %s\n", rf.error.to_text().c_str(), rn.error.to_text().c_str());
+    std::printf("groove, first:   %s\ngroove, nearest: %s\n", rf.error.to_text().c_str(),
+                rn.error.to_text().c_str());
     EXPECT_GT(rf.error.over_5deg, 0.5);
     EXPECT_LT(rn.error.median, 0.1);
     // What stays wrong is the groove's inner corners, where a ray meets wall
@@ -315,7 +324,8 @@ TEST(StabilityConcave, NearestWinsInAGrooveFirstWinsOverAThinPlate) {
     for (glm::vec3& v : high.positions) v.z = 0.02f;
     for (glm::vec3& v : under.positions) v.z = -0.01f;
     for (glm::vec3& n : under.normals) n = glm::vec3(0.0f, 0.0f, -1.0f);
-    for (std::size_t t = 0; t < under.triangle_count(); ++t) std::swap(under.indices[3 * t + 1], under.indices[3 * t + 2]);
+    for (std::size_t t = 0; t < under.triangle_count(); ++t)
+      std::swap(under.indices[3 * t + 1], under.indices[3 * t + 2]);
     const std::uint32_t offset = static_cast<std::uint32_t>(high.positions.size());
     high.positions.insert(high.positions.end(), under.positions.begin(), under.positions.end());
     high.normals.insert(high.normals.end(), under.normals.begin(), under.normals.end());
@@ -339,7 +349,9 @@ TEST(StabilityHoles, MissedTexelsHoldTheFlatNormalAndAreReported) {
   Mesh& h = s.high;
   std::vector<std::uint32_t> kept;
   for (std::size_t t = 0; t < h.triangle_count(); ++t) {
-    const glm::vec3 c = (h.positions[h.indices[3 * t]] + h.positions[h.indices[3 * t + 1]] + h.positions[h.indices[3 * t + 2]]) / 3.0f;
+    const glm::vec3 c = (h.positions[h.indices[3 * t]] + h.positions[h.indices[3 * t + 1]] +
+                         h.positions[h.indices[3 * t + 2]]) /
+                        3.0f;
     if (c.x > 0.4f && c.x < 0.6f && c.y > 0.4f && c.y < 0.6f) continue;
     kept.insert(kept.end(), {h.indices[3 * t], h.indices[3 * t + 1], h.indices[3 * t + 2]});
   }
@@ -384,9 +396,9 @@ TEST(StabilityFar, HighMeshOutOfReachMissesEverythingAndFailsTheGate) {
   for (glm::vec3& v : s.high.positions) v.z += 10.0f;
   ASSERT_TRUE(save_mesh(dir.file("low.obj"), s.low).is_ok());
   ASSERT_TRUE(save_mesh(dir.file("high.ply"), s.high).is_ok());
-  const test::CommandResult r = test::run_command(test::cli_path() + " bake --low " + dir.file("low.obj") +
-                                                  " --high " + dir.file("high.ply") + " -o " + dir.file("map.exr") +
-                                                  " --size 32 --front 0.05 --back 0.05 --max-miss-rate 0.5 2>&1");
+  const test::CommandResult r = test::run_command(
+      test::cli_path() + " bake --low " + dir.file("low.obj") + " --high " + dir.file("high.ply") + " -o " +
+      dir.file("map.exr") + " --size 32 --front 0.05 --back 0.05 --max-miss-rate 0.5 2>&1");
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("every ray missed"), std::string::npos) << r.output;
   Image map;
@@ -425,10 +437,12 @@ class KilometreHeightfield final : public scenes::TrueSurface {
  public:
   KilometreHeightfield() { p_.amplitude = 0.002f; }
   double field(int, const glm::dvec3& x) const override {
-    return x.z - scenes::heightfield_height(p_, static_cast<float>(x.x - kOffset), static_cast<float>(x.y - kOffset));
+    return x.z - scenes::heightfield_height(p_, static_cast<float>(x.x - kOffset),
+                                            static_cast<float>(x.y - kOffset));
   }
   glm::dvec3 normal(int, const glm::dvec3& x) const override {
-    return glm::dvec3(scenes::heightfield_normal(p_, static_cast<float>(x.x - kOffset), static_cast<float>(x.y - kOffset)));
+    return glm::dvec3(
+        scenes::heightfield_normal(p_, static_cast<float>(x.x - kOffset), static_cast<float>(x.y - kOffset)));
   }
   double step() const override { return 0.0005; }
   static constexpr double kOffset = 1000.0;
@@ -460,7 +474,8 @@ TEST(StabilityScale, MillimetreDetailAKilometreFromTheOrigin) {
 
 TEST(StabilityNonFinite, NanOrInfInAnyInputIsRejectedWithExitCode2) {
   test::TempDir dir;
-  const std::string good_low = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nvn 0 0 1\nf 1/1/1 2/2/1 3/3/1\n";
+  const std::string good_low =
+      "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nvn 0 0 1\nf 1/1/1 2/2/1 3/3/1\n";
   const std::string good_high = "v 0 0 0.01\nv 1 0 0.01\nv 0 1 0.01\nf 1 2 3\n";
   struct Case {
     const char* what;
@@ -550,12 +565,15 @@ TEST(StabilityEval, TorusBoxSlotNormalsMatchFieldGradients) {
     }
     return glm::normalize(g);
   };
-  auto angle = [](glm::dvec3 a, glm::dvec3 b) { return glm::degrees(std::acos(std::clamp(glm::dot(a, b), -1.0, 1.0))); };
+  auto angle = [](glm::dvec3 a, glm::dvec3 b) {
+    return glm::degrees(std::acos(std::clamp(glm::dot(a, b), -1.0, 1.0)));
+  };
   double worst = 0.0;
   for (int i = 0; i < 500; ++i) {
     const double a = 0.0123 * i * 7.0, b = 0.0311 * i * 5.0;
     // Torus: a point near the surface (the field is a distance, so its gradient is the normal there).
-    glm::dvec3 x((1.0 + 0.35 * std::cos(b)) * std::cos(a), (1.0 + 0.35 * std::cos(b)) * std::sin(a), 0.35 * std::sin(b));
+    glm::dvec3 x((1.0 + 0.35 * std::cos(b)) * std::cos(a), (1.0 + 0.35 * std::cos(b)) * std::sin(a),
+                 0.35 * std::sin(b));
     for (int k = 0; k < 30; ++k) x -= scenes::torus_field(torus, x) * scenes::torus_normal(torus, x);
     worst = std::max(worst, angle(gradient([&](glm::dvec3 q) { return scenes::torus_field(torus, q); }, x),
                                   scenes::torus_normal(torus, x)));
@@ -588,14 +606,16 @@ TEST(TangentsAlt, LengyelAndFaceMatchTheUvGradientOnAPlaneAndFlipWhenMirrored) {
     compute_tangents(low, basis, t, stats);
     ASSERT_EQ(t.size(), low.indices.size());
     EXPECT_EQ(stats.fallback_tangents, 0u);
-    for (const glm::vec4& v : t) EXPECT_NEAR(glm::distance(v, glm::vec4(1, 0, 0, 1)), 0.0f, 1e-6f) << to_string(basis);
+    for (const glm::vec4& v : t)
+      EXPECT_NEAR(glm::distance(v, glm::vec4(1, 0, 0, 1)), 0.0f, 1e-6f) << to_string(basis);
   }
   for (glm::vec2& uv : low.uvs) uv.x = 1.0f - uv.x;  // mirrored: T = -x, and the sign flips
   for (const TangentBasis basis : {TangentBasis::lengyel, TangentBasis::face}) {
     std::vector<glm::vec4> t;
     TangentStats stats;
     compute_tangents(low, basis, t, stats);
-    for (const glm::vec4& v : t) EXPECT_NEAR(glm::distance(v, glm::vec4(-1, 0, 0, -1)), 0.0f, 1e-6f) << to_string(basis);
+    for (const glm::vec4& v : t)
+      EXPECT_NEAR(glm::distance(v, glm::vec4(-1, 0, 0, -1)), 0.0f, 1e-6f) << to_string(basis);
   }
   TangentBasis parsed;
   EXPECT_TRUE(parse_word("lengyel", parsed) && parsed == TangentBasis::lengyel);

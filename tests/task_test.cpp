@@ -1,19 +1,18 @@
 // Tasks, keys and tiles: bake keys, tiles that merge to the whole bake's
 // bytes, the cache, and plans run through Ninja.
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <tbb/global_control.h>
+
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
-#include <functional>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <sstream>
 #include <thread>
-
-#include <sys/stat.h>
-
-#include <gtest/gtest.h>
-#include <tbb/global_control.h>
 // The tests write tile files with a hand-made checksum.
 #define XXH_INLINE_ALL
 #include <xxhash.h>
@@ -83,7 +82,8 @@ TEST(TaskTiles, MergedTilesGiveTheWholeBakesBytes) {
   test::TempDir dir;
   BakeOptions whole = sphere_bake(dir, 200, 150);
   whole.padding = 40;
-  whole.outputs = {{dir.file("whole.png"), PixelFormat::png16}, {dir.file("whole.exr"), PixelFormat::exr_float}};
+  whole.outputs = {{dir.file("whole.png"), PixelFormat::png16},
+                   {dir.file("whole.exr"), PixelFormat::exr_float}};
   BakeReport report;
   ASSERT_TRUE(bake(whole, report).is_ok());
   const std::string png = read_bytes(dir.file("whole.png"));
@@ -103,7 +103,8 @@ TEST(TaskTiles, MergedTilesGiveTheWholeBakesBytes) {
     }
     MergeReport merged;
     const Status s = merge_tiles(
-        tiles, {{dir.file("m.png"), PixelFormat::png16}, {dir.file("m.exr"), PixelFormat::exr_float}}, merged);
+        tiles, {{dir.file("m.png"), PixelFormat::png16}, {dir.file("m.exr"), PixelFormat::exr_float}},
+        merged);
     ASSERT_TRUE(s.is_ok()) << s.message();
     EXPECT_EQ(read_bytes(dir.file("m.png")), png) << count << " tiles";
     EXPECT_EQ(read_bytes(dir.file("m.exr")), exr) << count << " tiles";
@@ -231,7 +232,8 @@ TEST(TaskTiles, MapSetMergedTilesGiveTheWholeBakesBytes) {
       auto whole_figures = whole_maps[m].figures;
       if (whole_maps[m].map == MapKind::id) {
         ASSERT_EQ(whole_maps[m].figure("ids"), 1.0);
-        std::erase_if(whole_figures, [](const auto& f) { return f.first == "ids" || f.first == "from_materials"; });
+        std::erase_if(whole_figures,
+                      [](const auto& f) { return f.first == "ids" || f.first == "from_materials"; });
       }
       EXPECT_EQ(merged.maps[m].figures, whole_figures) << to_string(whole_maps[m].map);
     }
@@ -453,8 +455,8 @@ TEST(TaskTiles, MergeRefusesATileThatIsNotARegularFile) {
   const std::string fifo = dir.file("tile.nmt");
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
   // `timeout`: a merge that blocks fails the test instead of hanging it.
-  const test::CommandResult r = test::run_command("timeout 60 " + test::cli_path() + " merge " + fifo + " -o " +
-                                                  dir.file("m.png") + " 2>&1");
+  const test::CommandResult r = test::run_command("timeout 60 " + test::cli_path() + " merge " + fifo +
+                                                  " -o " + dir.file("m.png") + " 2>&1");
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find(fifo + ": the tile file is not a regular file"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(dir.file("m.png")));
@@ -483,7 +485,8 @@ TEST(TaskTiles, MergeWritesTheTilesPathsOnlyInsideItsFolders) {
   tile_of(far, dir.file("tiles/far.nmt"));
   test::CommandResult r = merge(dir.file("tiles/far.nmt"));
   EXPECT_EQ(r.exit_code, 2) << r.output;
-  EXPECT_NE(r.output.find(dir.file("tiles/far.nmt") + ": the tile names the output '" + far), std::string::npos)
+  EXPECT_NE(r.output.find(dir.file("tiles/far.nmt") + ": the tile names the output '" + far),
+            std::string::npos)
       << r.output;
   EXPECT_FALSE(fs::exists(far));
   // Fine when -o says where.
@@ -534,10 +537,14 @@ TEST(TaskKey, CoversBytesAndOptionsNotPathsOrThreads) {
       [](BakeOptions& x) { x.samples = 16; },
       [](BakeOptions& x) { x.width = 65; },
       [](BakeOptions& x) { x.encode.green = GreenChannel::down; },
-      [](BakeOptions& x) { x.rays.front = {Distance::Kind::percent, 1.0f}; },
+      [](BakeOptions& x) {
+        x.rays.front = {Distance::Kind::percent, 1.0f};
+      },
       [](BakeOptions& x) { x.padding = 3; },
       [](BakeOptions& x) { x.outputs[0].format = PixelFormat::png8; },
-      [](BakeOptions& x) { x.match.groups.push_back({"g", {"a"}, {"b"}}); },
+      [](BakeOptions& x) {
+        x.match.groups.push_back({"g", {"a"}, {"b"}});
+      },
   };
   for (const auto& change : changes) {
     BakeOptions c = o;
@@ -559,7 +566,8 @@ TEST(TaskCache, SecondBakeIsCachedAndConcurrentStoresStayWhole) {
   BakeOptions o = sphere_bake(dir, 96, 96);
   const std::string base = test::cli_path() + " bake --low " + o.low_path + " --high " + o.high_path +
                            " --size 96 --cache " + dir.file("cache");
-  test::CommandResult r = test::run_command(base + " -o " + dir.file("a.png") + " --report " + dir.file("a.json"));
+  test::CommandResult r =
+      test::run_command(base + " -o " + dir.file("a.png") + " --report " + dir.file("a.json"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_EQ(r.output.find("cached"), std::string::npos) << r.output;
   r = test::run_command(base + " -o " + dir.file("b.png") + " --report " + dir.file("b.json"));
@@ -579,12 +587,14 @@ TEST(TaskCache, SecondBakeIsCachedAndConcurrentStoresStayWhole) {
   int entries = 0;
   for (const auto& e : fs::directory_iterator(dir.file("race"))) {
     ++entries;
-    EXPECT_EQ(e.path().filename().string().rfind(".tmp", 0), std::string::npos) << "a temporary entry was left";
+    EXPECT_EQ(e.path().filename().string().rfind(".tmp", 0), std::string::npos)
+        << "a temporary entry was left";
     EXPECT_TRUE(fs::exists(e.path() / "manifest.json"));
     EXPECT_EQ(read_bytes((e.path() / "o0_1001.png").string()), read_bytes(dir.file("r1.png")));
   }
   EXPECT_EQ(entries, 1);
-  for (const char* name : {"r2.png", "r3.png", "r4.png"}) EXPECT_EQ(read_bytes(dir.file(name)), read_bytes(dir.file("r1.png")));
+  for (const char* name : {"r2.png", "r3.png", "r4.png"})
+    EXPECT_EQ(read_bytes(dir.file(name)), read_bytes(dir.file("r1.png")));
 }
 
 // An entry is verified, not trusted: each kind of damage is a miss (a
@@ -596,7 +606,8 @@ TEST(TaskCache, BadEntriesAreRebakedAndReplaced) {
   const std::string cache = dir.file("cache");
   // `timeout`: a fetch that blocks on the FIFO fails the test instead of hanging it.
   const std::string bake_cmd = "timeout 120 " + test::cli_path() + " bake --low " + o.low_path + " --high " +
-                               o.high_path + " --size 64 --cache " + cache + " -o " + dir.file("out.png") + " 2>&1";
+                               o.high_path + " --size 64 --cache " + cache + " -o " + dir.file("out.png") +
+                               " 2>&1";
   test::CommandResult r = test::run_command(bake_cmd);
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const std::string good = read_bytes(dir.file("out.png"));
@@ -636,9 +647,9 @@ TEST(TaskCache, BadEntriesAreRebakedAndReplaced) {
       {"a manifest naming a file outside", [&] { edit_manifest("\"o0_1001.png\"", "\"../../secret\""); }},
       {"a manifest with a wrong type", [&] { edit_manifest("\"tile\": 1001", "\"tile\": \"x\""); }},
       {"a manifest that is an array", [&] { test::write_text(manifest, "[1, 2]"); }},
-      {"a manifest without checksums (an older entry)",
-       [&] { edit_manifest("\"xxh3\"", "\"xxh3_\""); }},
-      {"an entry that is a file", [&] {
+      {"a manifest without checksums (an older entry)", [&] { edit_manifest("\"xxh3\"", "\"xxh3_\""); }},
+      {"an entry that is a file",
+       [&] {
          fs::remove_all(entry);
          test::write_text(entry.string(), "x");
        }},
@@ -651,7 +662,8 @@ TEST(TaskCache, BadEntriesAreRebakedAndReplaced) {
     fs::remove(dir.file("out.png"));
     r = test::run_command(bake_cmd);
     EXPECT_EQ(r.exit_code, 0) << r.output;
-    EXPECT_NE(r.output.find("warning: " + entry.string() + ": a bad cache entry"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("warning: " + entry.string() + ": a bad cache entry"), std::string::npos)
+        << r.output;
     EXPECT_EQ(r.output.find("cached"), std::string::npos) << r.output;
     EXPECT_TRUE(read_bytes(dir.file("out.png")) == good);
     // The bake replaced the entry: the next one is served from it.
@@ -674,10 +686,9 @@ TEST(TaskCache, UnwritableCacheFolderFailsBeforeTheBake) {
   const BakeOptions o = sphere_bake(dir, 64, 64);
   test::write_text(dir.file("a_file"), "x");
   for (const std::string& cache : {dir.file("a_file"), dir.file("a_file") + "/cache"}) {
-    const test::CommandResult r =
-        test::run_command(test::cli_path() + " bake --low " + o.low_path + " --high " + o.high_path +
-                          " --size 64 --cache " + cache + " -o " + dir.file("out.png") + " --report " +
-                          dir.file("out.json") + " 2>&1");
+    const test::CommandResult r = test::run_command(
+        test::cli_path() + " bake --low " + o.low_path + " --high " + o.high_path + " --size 64 --cache " +
+        cache + " -o " + dir.file("out.png") + " --report " + dir.file("out.json") + " 2>&1");
     EXPECT_EQ(r.exit_code, 2) << r.output;
     EXPECT_NE(r.output.find(cache + ": the cache folder cannot be written"), std::string::npos) << r.output;
     EXPECT_FALSE(fs::exists(dir.file("out.png")));
@@ -700,16 +711,19 @@ TEST(TaskPlan, NinjaRebakesOnlyWhatChanged) {
   const scenes::ScenePair field = scenes::make_heightfield(hp);
   ASSERT_TRUE(save_mesh(dir.file("field_low.obj"), field.low).is_ok());
   ASSERT_TRUE(save_mesh(dir.file("field_high.ply"), field.high).is_ok());
-  test::write_text(dir.file("job.toml"),
-                   "[defaults]\nsize = 64\n"
-                   "[[bake]]\nname = \"sphere\"\nlow = \"low.obj\"\nhigh = \"high.ply\"\noutputs = [\"sphere.png\"]\n"
-                   "[[bake]]\nname = \"field\"\nlow = \"field_low.obj\"\nhigh = \"field_high.ply\"\noutputs = [\"field.png\"]\n"
-                   "report = \"field.json\"\n"
-                   "[[bake]]\nname = \"big\"\nlow = \"low.obj\"\nhigh = \"high.ply\"\nsize = 100\npadding = 40\n"
-                   "outputs = [\"big.png\", \"big.exr\"]\n");
+  test::write_text(
+      dir.file("job.toml"),
+      "[defaults]\nsize = 64\n"
+      "[[bake]]\nname = \"sphere\"\nlow = \"low.obj\"\nhigh = \"high.ply\"\noutputs = [\"sphere.png\"]\n"
+      "[[bake]]\nname = \"field\"\nlow = \"field_low.obj\"\nhigh = \"field_high.ply\"\noutputs = "
+      "[\"field.png\"]\n"
+      "report = \"field.json\"\n"
+      "[[bake]]\nname = \"big\"\nlow = \"low.obj\"\nhigh = \"high.ply\"\nsize = 100\npadding = 40\n"
+      "outputs = [\"big.png\", \"big.exr\"]\n");
   const std::string ninja = dir.file("plan.ninja");
-  test::CommandResult r = test::run_command(test::cli_path() + " plan " + dir.file("job.toml") + " --tiles 3 --tiles-min-size 100 --ninja " +
-                                            ninja + " --json " + dir.file("plan.json") + " 2>&1");
+  test::CommandResult r = test::run_command(test::cli_path() + " plan " + dir.file("job.toml") +
+                                            " --tiles 3 --tiles-min-size 100 --ninja " + ninja + " --json " +
+                                            dir.file("plan.json") + " 2>&1");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("6 tasks (2 bakes, 3 tiles, 1 merges)"), std::string::npos) << r.output;
   r = test::run_command("ninja -f " + ninja + " 2>&1");
@@ -719,8 +733,8 @@ TEST(TaskPlan, NinjaRebakesOnlyWhatChanged) {
 
   // The plan's maps are the one-machine bakes' bytes.
   r = test::run_command(test::cli_path() + " bake " + dir.file("job.toml") + " --only big -q 2>&1 && mv " +
-                        dir.file("big.png") + " " + dir.file("big_whole.png") + " && mv " + dir.file("big.exr") + " " +
-                        dir.file("big_whole.exr"));
+                        dir.file("big.png") + " " + dir.file("big_whole.png") + " && mv " +
+                        dir.file("big.exr") + " " + dir.file("big_whole.exr"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   r = test::run_command("ninja -f " + ninja + " 2>&1");  // the merge runs again: its outputs were moved away
   ASSERT_EQ(r.exit_code, 0) << r.output;
@@ -735,14 +749,15 @@ TEST(TaskPlan, NinjaRebakesOnlyWhatChanged) {
   EXPECT_EQ(r.output.find("big"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("[1/1]"), std::string::npos) << r.output;
   // Touch the sphere's low mesh: the sphere bake, the three tiles and the merge.
-  r = test::run_command("ninja -f " + ninja + " >/dev/null && touch " + dir.file("low.obj") + " && ninja -f " + ninja +
-                        " -n 2>&1");
+  r = test::run_command("ninja -f " + ninja + " >/dev/null && touch " + dir.file("low.obj") +
+                        " && ninja -f " + ninja + " -n 2>&1");
   EXPECT_NE(r.output.find("[5/5]"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("field"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("merge big"), std::string::npos) << r.output;
 
   const std::string json = read_bytes(dir.file("plan.json"));
-  EXPECT_NE(json.find("\"dependencies\": [\n        \"tile:big:1\""), std::string::npos) << json.substr(0, 400);
+  EXPECT_NE(json.find("\"dependencies\": [\n        \"tile:big:1\""), std::string::npos)
+      << json.substr(0, 400);
   EXPECT_NE(json.find("\"key\""), std::string::npos);
 }
 
@@ -789,8 +804,8 @@ TEST(TaskPlan, DuplicateNamesAreRefused) {
   test::write_text(dir.file("job.toml"),
                    "[[bake]]\nname = \"x\"\nlow = \"low.obj\"\nhigh = \"high.ply\"\noutputs = [\"a.png\"]\n"
                    "[[bake]]\nname = \"x\"\nlow = \"low.obj\"\nhigh = \"high.ply\"\noutputs = [\"b.png\"]\n");
-  const test::CommandResult r =
-      test::run_command(test::cli_path() + " plan " + dir.file("job.toml") + " --json " + dir.file("p.json") + " 2>&1");
+  const test::CommandResult r = test::run_command(test::cli_path() + " plan " + dir.file("job.toml") +
+                                                  " --json " + dir.file("p.json") + " 2>&1");
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("two bakes are named 'x'"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(dir.file("p.json")));

@@ -1,5 +1,8 @@
 #include "test_util.hpp"
 
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <array>
 #include <atomic>
@@ -8,9 +11,6 @@
 #include <fstream>
 #include <random>
 #include <stdexcept>
-
-#include <sys/wait.h>
-#include <unistd.h>
 
 namespace nmbake::test {
 

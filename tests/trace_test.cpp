@@ -1,13 +1,14 @@
-#include <cmath>
-#include <string>
+#include "nmbake/trace.hpp"
 
 #include <gtest/gtest.h>
-#include <glm/geometric.hpp>
 
-#include "nmbake/raster.hpp"
-#include "nmbake/trace.hpp"
+#include <cmath>
+#include <glm/geometric.hpp>
+#include <string>
+
 #include "hard_scenes.hpp"
 #include "lab_scenes.hpp"
+#include "nmbake/raster.hpp"
 #include "nmbake/surface.hpp"
 #include "test_util.hpp"
 
@@ -146,8 +147,8 @@ void check_packets_against_make_ray(int samples_per_texel, int width, int height
     ASSERT_GE(hits.triangle[i], 0) << "sample " << i;
     const std::uint32_t* c = &high.indices[3 * static_cast<std::size_t>(hits.triangle[i])];
     const glm::vec2 b = hits.bary[i];
-    const glm::vec3 got = high.positions[c[0]] * (1.0f - b.x - b.y) + high.positions[c[1]] * b.x +
-                          high.positions[c[2]] * b.y;
+    const glm::vec3 got =
+        high.positions[c[0]] * (1.0f - b.x - b.y) + high.positions[c[1]] * b.x + high.positions[c[2]] * b.y;
     EXPECT_NEAR(got.x, expected.x, 1e-4f) << "sample " << i;
     EXPECT_NEAR(got.y, expected.y, 1e-4f) << "sample " << i;
     EXPECT_NEAR(hits.distance[i], ray.t_surface - t_hit, 1e-5f) << "sample " << i;
@@ -277,7 +278,7 @@ TEST(Trace, MissesAreCountedAndMarked) {
 TEST(Trace, IgnoreBackfacesSkipsFlippedLayer) {
   const LowSurface s = low_quad();
   Mesh high;
-  add_layer(high, 0.3f, true);   // faces -z: seen from the cage it is a back face
+  add_layer(high, 0.3f, true);  // faces -z: seen from the cage it is a back face
   add_layer(high, 0.1f, false);
   pad_for_embree(high);
   RayOptions o;
@@ -320,8 +321,8 @@ TEST(Trace, EstimatedDistancesCoverTheOffset) {
   const LowSurface s = low_quad();
   Mesh high;
   // A high surface 0.03 above the low one over x < 0.5 and 0.05 below over x >= 0.5.
-  high.positions = {{-1, -1, 0.03f}, {0.5f, -1, 0.03f}, {0.5f, 2, 0.03f}, {-1, 2, 0.03f},
-                    {0.5f, -1, -0.05f}, {2, -1, -0.05f}, {2, 2, -0.05f}, {0.5f, 2, -0.05f}};
+  high.positions = {{-1, -1, 0.03f},    {0.5f, -1, 0.03f}, {0.5f, 2, 0.03f}, {-1, 2, 0.03f},
+                    {0.5f, -1, -0.05f}, {2, -1, -0.05f},   {2, 2, -0.05f},   {0.5f, 2, -0.05f}};
   high.indices = {0, 1, 2, 0, 2, 3, 4, 5, 6, 4, 6, 7};
   pad_for_embree(high);
   HighScene scene;
@@ -548,7 +549,8 @@ TEST(Trace, MissesAreRetriedWithinTheirGroup) {
     SceneGroups groups;
     groups.first_triangle = {0, 2, 4};
     ASSERT_TRUE(HighScene::build(high, BuildQuality::low, false, scene, BvhMemory::automatic,
-                                 grouped ? &groups : nullptr).is_ok());
+                                 grouped ? &groups : nullptr)
+                    .is_ok());
     RayOptions ro = o;
     if (grouped) {
       s.group.assign(s.triangle_count(), 0);

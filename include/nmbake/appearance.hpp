@@ -30,11 +30,10 @@
 #pragma once
 
 #include <cstdint>
-#include <string>
-#include <vector>
-
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <string>
+#include <vector>
 
 #include "nmbake/common.hpp"
 #include "nmbake/encode.hpp"
@@ -45,8 +44,8 @@
 namespace nmbake {
 
 struct AppearanceOptions {
-  int size = 320;        // pixels per side of each view
-  int supersample = 2;   // k x k samples per pixel (a fixed grid)
+  int size = 320;       // pixels per side of each view
+  int supersample = 2;  // k x k samples per pixel (a fixed grid)
   // Samples whose low and high hits are further apart than this along the
   // camera ray are not compared (silhouettes that differ, a part seen
   // through a gap): a share of the low mesh's bounding-box diagonal.
@@ -62,17 +61,17 @@ struct AppearanceSamples {
   int map_width = 0, map_height = 0;
   std::vector<std::int32_t> low_triangle;
   std::vector<glm::vec2> low_bary;
-  std::vector<std::uint32_t> texel;      // y * map_width + x
-  std::vector<glm::vec3> high_normal;    // unit, world space
-  std::vector<std::uint8_t> view;        // the camera (appearance_views() index)
-  std::vector<std::uint32_t> pixel;      // row * size * supersample + column in that view's sample grid
-  int size = 0, supersample = 0;         // of every view
-  std::vector<glm::vec3> consensus;      // per texel: unit, or 0 where no sample fell
-  std::uint64_t low_hits = 0;            // samples that hit the low mesh (all views)
-  std::uint64_t high_missed = 0;         // of those, the high mesh was not hit
-  std::uint64_t depth_rejected = 0;      // of those, the hits were too far apart
+  std::vector<std::uint32_t> texel;    // y * map_width + x
+  std::vector<glm::vec3> high_normal;  // unit, world space
+  std::vector<std::uint8_t> view;      // the camera (appearance_views() index)
+  std::vector<std::uint32_t> pixel;    // row * size * supersample + column in that view's sample grid
+  int size = 0, supersample = 0;       // of every view
+  std::vector<glm::vec3> consensus;    // per texel: unit, or 0 where no sample fell
+  std::uint64_t low_hits = 0;          // samples that hit the low mesh (all views)
+  std::uint64_t high_missed = 0;       // of those, the high mesh was not hit
+  std::uint64_t depth_rejected = 0;    // of those, the hits were too far apart
   std::uint64_t high_normal_fallbacks = 0;
-  float depth_tolerance = 0.0f;          // resolved, scene units
+  float depth_tolerance = 0.0f;  // resolved, scene units
   std::size_t sample_count() const { return texel.size(); }
 };
 
@@ -94,14 +93,15 @@ AppearanceError summarize_appearance(std::vector<float> angles_degrees);
 // the map decoded on the low mesh (`decode_fallbacks` counts decode_map_normal's
 // fallbacks, may be null); the low mesh's own shading normal (no map); the
 // consensus of the sample's texel (the floor).
-std::vector<float> appearance_angles(const AppearanceSamples& samples, const LowSurface& surface, const Image& map,
-                                     NormalSpace space, GreenChannel green, std::uint64_t* decode_fallbacks);
+std::vector<float> appearance_angles(const AppearanceSamples& samples, const LowSurface& surface,
+                                     const Image& map, NormalSpace space, GreenChannel green,
+                                     std::uint64_t* decode_fallbacks);
 std::vector<float> appearance_angles_without_map(const AppearanceSamples& samples, const LowSurface& surface);
 std::vector<float> appearance_floor_angles(const AppearanceSamples& samples);
 
 // The same, summarised.
-AppearanceError appearance_error(const AppearanceSamples& samples, const LowSurface& surface, const Image& map,
-                                 NormalSpace space, GreenChannel green);
+AppearanceError appearance_error(const AppearanceSamples& samples, const LowSurface& surface,
+                                 const Image& map, NormalSpace space, GreenChannel green);
 AppearanceError appearance_without_map(const AppearanceSamples& samples, const LowSurface& surface);
 AppearanceError appearance_floor(const AppearanceSamples& samples);
 

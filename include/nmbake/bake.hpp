@@ -31,7 +31,6 @@ std::vector<MapReport> map_file_reports(const MapSet& maps, const std::vector<Ma
 // the calling thread only.
 using ProgressFn = std::function<void(const char* stage, double fraction)>;
 
-
 // Runs one bake. Nothing is written unless every stage succeeded; each output
 // is written atomically.
 Status bake(const BakeOptions& options, BakeReport& report, const ProgressFn& progress = {});

@@ -50,9 +50,11 @@ struct BakeOptions {
   // normals, tangent encode, and how the engine decodes (`decode`, see
   // `preset` below). out_row_begin is the bake's own (set per tile of rows).
   EncodeOptions encode;
-  TangentBasis tangent_basis = TangentBasis::mikktspace;  // file: the low mesh's own tangents; others: comparison only
-  int uv_set = 0;  // the low mesh's UV set (glTF TEXCOORD_N, FBX UV channel N)
-  BuildQuality build_quality = BuildQuality::low;  // measured: 4-6x faster builds than medium, rays as fast (BENCHMARKS.md)
+  TangentBasis tangent_basis =
+      TangentBasis::mikktspace;  // file: the low mesh's own tangents; others: comparison only
+  int uv_set = 0;                // the low mesh's UV set (glTF TEXCOORD_N, FBX UV channel N)
+  BuildQuality build_quality =
+      BuildQuality::low;  // measured: 4-6x faster builds than medium, rays as fast (BENCHMARKS.md)
   BvhMemory bvh_memory = BvhMemory::automatic;
   int padding = 16;
   // A low mesh without UVs is unwrapped (atlas of the map's smaller side,
@@ -92,13 +94,13 @@ struct BakeOptions {
   int ao_rays = 64;              // per sample
   Distance ao_distance;          // auto: kAutoMapDistancePercent of the low diagonal
   int thickness_rays = 16;
-  Distance thickness_distance;   // auto: as ao_distance
+  Distance thickness_distance;               // auto: as ao_distance
   IdSource id_source = IdSource::automatic;  // what the id map colours (maps.hpp)
 };
 
 // One file a bake writes per UV tile: an output for one map.
 struct MapOutput {
-  std::string path;  // <MAP> replaced; may still hold <UDIM>
+  std::string path;                         // <MAP> replaced; may still hold <UDIM>
   PixelFormat format = PixelFormat::png16;  // resolved for the map (map_format)
   MapKind map = MapKind::normal;
 };

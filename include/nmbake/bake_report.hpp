@@ -30,9 +30,9 @@ struct BakeReport {
   std::uint64_t low_triangles = 0, high_triangles = 0, high_vertices = 0;
   float front = 0.0f, back = 0.0f;  // resolved, scene units
   bool distances_estimated = false;
-  std::string cage_mode;         // banded | averaged | interpolated | mesh
-  float edge_band = 0.0f;        // banded: the band's width / (front + back)
-  float retry_reach = 0.0f;      // 0: misses not retried
+  std::string cage_mode;     // banded | averaged | interpolated | mesh
+  float edge_band = 0.0f;    // banded: the band's width / (front + back)
+  float retry_reach = 0.0f;  // 0: misses not retried
   bool compact_bvh = false;  // the BVH was built in Embree's compact layout (--bvh)
   float low_diagonal = 0.0f;
   LoadStats low_load, high_load;
@@ -95,8 +95,8 @@ struct BakeReport {
   std::uint64_t peak_rss_bytes = 0;
   int threads = 0;
 
-  double miss_rate() const;   // misses / samples traced
-  double coverage() const;    // covered texels / all texels
+  double miss_rate() const;  // misses / samples traced
+  double coverage() const;   // covered texels / all texels
   std::string to_json() const;
   std::string summary_line() const;
 };

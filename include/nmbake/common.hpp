@@ -47,6 +47,10 @@ class [[nodiscard]] Status {
 // is kept. Messages pass file content and paths through it, so a broken or
 // hostile file cannot send escape codes, and a NUL cannot cut a message.
 std::string printable_text(std::string_view text);
+// `text` as a double-quoted string that JSON and TOML (basic strings) both
+// read back exactly: quotes and backslashes escaped, control bytes as \u00XX,
+// every other byte as it is.
+std::string quoted_string(std::string_view text);
 
 // Outputs are written to a temp file and renamed over the target, which
 // replaces whatever the target is: as root, `--report /dev/full` replaced the
@@ -60,8 +64,8 @@ Status check_output_target(const std::string& path);
 }  // namespace nmbake
 
 // Always on, in every build type: an invariant of the program, not of the input.
-#define NMBAKE_CHECK(cond, msg)                                     \
-  do {                                                              \
+#define NMBAKE_CHECK(cond, msg)                                            \
+  do {                                                                     \
     if (!(cond)) ::nmbake::check_failed(#cond, __FILE__, __LINE__, (msg)); \
   } while (0)
 
@@ -74,8 +78,8 @@ Status check_output_target(const std::string& path);
 #endif
 
 // Propagates a non-ok Status to the caller.
-#define NMBAKE_TRY(expr)                           \
-  do {                                             \
-    ::nmbake::Status nmbake_status_ = (expr);      \
+#define NMBAKE_TRY(expr)                                \
+  do {                                                  \
+    ::nmbake::Status nmbake_status_ = (expr);           \
     if (!nmbake_status_.is_ok()) return nmbake_status_; \
   } while (0)

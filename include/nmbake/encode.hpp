@@ -150,8 +150,8 @@ glm::vec3 tangent_to_world(const glm::vec3& t, const glm::vec3& T, const glm::ve
 // in NormalDecode. world_to_tangent returns false (and the Gram-Schmidt
 // fallback of the per-pixel frame) when [T B N] is singular. rebuild_blue is
 // not applied here (it acts on the stored texel, see encode()).
-bool world_to_tangent(const glm::vec3& n, const glm::vec3& T, const glm::vec3& B, const glm::vec3& N, float sign,
-                      bool unit_frame, glm::vec3& out);
+bool world_to_tangent(const glm::vec3& n, const glm::vec3& T, const glm::vec3& B, const glm::vec3& N,
+                      float sign, bool unit_frame, glm::vec3& out);
 glm::vec3 tangent_to_world(const glm::vec3& t, const glm::vec3& T, const glm::vec3& B, const glm::vec3& N,
                            bool unit_frame);
 // The bitangent a decode uses at barycentrics b of low triangle `triangle`.
@@ -165,8 +165,9 @@ namespace detail {
 // For tests: encode() with `lanes` samples at a time: 1 (every sample on its
 // own, the reference), 4 (SSE) or 8 (AVX2, where encode_has_eight_lanes();
 // else 4). encode() takes 8 where it can; every width gives the same bytes.
-void encode_in_lanes(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
-                     const EncodeOptions& options, Image& out, EncodeStats& stats, int lanes);
+void encode_in_lanes(const LowSurface& surface, const TexelSamples& samples, const Mesh& high,
+                     const Hits& hits, const EncodeOptions& options, Image& out, EncodeStats& stats,
+                     int lanes);
 bool encode_has_eight_lanes();
 }  // namespace detail
 

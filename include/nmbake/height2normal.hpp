@@ -30,10 +30,9 @@
 
 #include <array>
 #include <cstdint>
+#include <glm/vec3.hpp>
 #include <string>
 #include <vector>
-
-#include <glm/vec3.hpp>
 
 #include "nmbake/common.hpp"
 #include "nmbake/dilate.hpp"
@@ -58,13 +57,13 @@ struct HeightToNormalOptions {
 };
 
 struct HeightToNormalStats {
-  std::uint64_t one_sided_texels = 0;  // a difference was one-sided (clamped borders, cell borders)
-  std::uint64_t flat_texels = 0;       // no neighbour at all along an axis (1 texel wide): slope 0 there
-  std::uint64_t clamped_radii = 0;     // cube sphere: 1 + S h <= 1e-6 was raised to 1e-6
+  std::uint64_t one_sided_texels = 0;    // a difference was one-sided (clamped borders, cell borders)
+  std::uint64_t flat_texels = 0;         // no neighbour at all along an axis (1 texel wide): slope 0 there
+  std::uint64_t clamped_radii = 0;       // cube sphere: 1 + S h <= 1e-6 was raised to 1e-6
   std::uint64_t degenerate_normals = 0;  // cube sphere: dP/ds x dP/dt ~ 0, the radial direction used
-  std::uint64_t singular_frames = 0;   // tangent output: world_to_tangent fell back to Gram-Schmidt
-  std::uint64_t uncovered_texels = 0;  // tangent output: texels outside every chart, before dilation
-  DilateStats dilate;                  // tangent output
+  std::uint64_t singular_frames = 0;     // tangent output: world_to_tangent fell back to Gram-Schmidt
+  std::uint64_t uncovered_texels = 0;    // tangent output: texels outside every chart, before dilation
+  DilateStats dilate;                    // tangent output
 };
 
 // Reads the first channel of `height` (any channel count). Returns an RGB
@@ -111,8 +110,8 @@ struct CubeSphereOptions {
 // Texels outside every chart are dilated by `padding`, the rest hold (0, 0, 1).
 // Object space fills every texel. Errors (bad_input): an atlas under 3 x 2
 // texels, a gutter outside [0, 1/6), tangent space without a low surface.
-Status cube_sphere_height_to_normal(const Image& atlas, const CubeSphereOptions& options, const LowSurface* low,
-                                    Image& out, HeightToNormalStats& stats);
+Status cube_sphere_height_to_normal(const Image& atlas, const CubeSphereOptions& options,
+                                    const LowSurface* low, Image& out, HeightToNormalStats& stats);
 
 // Six square face images of one size (order +X, -X, +Y, -Y, +Z, -Z, row 0 of
 // each at t = +1) into a 3N x 2N atlas with no gutter (use uv_gutter = 0 with

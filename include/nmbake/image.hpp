@@ -37,7 +37,8 @@ inline constexpr Word<PixelFormat> kPixelFormatWords[] = {
     {"tiff16", PixelFormat::tiff16, "16-bit TIFF"},
     {"exr-half", PixelFormat::exr_half, "half-float EXR (ZIP)"},
     {"exr-float", PixelFormat::exr_float, "float EXR (ZIP)"},
-    {"exr-float-piz", PixelFormat::exr_float_piz, "float EXR (PIZ): a third smaller, ten times slower to write"},
+    {"exr-float-piz", PixelFormat::exr_float_piz,
+     "float EXR (PIZ): a third smaller, ten times slower to write"},
     {"tga", PixelFormat::tga8, "8-bit Targa (dithered)"},
 };
 NMBAKE_WORDS(PixelFormat, kPixelFormatWords)

@@ -95,9 +95,9 @@
 namespace nmbake {
 
 struct LoadOptions {
-  bool keep_uvs = true;      // false for the high mesh: never split vertices at UV seams
-  bool keep_normals = true;  // false: file normals are dropped (e.g. --high-normals face)
-  int uv_set = 0;            // glTF TEXCOORD_N / FBX UV channel N (OBJ and PLY have one: N must be 0)
+  bool keep_uvs = true;        // false for the high mesh: never split vertices at UV seams
+  bool keep_normals = true;    // false: file normals are dropped (e.g. --high-normals face)
+  int uv_set = 0;              // glTF TEXCOORD_N / FBX UV channel N (OBJ and PLY have one: N must be 0)
   bool keep_tangents = false;  // glTF TANGENT / FBX tangents into Mesh::tangents (--tangents file)
   // Vertex colours into Mesh::colors (the vertex-color map), sRGB-encoded
   // (display values, as a PLY's bytes) in [0, 1] as files store them: PLY
@@ -123,10 +123,10 @@ struct LoadOptions {
 };
 
 struct LoadStats {
-  std::uint64_t bytes = 0;           // file size (for glTF: the .gltf plus its external buffers)
-  double seconds = 0.0;              // wall time of load_mesh
-  std::uint64_t polygons = 0;        // faces in the file before triangulation
-  std::uint64_t triangles = 0;       // after triangulation
+  std::uint64_t bytes = 0;             // file size (for glTF: the .gltf plus its external buffers)
+  double seconds = 0.0;                // wall time of load_mesh
+  std::uint64_t polygons = 0;          // faces in the file before triangulation
+  std::uint64_t triangles = 0;         // after triangulation
   std::uint64_t degenerate_faces = 0;  // faces with fewer than 3 corners: skipped
   // Length of one file unit in metres when the file says (FBX UnitScaleFactor:
   // 0.01 for centimetres; glTF: 1); 0 when the format does not say (OBJ, PLY).

@@ -98,9 +98,9 @@ struct MapTraits {
   int channels = 3;
   DilateMode dilate = DilateMode::mean;
   PixelFormat png_format = PixelFormat::png16;  // for a .png output without an explicit format
-  bool occlusion_rays = false;  // needs trace_occlusion()
-  bool thickness_rays = false;  // needs trace_thickness()
-  bool implemented = true;      // false: refused by validate_options() (every map is implemented)
+  bool occlusion_rays = false;                  // needs trace_occlusion()
+  bool thickness_rays = false;                  // needs trace_thickness()
+  bool implemented = true;  // false: refused by validate_options() (every map is implemented)
 };
 MapTraits map_traits(MapKind map);
 
@@ -130,12 +130,12 @@ PixelFormat map_format(MapKind map, PixelFormat format, bool format_given, const
 // Resolved settings of the map set (scene units).
 struct MapSettings {
   std::vector<MapKind> maps{MapKind::normal};
-  EncodeOptions encode;         // the normal map's (space, green, encode); bent-normal uses space and green
-  float height_range = 0.0f;    // > 0: given; 0: auto
-  float curvature_range = 0.0f; // > 0: given; 0: auto
-  OcclusionOptions occlusion;   // rays, distance (bent: set when bent-normal is baked)
+  EncodeOptions encode;          // the normal map's (space, green, encode); bent-normal uses space and green
+  float height_range = 0.0f;     // > 0: given; 0: auto
+  float curvature_range = 0.0f;  // > 0: given; 0: auto
+  OcclusionOptions occlusion;    // rays, distance (bent: set when bent-normal is baked)
   ThicknessOptions thickness;
-  Bounds position_bounds;       // the high mesh's
+  Bounds position_bounds;  // the high mesh's
   // Read by encode_band() only (a merge of tiles has none of them):
   // per high vertex (curvature maps; empty otherwise): vertex_mean_curvature();
   const std::vector<float>* vertex_curvature = nullptr;
@@ -227,8 +227,8 @@ class MapSet {
 
   // The extra rays a band's maps need (AO and bent normals, thickness),
   // from the band's hits: nothing when no map needs them.
-  void trace_rays(const HighScene& scene, const Mesh& high, const LowSurface& surface, const TexelSamples& samples,
-                  const Hits& hits);
+  void trace_rays(const HighScene& scene, const Mesh& high, const LowSurface& surface,
+                  const TexelSamples& samples, const Hits& hits);
   bool needs_rays() const;
   // Every map's texels of the band (after trace_rays()). The normal map's
   // encode counters go to `normal_stats`, as before the map set.

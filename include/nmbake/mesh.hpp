@@ -11,12 +11,11 @@
 
 #include <cstddef>
 #include <cstdint>
-#include <string>
-#include <vector>
-
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 #include <glm/vec4.hpp>
+#include <string>
+#include <vector>
 
 #include "nmbake/common.hpp"
 
@@ -71,9 +70,9 @@ struct Mesh {
 
 // Counts of the numerical fallbacks taken while preparing a mesh.
 struct MeshStats {
-  std::uint64_t zero_area_triangles = 0;     // position area ~ 0: contribute no normal weight
-  std::uint64_t zero_length_normals = 0;     // file normal or accumulated normal of length ~0
-  std::uint64_t normals_computed = 0;        // vertices whose normal was computed, not loaded
+  std::uint64_t zero_area_triangles = 0;  // position area ~ 0: contribute no normal weight
+  std::uint64_t zero_length_normals = 0;  // file normal or accumulated normal of length ~0
+  std::uint64_t normals_computed = 0;     // vertices whose normal was computed, not loaded
 };
 
 // Rejects a mesh no later stage can use: NaN/Inf in any attribute, an index

@@ -38,9 +38,8 @@
 
 #include <array>
 #include <cstdint>
-#include <vector>
-
 #include <glm/vec3.hpp>
+#include <vector>
 
 #include "nmbake/mesh.hpp"
 #include "nmbake/raster.hpp"
@@ -57,13 +56,14 @@ struct OcclusionOptions {
 inline constexpr int kMaxOcclusionRays = 4096;
 
 struct OcclusionStats {
-  std::uint64_t samples = 0;     // hit samples that cast rays
-  std::uint64_t rays = 0;        // occlusion rays given to Embree
-  std::uint64_t unoccluded = 0;  // of them, found no occluder within the distance
-  std::uint64_t mirrored_rays = 0;      // pointed below the hit triangle: mirrored above it
-  std::uint64_t normal_fallbacks = 0;   // shading normal ~0: face normal used (or the face's ~0: the low normal)
-  std::uint64_t all_occluded = 0;       // bent normal: no ray escaped, N_s used
-  std::uint64_t untraced_rays = 0;      // a ray Embree would not take: counted as unoccluded
+  std::uint64_t samples = 0;        // hit samples that cast rays
+  std::uint64_t rays = 0;           // occlusion rays given to Embree
+  std::uint64_t unoccluded = 0;     // of them, found no occluder within the distance
+  std::uint64_t mirrored_rays = 0;  // pointed below the hit triangle: mirrored above it
+  std::uint64_t normal_fallbacks =
+      0;                            // shading normal ~0: face normal used (or the face's ~0: the low normal)
+  std::uint64_t all_occluded = 0;   // bent normal: no ray escaped, N_s used
+  std::uint64_t untraced_rays = 0;  // a ray Embree would not take: counted as unoccluded
 };
 // Its counters one by one, in this order (a tile file stores them so; a
 // merge adds them up).
@@ -87,7 +87,8 @@ void trace_occlusion(const HighScene& scene, const Mesh& high, const LowSurface&
 // Embree's rtcOccluded16 calls timed. For tools/bench. `hits` as above;
 // RawTraceResult::hits counts unoccluded rays.
 RawTraceResult trace_occlusion_raw(const HighScene& scene, const Mesh& high, const LowSurface& surface,
-                                   const TexelSamples& samples, const Hits& hits, const OcclusionOptions& options);
+                                   const TexelSamples& samples, const Hits& hits,
+                                   const OcclusionOptions& options);
 
 // Thickness: rays from inside the high surface at the hit, in a cone of
 // half-angle kThicknessConeDegrees around -N_s (uniform in solid angle, the
@@ -106,8 +107,8 @@ struct ThicknessOptions {
 struct ThicknessStats {
   std::uint64_t samples = 0;
   std::uint64_t rays = 0;
-  std::uint64_t exits = 0;             // rays that found where they leave the mesh
-  std::uint64_t samples_no_exit = 0;   // no ray did: `distance` used
+  std::uint64_t exits = 0;            // rays that found where they leave the mesh
+  std::uint64_t samples_no_exit = 0;  // no ray did: `distance` used
   std::uint64_t normal_fallbacks = 0;
   std::uint64_t untraced_rays = 0;
 };

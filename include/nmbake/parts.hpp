@@ -64,8 +64,8 @@ struct MatchOptions {
 
 // The result: empty `groups` means one group of everything.
 struct BakeGroup {
-  std::string name;                     // base name, explicit name, or "(unmatched)"
-  std::vector<std::string> low_parts;   // distinct part names, in file order
+  std::string name;                    // base name, explicit name, or "(unmatched)"
+  std::vector<std::string> low_parts;  // distinct part names, in file order
   std::vector<std::string> high_parts;
   std::uint64_t low_triangles = 0;
   std::uint64_t high_triangles = 0;
@@ -95,8 +95,8 @@ Status check_low_parts(const Mesh& low, const MatchOptions& options, const std::
 // group with no high triangles, a name in an explicit group that is not a
 // part of its file, a low part in two explicit groups, MatchMode::name with
 // no named low part.
-Status match_parts(const Mesh& low, const Mesh& high, const MatchOptions& options, const std::string& low_path,
-                   const std::string& high_path, BakeGroups& out);
+Status match_parts(const Mesh& low, const Mesh& high, const MatchOptions& options,
+                   const std::string& low_path, const std::string& high_path, BakeGroups& out);
 
 // A cage file with named parts is put in the low mesh's triangle order:
 // low part `X<low suffix>` (or any low part named N) takes the cage part
@@ -105,7 +105,8 @@ Status match_parts(const Mesh& low, const Mesh& high, const MatchOptions& option
 // or a low mesh without parts, is left as it is (corner order, as before).
 // bad_input naming the cage file and the part on a missing or extra part or
 // a count that differs.
-Status order_cage_by_parts(const Mesh& low, const MatchOptions& options, const std::string& cage_path, Mesh& cage);
+Status order_cage_by_parts(const Mesh& low, const MatchOptions& options, const std::string& cage_path,
+                           Mesh& cage);
 
 // Keeps only the high triangles some group uses, group by group: group g's
 // triangles become [first[g], first[g + 1]) of the returned indices (a

@@ -26,11 +26,11 @@
 namespace nmbake {
 
 struct PlanOptions {
-  std::string nmbake;      // absolute path of the nmbake program the tasks run
-  std::string job_file;    // absolute path
-  int tiles = 0;           // > 1: bakes of at least tiles_min_size (larger side) are split into this many tiles
+  std::string nmbake;    // absolute path of the nmbake program the tasks run
+  std::string job_file;  // absolute path
+  int tiles = 0;         // > 1: bakes of at least tiles_min_size (larger side) are split into this many tiles
   int tiles_min_size = 4096;
-  std::string cache_dir;   // non-empty: every bake task gets --cache DIR
+  std::string cache_dir;  // non-empty: every bake task gets --cache DIR
 };
 
 struct PlanTask {

@@ -30,9 +30,8 @@
 #pragma once
 
 #include <cstdint>
-#include <vector>
-
 #include <glm/vec2.hpp>
+#include <vector>
 
 #include "nmbake/surface.hpp"
 
@@ -55,7 +54,7 @@ struct TexelSamples {
   int width = 0;
   int height = 0;     // rows held: the whole image, or one band of it
   int row_begin = 0;  // image row of the first row held
-  int samples = 1;  // per texel
+  int samples = 1;    // per texel
   // Per sample, index (((y - row_begin) * width) + x) * samples + s:
   std::vector<std::int32_t> triangle;  // low triangle, -1 = no sample
   std::vector<glm::vec2> bary;         // weights of corners 1 and 2 (corner 0: 1 - x - y)
@@ -67,8 +66,8 @@ struct TexelSamples {
 
 struct RasterStats {
   std::uint64_t covered_texels = 0;
-  std::uint64_t border_samples = 0;      // samples outside every triangle, snapped to the nearest one
-  std::uint64_t overlapping_samples = 0;  // strictly inside two or more UV triangles
+  std::uint64_t border_samples = 0;           // samples outside every triangle, snapped to the nearest one
+  std::uint64_t overlapping_samples = 0;      // strictly inside two or more UV triangles
   std::uint64_t degenerate_uv_triangles = 0;  // zero UV area: skipped by the rasterizer
 };
 
@@ -92,9 +91,9 @@ void rasterize(const LowSurface& surface, int width, int height, int samples, Te
 // texels the first pass chose get their fixed pattern, without a pass over
 // the others. `slot` is scratch (one entry per texel of the band, reused
 // between calls). row_begin is a multiple of kRasterTileSize.
-void rasterize_selected(const LowSurface& surface, int width, int height, int samples, int row_begin, int row_end,
-                        const std::uint32_t* texels, std::size_t count, TexelSamples& out, RasterStats& stats,
-                        std::vector<std::uint32_t>& slot);
+void rasterize_selected(const LowSurface& surface, int width, int height, int samples, int row_begin,
+                        int row_end, const std::uint32_t* texels, std::size_t count, TexelSamples& out,
+                        RasterStats& stats, std::vector<std::uint32_t>& slot);
 
 namespace detail {
 // The reference for tests: rasterize() with every sample tested on its own.

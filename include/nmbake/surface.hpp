@@ -5,11 +5,10 @@
 
 #include <cstddef>
 #include <cstdint>
-#include <vector>
-
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 #include <glm/vec4.hpp>
+#include <vector>
 
 #include "nmbake/mesh.hpp"
 #include "nmbake/tangents.hpp"
@@ -18,15 +17,15 @@ namespace nmbake {
 
 struct LowSurface {
   std::vector<glm::vec3> position;
-  std::vector<glm::vec3> normal;       // unit shading normal
+  std::vector<glm::vec3> normal;  // unit shading normal
   std::vector<glm::vec2> uv;
-  std::vector<glm::vec4> tangent;      // MikkTSpace: xyz, sign in w
+  std::vector<glm::vec4> tangent;  // MikkTSpace: xyz, sign in w
   // sign cross(normal, tangent.xyz) per corner: the bitangent a renderer
   // that computes B per vertex interpolates (NormalDecode, encode.hpp).
   std::vector<glm::vec3> bitangent;
-  std::vector<glm::vec3> cage_normal;  // unit averaged normal: where the default cage is pushed
+  std::vector<glm::vec3> cage_normal;    // unit averaged normal: where the default cage is pushed
   std::vector<glm::vec3> cage_position;  // explicit cage mesh corners; empty without --cage
-  std::vector<std::uint32_t> group;       // bake group per triangle (parts.hpp); empty: one group
+  std::vector<std::uint32_t> group;      // bake group per triangle (parts.hpp); empty: one group
   // Hard edges: low edges whose two triangles' normals differ at an end (split
   // normals, more than kHardEdgeDegrees apart), as segments; per triangle, bit
   // k set when corner k's position carries more than one normal (empty when

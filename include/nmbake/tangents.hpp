@@ -19,10 +19,9 @@
 #pragma once
 
 #include <cstdint>
+#include <glm/vec4.hpp>
 #include <string>
 #include <vector>
-
-#include <glm/vec4.hpp>
 
 #include "nmbake/mesh.hpp"
 #include "nmbake/words.hpp"
@@ -30,9 +29,9 @@
 namespace nmbake {
 
 struct TangentStats {
-  std::uint64_t degenerate_triangles = 0;  // zero position area or repeated vertex
+  std::uint64_t degenerate_triangles = 0;     // zero position area or repeated vertex
   std::uint64_t degenerate_uv_triangles = 0;  // zero UV area: no UV gradient
-  std::uint64_t fallback_tangents = 0;  // corners that got a fixed, orthogonal-to-N tangent
+  std::uint64_t fallback_tangents = 0;        // corners that got a fixed, orthogonal-to-N tangent
 };
 
 // `mesh` must have unit normals and UVs (one per vertex). Writes

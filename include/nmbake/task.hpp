@@ -56,7 +56,7 @@ struct TileData {
   int row_begin = 0, row_end = 0;
   int index = 0, count = 1;
   int padding = 0;
-  bool dither = true;  // the bake's BakeOptions::dither, for the 8-bit outputs merge writes
+  bool dither = true;               // the bake's BakeOptions::dither, for the 8-bit outputs merge writes
   std::vector<OutputSpec> outputs;  // as the bake names them (<MAP> unreplaced; format_given kept)
   // The maps and what finishing, the files and the report read of their
   // settings: the given height and curvature ranges (0: auto, from the whole

@@ -44,12 +44,11 @@
 
 #include <cstdint>
 #include <functional>
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <glm/vec2.hpp>
-#include <glm/vec3.hpp>
 
 #include "nmbake/common.hpp"
 #include "nmbake/mesh.hpp"
@@ -240,7 +239,7 @@ struct Hits {
 };
 
 struct TraceStats {
-  std::uint64_t rays = 0;    // Embree queries issued
+  std::uint64_t rays = 0;     // Embree queries issued
   std::uint64_t samples = 0;  // samples traced (a `nearest` sample issues two rays)
   std::uint64_t hits = 0;
   std::uint64_t misses = 0;
@@ -282,7 +281,8 @@ struct PacketRay {
   float tnear = 0.0f;
   float tfar = 0.0f;
 };
-std::vector<PacketRay> packet_rays(const LowSurface& surface, const TexelSamples& samples, const RayOptions& options);
+std::vector<PacketRay> packet_rays(const LowSurface& surface, const TexelSamples& samples,
+                                   const RayOptions& options);
 
 // Ray distances found by probing: rays from fixed points of every low
 // triangle, outwards and inwards along the averaged normal, find how far the

@@ -11,10 +11,9 @@
 // [0, 1]^2 by hand.
 #pragma once
 
+#include <glm/vec2.hpp>
 #include <string>
 #include <vector>
-
-#include <glm/vec2.hpp>
 
 #include "nmbake/common.hpp"
 #include "nmbake/mesh.hpp"

@@ -36,14 +36,16 @@ struct Word {
 template <class E>
 struct WordTable;
 
-#define NMBAKE_WORDS(Enum, table)                            \
-  template <>                                                \
-  struct WordTable<Enum> {                                   \
+#define NMBAKE_WORDS(Enum, table)                              \
+  template <>                                                  \
+  struct WordTable<Enum> {                                     \
     static constexpr std::span<const Word<Enum>> words{table}; \
   };
 
 template <class E>
-concept HasWords = requires { WordTable<E>::words; };
+concept HasWords = requires {
+  WordTable<E>::words;
+};
 
 // The value of `text` in `words` (words and aliases); false for any other text.
 template <class E>

@@ -249,7 +249,8 @@ Status prepare_low_mesh(const BakeOptions& o, BakeReport& r, StageTimer& timer, 
   if (!m.low.has_uvs()) NMBAKE_TRY(unwrap_low(o, r, timer, m.low));
   if (o.tangent_basis == TangentBasis::file && !m.low.has_tangents()) {
     // Checked after unwrap: a mesh unwrapped here has no file tangents either.
-    return Status::bad_input(o.low_path + ": --tangents file, but the low mesh has no tangents (glTF TANGENT or FBX "
+    return Status::bad_input(o.low_path +
+                             ": --tangents file, but the low mesh has no tangents (glTF TANGENT or FBX "
                              "tangents on every part, and UVs)");
   }
   NMBAKE_TRY(find_udim_tiles(m.low, o.low_path, m.udim, m.tiles));

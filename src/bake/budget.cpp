@@ -22,7 +22,8 @@ int baked_rows(const BakeOptions& o) {
 }
 
 std::string map_text(const BakeOptions& o) {
-  std::string text = std::to_string(o.width) + "x" + std::to_string(o.height) + " map at " + std::to_string(o.samples) + " spp";
+  std::string text = std::to_string(o.width) + "x" + std::to_string(o.height) + " map at " +
+                     std::to_string(o.samples) + " spp";
   if (baked_rows(o) != o.height) {
     text = "tile " + std::to_string(o.tile_index + 1) + "/" + std::to_string(o.tile_count) + " (" +
            std::to_string(baked_rows(o)) + " rows) of a " + text;
@@ -35,7 +36,8 @@ std::string map_text(const BakeOptions& o) {
 BakeMemory estimate_bake_memory(const BakeOptions& o, const MeshSize& low, const MeshSize& high) {
   BakeMemory m;
   // A tile bake's image and coverage hold its rows only (bake_tile).
-  const std::uint64_t texels = static_cast<std::uint64_t>(o.width) * static_cast<std::uint64_t>(baked_rows(o));
+  const std::uint64_t texels =
+      static_cast<std::uint64_t>(o.width) * static_cast<std::uint64_t>(baked_rows(o));
   // Per texel: the float RGB image (12), coverage (1), dilation's rings (2:
   // 20 bytes a ring texel, rings about a tenth of the map at most), the
   // debug images (36). Measured: a 8192^2 bake peaks at 0.92 GB, this says
@@ -85,9 +87,10 @@ Status check_bake_memory(const BakeOptions& o, const MeshSize& low, const MeshSi
   if (m.total() <= limit.bytes) return Status::ok();
   std::string parts = "map " + memory_text(m.map + m.bands);
   if (low.triangles + high.triangles > 0) parts += ", meshes " + memory_text(m.low + m.high);
-  return Status::bad_input("a " + map_text(o) + " needs about " + memory_text(m.total()) + " (" + parts + "); " +
-                           memory_text(limit.bytes) + " are available (" + limit.source +
-                           "): use a smaller --size" + std::string(baked_rows(o) != o.height ? " or more tiles" : "") +
+  return Status::bad_input("a " + map_text(o) + " needs about " + memory_text(m.total()) + " (" + parts +
+                           "); " + memory_text(limit.bytes) + " are available (" + limit.source +
+                           "): use a smaller --size" +
+                           std::string(baked_rows(o) != o.height ? " or more tiles" : "") +
                            ", or set --max-memory if more can be used");
 }
 

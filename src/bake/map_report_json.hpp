@@ -2,9 +2,8 @@
 // bake report and the merge report.
 #pragma once
 
-#include <vector>
-
 #include <nlohmann/json.hpp>
+#include <vector>
 
 #include "nmbake/maps.hpp"
 

@@ -6,7 +6,6 @@
 #include <cmath>
 #include <filesystem>
 #include <limits>
-
 #include <nlohmann/json.hpp>
 
 #include "nmbake/memory.hpp"
@@ -27,7 +26,8 @@ namespace {
 
 bool read_int(const OptionValue& v, int& out) {
   if (v.kind == OptionValue::Kind::integer) {
-    if (v.integer < std::numeric_limits<int>::min() || v.integer > std::numeric_limits<int>::max()) return false;
+    if (v.integer < std::numeric_limits<int>::min() || v.integer > std::numeric_limits<int>::max())
+      return false;
     out = static_cast<int>(v.integer);
     return true;
   }
@@ -39,7 +39,8 @@ bool read_int(const OptionValue& v, int& out) {
 
 bool read_float(const OptionValue& v, float& out) {
   if (v.kind == OptionValue::Kind::integer || v.kind == OptionValue::Kind::number) {
-    out = static_cast<float>(v.kind == OptionValue::Kind::integer ? static_cast<double>(v.integer) : v.number);
+    out =
+        static_cast<float>(v.kind == OptionValue::Kind::integer ? static_cast<double>(v.integer) : v.number);
     return std::isfinite(out);
   }
   if (v.kind != OptionValue::Kind::text) return false;
@@ -85,7 +86,8 @@ Status read_distance(const OptionValue& v, Distance& out, bool positive) {
   const char* what = "a distance (scene units), N% or auto";
   if (v.kind == OptionValue::Kind::integer || v.kind == OptionValue::Kind::number) {
     const double d = v.kind == OptionValue::Kind::integer ? static_cast<double>(v.integer) : v.number;
-    if (!(positive ? d > 0.0 : d >= 0.0) || !std::isfinite(d)) return expected(positive ? "a distance > 0" : "a distance >= 0");
+    if (!(positive ? d > 0.0 : d >= 0.0) || !std::isfinite(d))
+      return expected(positive ? "a distance > 0" : "a distance >= 0");
     out.kind = Distance::Kind::absolute;
     out.value = static_cast<float>(d);
     return Status::ok();
@@ -109,8 +111,9 @@ Status read_range(const OptionValue& v, float& out) {
 Status read_path(const OptionValue& v, std::string& out) {
   if (v.kind != OptionValue::Kind::text || v.text.empty()) return expected("a path");
   const std::filesystem::path path(v.text);
-  out = v.folder.empty() || path.is_absolute() ? v.text
-                                               : (std::filesystem::path(v.folder) / path).lexically_normal().string();
+  out = v.folder.empty() || path.is_absolute()
+            ? v.text
+            : (std::filesystem::path(v.folder) / path).lexically_normal().string();
   return Status::ok();
 }
 
@@ -120,9 +123,13 @@ Status read_name(const OptionValue& v, std::string& out) {
   return Status::ok();
 }
 
-Status read_integer(const OptionValue& v, int& out) { return read_int(v, out) ? Status::ok() : expected("an integer"); }
+Status read_integer(const OptionValue& v, int& out) {
+  return read_int(v, out) ? Status::ok() : expected("an integer");
+}
 
-Status read_number(const OptionValue& v, float& out) { return read_float(v, out) ? Status::ok() : expected("a number"); }
+Status read_number(const OptionValue& v, float& out) {
+  return read_float(v, out) ? Status::ok() : expected("a number");
+}
 
 std::string number_text(double value) {
   char text[32];
@@ -144,8 +151,8 @@ inline constexpr Word<bool> kTangentsWords[] = {
 
 // A row whose value is one word of E's table, stored in the field `member`
 // picks.
-#define NMBAKE_WORD_ROW(key, E, field, help)                                                  \
-  OptionSpec {                                                                                \
+#define NMBAKE_WORD_ROW(key, E, field, help)                                                     \
+  OptionSpec {                                                                                   \
     key, "WORD", help, [](BakeOptions& o, const OptionValue& v) { return read_word(v, field); }, \
         [](const BakeOptions& o) { return std::string(to_string(field)); }, words_of<E>          \
   }
@@ -157,7 +164,8 @@ const OptionSpec kTable[] = {
     {"high", "PATH", "high-poly mesh (OBJ, PLY, glTF/GLB, FBX, DAE, 3DS, STL)",
      [](BakeOptions& o, const OptionValue& v) { return read_path(v, o.high_path); },
      [](const BakeOptions& o) { return o.high_path; }, no_words, false, false},
-    {"cage", "PATH", "cage mesh with the low mesh's topology (default: the pushed-out low surface, --cage-mode)",
+    {"cage", "PATH",
+     "cage mesh with the low mesh's topology (default: the pushed-out low surface, --cage-mode)",
      [](BakeOptions& o, const OptionValue& v) { return read_path(v, o.cage_path); },
      [](const BakeOptions& o) { return o.cage_path; }, no_words},
     {"size", "N|WxH", "map size",
@@ -175,7 +183,8 @@ const OptionSpec kTable[] = {
        return expected("N or WxH");
      },
      [](const BakeOptions& o) {
-       return o.width == o.height ? std::to_string(o.width) : std::to_string(o.width) + "x" + std::to_string(o.height);
+       return o.width == o.height ? std::to_string(o.width)
+                                  : std::to_string(o.width) + "x" + std::to_string(o.height);
      },
      no_words},
     {"width", "N", "map width (size sets both)",
@@ -195,7 +204,8 @@ const OptionSpec kTable[] = {
        o.adaptive = false;
        return Status::ok();
      },
-     [](const BakeOptions& o) { return o.adaptive ? std::string("adaptive") : std::to_string(o.samples); }, no_words},
+     [](const BakeOptions& o) { return o.adaptive ? std::string("adaptive") : std::to_string(o.samples); },
+     no_words},
     {"adaptive_max", "N", "samples of a refined texel with samples = adaptive: 4, 16, 64",
      [](BakeOptions& o, const OptionValue& v) { return read_integer(v, o.adaptive_options.max_samples); },
      [](const BakeOptions& o) { return std::to_string(o.adaptive_options.max_samples); }, no_words},
@@ -205,7 +215,8 @@ const OptionSpec kTable[] = {
     {"adaptive_depth", "X", "refine where the hit distance's second difference exceeds this many texels",
      [](BakeOptions& o, const OptionValue& v) { return read_number(v, o.adaptive_options.depth_threshold); },
      [](const BakeOptions& o) { return number_text(o.adaptive_options.depth_threshold); }, no_words},
-    {"adaptive_spread", "X", "take adaptive_max samples where a refined texel's 4 samples spread more (radians)",
+    {"adaptive_spread", "X",
+     "take adaptive_max samples where a refined texel's 4 samples spread more (radians)",
      [](BakeOptions& o, const OptionValue& v) { return read_number(v, o.adaptive_options.spread_threshold); },
      [](const BakeOptions& o) { return number_text(o.adaptive_options.spread_threshold); }, no_words},
     {"adaptive_border", "X", "at a chart border, refine where the normal's first difference exceeds this",
@@ -223,23 +234,31 @@ const OptionSpec kTable[] = {
        apply_engine_preset(preset, {}, o.encode.green, o.encode.decode);
        return Status::ok();
      },
-     [](const BakeOptions& o) { return o.preset.empty() ? std::string("none") : o.preset; }, engine_preset_names,
-     false, true, true},
-    NMBAKE_WORD_ROW("green", GreenChannel, o.encode.green, "the green channel (up: OpenGL, down: DirectX); overrides the preset's"),
+     [](const BakeOptions& o) { return o.preset.empty() ? std::string("none") : o.preset; },
+     engine_preset_names, false, true, true},
+    NMBAKE_WORD_ROW("green", GreenChannel, o.encode.green,
+                    "the green channel (up: OpenGL, down: DirectX); overrides the preset's"),
     NMBAKE_WORD_ROW("bitangent", Bitangent, o.encode.decode.bitangent, "how the engine gets B"),
     {"tbn", "WORD", "the engine's T, B, N before the decode",
-     [](BakeOptions& o, const OptionValue& v) { return read_word(v, kFrameRuleWords, o.encode.decode.unit_frame); },
+     [](BakeOptions& o, const OptionValue& v) {
+       return read_word(v, kFrameRuleWords, o.encode.decode.unit_frame);
+     },
      [](const BakeOptions& o) { return std::string(word_of(kFrameRuleWords, o.encode.decode.unit_frame)); },
      [] { return word_list(kFrameRuleWords, ", "); }},
     {"blue", "WORD", "the engine's z",
-     [](BakeOptions& o, const OptionValue& v) { return read_word(v, kBlueRuleWords, o.encode.decode.rebuild_blue); },
+     [](BakeOptions& o, const OptionValue& v) {
+       return read_word(v, kBlueRuleWords, o.encode.decode.rebuild_blue);
+     },
      [](const BakeOptions& o) { return std::string(word_of(kBlueRuleWords, o.encode.decode.rebuild_blue)); },
      [] { return word_list(kBlueRuleWords, ", "); }},
     {"dither", "on|off", "8-bit outputs (png8, tga): ordered dither, or rounded",
-     [](BakeOptions& o, const OptionValue& v) { return read_bool(v, o.dither) ? Status::ok() : Status::bad_input(expected_words(kOnOffWords)); },
+     [](BakeOptions& o, const OptionValue& v) {
+       return read_bool(v, o.dither) ? Status::ok() : Status::bad_input(expected_words(kOnOffWords));
+     },
      [](const BakeOptions& o) { return std::string(word_of(kOnOffWords, o.dither)); },
      [] { return word_list(kOnOffWords, ", "); }},
-    {"front", "DISTANCE", "how far outside the low surface rays start: scene units, N% of the low diagonal, or auto",
+    {"front", "DISTANCE",
+     "how far outside the low surface rays start: scene units, N% of the low diagonal, or auto",
      [](BakeOptions& o, const OptionValue& v) { return read_distance(v, o.rays.front, false); },
      [](const BakeOptions& o) { return to_string(o.rays.front); }, no_words},
     {"back", "DISTANCE", "how far inside the low surface rays search: scene units, N%, or auto",
@@ -256,7 +275,8 @@ const OptionSpec kTable[] = {
      [](BakeOptions& o, const OptionValue& v) {
        return read_bool(v, o.rays.ignore_backfaces) ? Status::ok() : expected("true or false");
      },
-     [](const BakeOptions& o) { return std::string(o.rays.ignore_backfaces ? "true" : "false"); }, no_words, true},
+     [](const BakeOptions& o) { return std::string(o.rays.ignore_backfaces ? "true" : "false"); }, no_words,
+     true},
     NMBAKE_WORD_ROW("high_normals", HighNormals, o.encode.high_normals, "the high mesh's normals at a hit"),
     {"padding", "N", "texels of dilation around charts (0 to 4096)",
      [](BakeOptions& o, const OptionValue& v) { return read_integer(v, o.padding); },
@@ -270,8 +290,10 @@ const OptionSpec kTable[] = {
        bool file = false;
        NMBAKE_TRY(read_word(v, kTangentsWords, file));
        // mikktspace leaves a comparison basis (tangent_basis) as it is.
-       if (file) o.tangent_basis = TangentBasis::file;
-       else if (o.tangent_basis == TangentBasis::file) o.tangent_basis = TangentBasis::mikktspace;
+       if (file)
+         o.tangent_basis = TangentBasis::file;
+       else if (o.tangent_basis == TangentBasis::file)
+         o.tangent_basis = TangentBasis::mikktspace;
        return Status::ok();
      },
      [](const BakeOptions& o) {
@@ -287,7 +309,8 @@ const OptionSpec kTable[] = {
          o.max_memory_bytes = static_cast<std::uint64_t>(v.integer);
          return Status::ok();
        }
-       if (v.kind == OptionValue::Kind::text && parse_memory_size(v.text, o.max_memory_bytes)) return Status::ok();
+       if (v.kind == OptionValue::Kind::text && parse_memory_size(v.text, o.max_memory_bytes))
+         return Status::ok();
        return expected("bytes, or a number with K, M, G or T");
      },
      [](const BakeOptions& o) {
@@ -311,7 +334,8 @@ const OptionSpec kTable[] = {
     {"debug_dump", "PREFIX", "also write PREFIX_coverage.png, PREFIX_misses.png, PREFIX_distance.exr",
      [](BakeOptions& o, const OptionValue& v) { return read_path(v, o.debug_dump_prefix); },
      [](const BakeOptions& o) { return o.debug_dump_prefix; }, no_words, false, false},
-    {"maps", "LIST", "the maps to bake from the same rays (a list, or names with commas); several need <MAP> in outputs",
+    {"maps", "LIST",
+     "the maps to bake from the same rays (a list, or names with commas); several need <MAP> in outputs",
      [](BakeOptions& o, const OptionValue& v) {
        std::vector<MapKind> maps;
        if (v.kind == OptionValue::Kind::list) {
@@ -325,24 +349,28 @@ const OptionSpec kTable[] = {
        o.maps = std::move(maps);
        return Status::ok();
      },
-     [](const BakeOptions& o) { return map_list_text(o.maps); }, words_of<MapKind>, false, true, false, "map"},
+     [](const BakeOptions& o) { return map_list_text(o.maps); }, words_of<MapKind>, false, true, false,
+     "map"},
     {"height_range", "R|auto", "height map in integer files: heights in [-R, R] scene units fill 0..1",
      [](BakeOptions& o, const OptionValue& v) { return read_range(v, o.height_range); },
      [](const BakeOptions& o) { return range_text(o.height_range); }, no_words},
     {"curvature_range", "R|auto",
-     "curvature map in integer files: mean curvature in [-R, R] (1/scene units) fills 0..1 (auto: 99th percentile)",
+     "curvature map in integer files: mean curvature in [-R, R] (1/scene units) fills 0..1 (auto: 99th "
+     "percentile)",
      [](BakeOptions& o, const OptionValue& v) { return read_range(v, o.curvature_range); },
      [](const BakeOptions& o) { return range_text(o.curvature_range); }, no_words},
     {"ao_rays", "N", "AO (and bent normal) rays per sample, 1-4096",
      [](BakeOptions& o, const OptionValue& v) { return read_integer(v, o.ao_rays); },
      [](const BakeOptions& o) { return std::to_string(o.ao_rays); }, no_words},
-    {"ao_distance", "DISTANCE", "AO: occluders further than this do not count: units, N% of the diagonal, auto (10%)",
+    {"ao_distance", "DISTANCE",
+     "AO: occluders further than this do not count: units, N% of the diagonal, auto (10%)",
      [](BakeOptions& o, const OptionValue& v) { return read_distance(v, o.ao_distance, true); },
      [](const BakeOptions& o) { return to_string(o.ao_distance); }, no_words},
     {"thickness_rays", "N", "thickness rays per sample, 1-4096",
      [](BakeOptions& o, const OptionValue& v) { return read_integer(v, o.thickness_rays); },
      [](const BakeOptions& o) { return std::to_string(o.thickness_rays); }, no_words},
-    {"thickness_distance", "DISTANCE", "thickness: search distance, also white in integer files: units, N%, auto (10%)",
+    {"thickness_distance", "DISTANCE",
+     "thickness: search distance, also white in integer files: units, N%, auto (10%)",
      [](BakeOptions& o, const OptionValue& v) { return read_distance(v, o.thickness_distance, true); },
      [](const BakeOptions& o) { return to_string(o.thickness_distance); }, no_words},
     NMBAKE_WORD_ROW("id_source", IdSource, o.id_source, "what the id map colours"),

@@ -197,7 +197,9 @@ std::string BakeReport::to_json() const {
   if (!key.empty()) j["key"] = key;
   j["cached"] = cached;
   if (tile_count > 0) {
-    j["tile"] = {{"index", tile_index + 1}, {"count", tile_count}, {"rows", {tile_row_begin, tile_row_end}},
+    j["tile"] = {{"index", tile_index + 1},
+                 {"count", tile_count},
+                 {"rows", {tile_row_begin, tile_row_end}},
                  {"file", tile_path}};
   }
   j["high_triangles_used"] = high_triangles_used;
@@ -259,7 +261,8 @@ std::string BakeReport::summary_line() const {
   std::string text = line;
   if (trace.retried > 0) {
     std::snprintf(line, sizeof line, "; %llu missed samples retried, %llu found a surface",
-                  static_cast<unsigned long long>(trace.retried), static_cast<unsigned long long>(trace.retry_hits));
+                  static_cast<unsigned long long>(trace.retried),
+                  static_cast<unsigned long long>(trace.retry_hits));
     text += line;
   }
   if (!groups.empty()) {
@@ -276,8 +279,7 @@ std::string BakeReport::summary_line() const {
     double extra_seconds = 0.0;
     for (const MapReport& m : map_reports) {
       if (m.map == MapKind::ao || m.map == MapKind::thickness ||
-          (m.map == MapKind::bent_normal &&
-           std::find(maps.begin(), maps.end(), MapKind::ao) == maps.end())) {
+          (m.map == MapKind::bent_normal && std::find(maps.begin(), maps.end(), MapKind::ao) == maps.end())) {
         extra_rays += static_cast<std::uint64_t>(m.figure("rays"));
       }
     }
@@ -300,7 +302,8 @@ std::string BakeReport::summary_line() const {
                   tiles.back().tile);
     text += line;
   }
-  if (low_load.unit_meters > 0.0 && high_load.unit_meters > 0.0 && low_load.unit_meters != high_load.unit_meters) {
+  if (low_load.unit_meters > 0.0 && high_load.unit_meters > 0.0 &&
+      low_load.unit_meters != high_load.unit_meters) {
     std::snprintf(line, sizeof line, "; WARNING: low unit %g m, high unit %g m (positions are not rescaled)",
                   low_load.unit_meters, high_load.unit_meters);
     text += line;

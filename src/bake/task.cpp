@@ -21,8 +21,12 @@
 // written: their texels are encoded, and dilating and writing them does not
 // read the options (the key holds them).
 #include "nmbake/task.hpp"
-#include "nmbake/bake.hpp"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <tbb/parallel_for.h>
+#include <unistd.h>
+#include <xxhash.h>
 
 #include <algorithm>
 #include <bit>
@@ -33,16 +37,10 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
-
-#include <fcntl.h>
-#include <sys/stat.h>
-#include <unistd.h>
-
 #include <nlohmann/json.hpp>
-#include <tbb/parallel_for.h>
-#include <xxhash.h>
 
 #include "bake/map_report_json.hpp"
+#include "nmbake/bake.hpp"
 #include "nmbake/cleanup.hpp"
 #include "nmbake/image.hpp"
 #include "nmbake/preset.hpp"
@@ -50,7 +48,8 @@
 
 namespace nmbake {
 
-static_assert(std::endian::native == std::endian::little, "tile files are written in the machine's byte order");
+static_assert(std::endian::native == std::endian::little,
+              "tile files are written in the machine's byte order");
 
 std::string BakeKey::hex() const {
   char text[33];
@@ -89,7 +88,7 @@ std::string bake_key_text(const BakeOptions& o) {
   for (const auto& [name, d] : {std::pair{"front", o.rays.front}, std::pair{"back", o.rays.back}}) {
     line(name, d.kind == Distance::Kind::automatic ? std::string("auto")
                : d.kind == Distance::Kind::percent ? number(d.value) + "%"
-                                                    : number(d.value));
+                                                   : number(d.value));
   }
   line("hit", o.rays.hit == HitRule::first ? "first" : "nearest");
   line("cage_mode", to_string(o.rays.cage_mode));
@@ -146,10 +145,11 @@ std::string bake_key_text(const BakeOptions& o) {
     const auto distance = [&](const Distance& d) {
       return d.kind == Distance::Kind::automatic ? std::string("auto")
              : d.kind == Distance::Kind::percent ? number(d.value) + "%"
-                                                  : number(d.value);
+                                                 : number(d.value);
     };
     if (has(MapKind::height)) line("height_range", o.height_range > 0.0f ? number(o.height_range) : "auto");
-    if (has(MapKind::curvature)) line("curvature_range", o.curvature_range > 0.0f ? number(o.curvature_range) : "auto");
+    if (has(MapKind::curvature))
+      line("curvature_range", o.curvature_range > 0.0f ? number(o.curvature_range) : "auto");
     if (has(MapKind::id)) line("id_source", to_string(o.id_source));
     if (has(MapKind::ao) || has(MapKind::bent_normal)) {
       line("ao_rays", std::to_string(o.ao_rays));
@@ -454,7 +454,9 @@ Status read_tile(const std::string& path, TileData& tile) {
   }
   (void)::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
   const auto file_size = static_cast<std::uint64_t>(info.st_size);
-  const auto bad = [&](const std::string& why) { return Status::bad_input(path + ": not a complete nmbake tile file: " + why); };
+  const auto bad = [&](const std::string& why) {
+    return Status::bad_input(path + ": not a complete nmbake tile file: " + why);
+  };
   HeaderReader r(fd, file_size);
   char magic[sizeof kMagic];
   if (!r.bytes(magic, sizeof magic)) return bad("too short");
@@ -666,7 +668,8 @@ Status merge_tiles(const std::vector<std::string>& tile_paths, const std::vector
     }
     const std::string& path = tile_paths[i];
     if (!(tile.key == report.key)) {
-      return Status::bad_input(path + ": a tile of another bake (key " + tile.key.hex() + ", not " + report.key.hex() + ")");
+      return Status::bad_input(path + ": a tile of another bake (key " + tile.key.hex() + ", not " +
+                               report.key.hex() + ")");
     }
     if (tile.width != width || tile.height != height || tile.count != count || tile.padding != padding ||
         tile.dither != dither || !same_map_set(tile.maps, settings)) {
@@ -674,13 +677,14 @@ Status merge_tiles(const std::vector<std::string>& tile_paths, const std::vector
           path + ": a tile of another bake (size, tile count, padding, dithering or maps differ)");
     }
     if (!seen[tile.index].empty()) {
-      return Status::bad_input(path + ": tile " + std::to_string(tile.index + 1) + "/" + std::to_string(count) +
-                               " is given twice (also " + seen[tile.index] + ")");
+      return Status::bad_input(path + ": tile " + std::to_string(tile.index + 1) + "/" +
+                               std::to_string(count) + " is given twice (also " + seen[tile.index] + ")");
     }
     seen[tile.index] = path;
     int b = 0, e = 0;
     tile_rows(height, tile.index, count, b, e);
-    if (tile.row_begin != b || tile.row_end != e) return Status::bad_input(path + ": its rows are not those of its tile");
+    if (tile.row_begin != b || tile.row_end != e)
+      return Status::bad_input(path + ": its rows are not those of its tile");
     for (std::size_t m = 0; m < settings.maps.size(); ++m) {
       Image& image = maps.image(settings.maps[m]);
       std::copy(tile.texels[m].begin(), tile.texels[m].end(),

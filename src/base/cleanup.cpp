@@ -4,14 +4,14 @@
 // atomic state; the handler unlink()s the published ones and _exit()s.
 #include "nmbake/cleanup.hpp"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <atomic>
 #include <cerrno>
 #include <csignal>
 #include <cstring>
-
-#include <fcntl.h>
-#include <sys/stat.h>
-#include <unistd.h>
 
 namespace nmbake {
 

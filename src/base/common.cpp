@@ -1,11 +1,29 @@
 #include "nmbake/common.hpp"
 
-#include <cstdio>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 
 namespace nmbake {
+
+std::string quoted_string(std::string_view text) {
+  std::string out = "\"";
+  for (const char c : text) {
+    const auto byte = static_cast<unsigned char>(c);
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += c;
+    } else if (byte < 0x20 || byte == 0x7f) {
+      char escaped[8];
+      std::snprintf(escaped, sizeof escaped, "\\u%04x", byte);
+      out += escaped;
+    } else {
+      out += c;
+    }
+  }
+  return out + '"';
+}
 
 std::string printable_text(std::string_view text) {
   std::string out;
@@ -30,7 +48,10 @@ std::string printable_text(std::string_view text) {
     }
     // A UTF-8 sequence: its length from the lead byte, continuation bytes
     // 10xxxxxx, no overlong forms or surrogates, nothing above U+10FFFF.
-    const int length = byte >= 0xc2 && byte <= 0xdf ? 2 : byte >= 0xe0 && byte <= 0xef ? 3 : byte >= 0xf0 && byte <= 0xf4 ? 4 : 0;
+    const int length = byte >= 0xc2 && byte <= 0xdf   ? 2
+                       : byte >= 0xe0 && byte <= 0xef ? 3
+                       : byte >= 0xf0 && byte <= 0xf4 ? 4
+                                                      : 0;
     bool valid = length > 0 && i + static_cast<std::size_t>(length) <= text.size();
     std::uint32_t code = length == 2 ? byte & 0x1fu : length == 3 ? byte & 0x0fu : byte & 0x07u;
     for (int k = 1; valid && k < length; ++k) {

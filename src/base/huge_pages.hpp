@@ -7,15 +7,14 @@
 // is a hint: the contents are the same without it.
 #pragma once
 
+#include <sys/mman.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <type_traits>
 #include <vector>
-
-#include <tbb/parallel_for.h>
-
-#include <sys/mman.h>
 
 namespace nmbake::detail {
 
@@ -26,7 +25,8 @@ inline void advise_huge_pages(const void* data, std::size_t bytes) {
   const std::uintptr_t end = begin + bytes;
   const std::uintptr_t aligned_begin = (begin + huge_page - 1) & ~(huge_page - 1);
   if (end > aligned_begin + huge_page) {
-    (void)madvise(reinterpret_cast<void*>(aligned_begin), (end - aligned_begin) & ~(huge_page - 1), MADV_HUGEPAGE);
+    (void)madvise(reinterpret_cast<void*>(aligned_begin), (end - aligned_begin) & ~(huge_page - 1),
+                  MADV_HUGEPAGE);
   }
 #else
   (void)data;

@@ -1,6 +1,8 @@
 // The machine's memory (memory.hpp), read from the kernel's own accounting.
 #include "nmbake/memory.hpp"
 
+#include <sys/resource.h>
+
 #include <algorithm>
 #include <cctype>
 #include <charconv>
@@ -10,8 +12,6 @@
 #include <limits>
 #include <sstream>
 #include <string>
-
-#include <sys/resource.h>
 
 namespace nmbake {
 
@@ -31,7 +31,8 @@ bool read_kb_field(const std::string& path, const std::string& key, std::uint64_
   std::ifstream in(path);
   std::string line;
   while (std::getline(in, line)) {
-    if (line.compare(0, key.size(), key) != 0 || line.size() <= key.size() || line[key.size()] != ':') continue;
+    if (line.compare(0, key.size(), key) != 0 || line.size() <= key.size() || line[key.size()] != ':')
+      continue;
     std::istringstream fields(line.substr(key.size() + 1));
     std::uint64_t kb = 0;
     if (!(fields >> kb)) return false;
@@ -89,7 +90,8 @@ std::uint64_t address_space_in_use() {
 MemoryLimit available_memory() {
   MemoryLimit limit;
   std::uint64_t bytes = 0;
-  if (read_kb_field("/proc/meminfo", "MemAvailable", bytes)) consider(limit, bytes, "MemAvailable in /proc/meminfo");
+  if (read_kb_field("/proc/meminfo", "MemAvailable", bytes))
+    consider(limit, bytes, "MemAvailable in /proc/meminfo");
   std::ifstream groups("/proc/self/cgroup");
   std::string line;
   while (std::getline(groups, line)) {
@@ -174,16 +176,16 @@ Status check_image_memory(const std::string& path, std::uint64_t width, std::uin
                           std::uint64_t channels) {
   // The float pixels (4 bytes a value) and one image of the same size that
   // the command makes from them (a normal map, a heat map, a difference).
-  const double needed = 2.0 * 4.0 * static_cast<double>(width) * static_cast<double>(height) *
-                        static_cast<double>(channels);
+  const double needed =
+      2.0 * 4.0 * static_cast<double>(width) * static_cast<double>(height) * static_cast<double>(channels);
   const MemoryLimit limit = available_memory();
   if (limit.bytes == 0 || needed <= static_cast<double>(limit.bytes)) return Status::ok();
-  const std::uint64_t shown = needed >= 1.8e19 ? std::numeric_limits<std::uint64_t>::max()
-                                               : static_cast<std::uint64_t>(needed);
+  const std::uint64_t shown =
+      needed >= 1.8e19 ? std::numeric_limits<std::uint64_t>::max() : static_cast<std::uint64_t>(needed);
   return Status::bad_input("cannot read '" + path + "': its header says " + std::to_string(width) + "x" +
                            std::to_string(height) + " with " + std::to_string(channels) +
-                           " channels, which needs about " + memory_text(shown) + "; " + memory_text(limit.bytes) +
-                           " are available (" + limit.source + ")");
+                           " channels, which needs about " + memory_text(shown) + "; " +
+                           memory_text(limit.bytes) + " are available (" + limit.source + ")");
 }
 
 }  // namespace nmbake

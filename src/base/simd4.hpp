@@ -10,12 +10,15 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 #include <glm/vec4.hpp>
 
 #include "base/shuffle_compat.hpp"
+
+#if defined(__SSE__)
+#include <xmmintrin.h>  // __v4sf
+#endif
 
 static_assert(sizeof(glm::vec3) == 3 * sizeof(float), "glm::vec3 is three packed floats");
 

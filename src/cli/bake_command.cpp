@@ -1,4 +1,6 @@
 // `nmbake bake`: one bake from flags, or every bake of a job file.
+#include <unistd.h>
+
 #include <algorithm>
 #include <charconv>
 #include <cmath>
@@ -9,13 +11,10 @@
 #include <string>
 #include <vector>
 
-#include <unistd.h>
-
-#include "base/strings.hpp"
 #include "commands.hpp"
 #include "nmbake/bake.hpp"
-#include "nmbake/cache.hpp"
 #include "nmbake/budget.hpp"
+#include "nmbake/cache.hpp"
 #include "nmbake/cleanup.hpp"
 #include "nmbake/job.hpp"
 #include "nmbake/options.hpp"
@@ -36,10 +35,10 @@ struct BakeFlags {
   std::string report;
   double max_miss_rate = -1.0;  // < 0: no gate
   std::string only, tile, tile_file, cache;
-  bool keep_going = false;      // a job: run the other bakes after one fails
-  std::string job_report;       // a job: write each bake's status here (JSON)
-  bool print_options = false;   // print each bake's options (JSON lines) and stop
-  TableFlags table;  // every option of the bake (options.hpp)
+  bool keep_going = false;     // a job: run the other bakes after one fails
+  std::string job_report;      // a job: write each bake's status here (JSON)
+  bool print_options = false;  // print each bake's options (JSON lines) and stop
+  TableFlags table;            // every option of the bake (options.hpp)
 };
 
 int fail(const Status& status) {
@@ -60,7 +59,8 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
     OutputSpec out;
     out.path = path;
     if (!f.format.empty()) {
-      if (!parse_word(f.format, out.format)) return Status::bad_input("--format " + f.format + ": " + expected_words<PixelFormat>());
+      if (!parse_word(f.format, out.format))
+        return Status::bad_input("--format " + f.format + ": " + expected_words<PixelFormat>());
       out.format_given = true;
     } else if (!pixel_format_from_path(path, out.format)) {
       return Status::bad_input(path + ": unknown image extension (use .png, .tif, .tiff, .exr or .tga)");
@@ -81,8 +81,8 @@ Status write_text(const std::string& path, const std::string& text) {
 // which and why, and the new bake replaces it. A store that fails after the
 // bake (the folder was checked before it: check_cache_dir) only warns: the
 // maps are written and right, and the next bake bakes again.
-Status bake_or_fetch(const BakeJob& job, const std::string& cache_dir, BakeReport& report, const ProgressFn& listener,
-                     bool& cached) {
+Status bake_or_fetch(const BakeJob& job, const std::string& cache_dir, BakeReport& report,
+                     const ProgressFn& listener, bool& cached) {
   cached = false;
   if (cache_dir.empty() || job.options.tile_count > 0) return bake(job.options, report, listener);
   BakeKey key;
@@ -115,7 +115,9 @@ Status bake_or_fetch(const BakeJob& job, const std::string& cache_dir, BakeRepor
   return Status::ok();
 }
 
-Status write_report(const std::string& path, const BakeReport& report) { return write_text(path, report.to_json()); }
+Status write_report(const std::string& path, const BakeReport& report) {
+  return write_text(path, report.to_json());
+}
 
 // What became of each bake of a job.
 struct JobOutcome {
@@ -128,9 +130,12 @@ struct JobOutcome {
 
 const char* state_name(JobOutcome::State state) {
   switch (state) {
-    case JobOutcome::State::done: return "done";
-    case JobOutcome::State::failed: return "failed";
-    case JobOutcome::State::not_run: break;
+    case JobOutcome::State::done:
+      return "done";
+    case JobOutcome::State::failed:
+      return "failed";
+    case JobOutcome::State::not_run:
+      break;
   }
   return "not run";
 }
@@ -150,10 +155,11 @@ std::string outcomes_json(const std::vector<JobOutcome>& outcomes) {
   for (std::size_t i = 0; i < outcomes.size(); ++i) {
     const JobOutcome& o = outcomes[i];
     out += i == 0 ? "\n" : ",\n";
-    out += "    {\"name\": " + detail::quoted_string(o.name) + ", \"status\": \"" + state_name(o.state) + "\"";
-    if (o.state == JobOutcome::State::failed) out += ", \"error\": " + detail::quoted_string(o.message);
+    out += "    {\"name\": " + quoted_string(o.name) + ", \"status\": \"" + state_name(o.state) + "\"";
+    if (o.state == JobOutcome::State::failed) out += ", \"error\": " + quoted_string(o.message);
     out += ", \"outputs\": [";
-    for (std::size_t k = 0; k < o.outputs.size(); ++k) out += (k == 0 ? "" : ", ") + detail::quoted_string(o.outputs[k]);
+    for (std::size_t k = 0; k < o.outputs.size(); ++k)
+      out += (k == 0 ? "" : ", ") + quoted_string(o.outputs[k]);
     out += "]}";
   }
   return out + "\n  ]\n}\n";
@@ -164,7 +170,8 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
   if (!flags.job_file.empty()) {
     for (const char* flag : {"--low", "--high", "--cage", "--output"}) {
       if (command.count(flag) > 0) {
-        return usage_error(std::string(flag) + " cannot be combined with a job file: the job file names the meshes and maps");
+        return usage_error(std::string(flag) +
+                           " cannot be combined with a job file: the job file names the meshes and maps");
       }
     }
     const Status s = load_job_file(flags.job_file, jobs);
@@ -188,7 +195,8 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
       names += (names.empty() ? "" : ", ") + job.name;
       if (job.name == flags.only) kept.push_back(std::move(job));
     }
-    if (kept.empty()) return usage_error("--only " + flags.only + ": no bake of that name (bakes: " + names + ")");
+    if (kept.empty())
+      return usage_error("--only " + flags.only + ": no bake of that name (bakes: " + names + ")");
     jobs = std::move(kept);
   }
   // --tile I/N: one band of rows of one bake, written as a tile file.
@@ -253,15 +261,16 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
     ProgressFn listener;
     if (show_progress) listener = [&](const char* stage, double f) { bar.update(stage, f); };
     bool cached = false;
-    Status s = bake_or_fetch(job, !flags.cache.empty() ? flags.cache : resolve_cache_dir(job.cache_dir), report,
-                             listener, cached);
+    Status s = bake_or_fetch(job, !flags.cache.empty() ? flags.cache : resolve_cache_dir(job.cache_dir),
+                             report, listener, cached);
     bar.finish();
     if (s && !cached && !job.report_path.empty()) s = write_report(job.report_path, report);
     if (!s) {
       outcome.state = JobOutcome::State::failed;
       outcome.message = s.message();
       const int code = fail(jobs.size() > 1 ? Status::bad_input(job.name + ": " + s.message()) : s);
-      failure_code = std::max(failure_code, s.code() == StatusCode::internal ? static_cast<int>(kInternal) : code);
+      failure_code =
+          std::max(failure_code, s.code() == StatusCode::internal ? static_cast<int>(kInternal) : code);
       if (!flags.keep_going) break;
       continue;
     }
@@ -282,7 +291,8 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
     if (!global.quiet) {
       std::printf("%s: %s\n", printable_text(job.name).c_str(), report.summary_line().c_str());
       if (global.verbose) {
-        for (const StageTime& st : report.stages) std::printf("  %-10s %8.3f s\n", st.name.c_str(), st.seconds);
+        for (const StageTime& st : report.stages)
+          std::printf("  %-10s %8.3f s\n", st.name.c_str(), st.seconds);
         const auto print_load = [](const char* which, const LoadStats& load) {
           std::printf("  load %-5s %8.3f s  %.1f MB at %.0f MB/s\n", which, load.seconds,
                       static_cast<double>(load.bytes) * 1e-6, load.mb_per_second());
@@ -305,12 +315,14 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
       }
     }
     if (report.trace.samples > 0 && report.trace.misses == report.trace.samples) {
-      std::fprintf(stderr,
-                   "nmbake: warning: %s: every ray missed the high mesh: is it within front %.4g / back %.4g of "
-                   "the low mesh, in the same place and scale?\n",
-                   printable_text(job.name).c_str(), report.front, report.back);
+      std::fprintf(
+          stderr,
+          "nmbake: warning: %s: every ray missed the high mesh: is it within front %.4g / back %.4g of "
+          "the low mesh, in the same place and scale?\n",
+          printable_text(job.name).c_str(), report.front, report.back);
     } else if (report.miss_rate() > 0.01) {
-      std::fprintf(stderr, "nmbake: warning: %s: %.2f%% of the rays missed the high mesh (kept the low normal)\n",
+      std::fprintf(stderr,
+                   "nmbake: warning: %s: %.2f%% of the rays missed the high mesh (kept the low normal)\n",
                    printable_text(job.name).c_str(), 100.0 * report.miss_rate());
     }
     if (flags.max_miss_rate >= 0.0 && report.miss_rate() > flags.max_miss_rate) {
@@ -333,26 +345,35 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
 
 Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
   auto flags = std::make_shared<BakeFlags>();
-  CLI::App* cmd = app.add_subcommand("bake", "bake a normal map (from flags, or every bake of a TOML job file)");
-  cmd->add_option("job", flags->job_file, "job file (TOML) describing one or several bakes")->check(CLI::ExistingFile);
-  cmd->add_option("-o,--output", flags->outputs,
-                  "output map(s): .png (16-bit), .tif, .exr, .tga (8-bit); repeat for several; <MAP> names each map "
-                  "of a map set, <UDIM> each UV tile")
+  CLI::App* cmd =
+      app.add_subcommand("bake", "bake a normal map (from flags, or every bake of a TOML job file)");
+  cmd->add_option("job", flags->job_file, "job file (TOML) describing one or several bakes")
+      ->check(CLI::ExistingFile);
+  cmd->add_option(
+         "-o,--output", flags->outputs,
+         "output map(s): .png (16-bit), .tif, .exr, .tga (8-bit); repeat for several; <MAP> names each map "
+         "of a map set, <UDIM> each UV tile")
       ->allow_extra_args(false);
-  cmd->add_option("--format", flags->format, "every output in this format: " + word_list<PixelFormat>(", ") +
-                                                 " (default: from the extension)");
+  cmd->add_option(
+      "--format", flags->format,
+      "every output in this format: " + word_list<PixelFormat>(", ") + " (default: from the extension)");
   // Every option of the bake, from the option table.
   add_table_flags(cmd, flags->table);
   cmd->add_option("--report", flags->report, "write the bake report (JSON) here");
-  cmd->add_option("--max-miss-rate", flags->max_miss_rate, "exit 1 when more than this share of rays miss (0..1)")
+  cmd->add_option("--max-miss-rate", flags->max_miss_rate,
+                  "exit 1 when more than this share of rays miss (0..1)")
       ->check(CLI::Range(0.0, 1.0));
   cmd->add_option("--only", flags->only, "of a job file, bake only the bake of this name");
-  cmd->add_option("--tile", flags->tile, "bake only tile I of N (bands of rows) into a tile file, for nmbake merge");
+  cmd->add_option("--tile", flags->tile,
+                  "bake only tile I of N (bands of rows) into a tile file, for nmbake merge");
   cmd->add_option("--tile-file", flags->tile_file, "where --tile writes (default: FIRST_OUTPUT.tile-I-of-N)");
-  cmd->add_option("--cache", flags->cache,
-                  "content-addressed cache folder: a bake whose key is there is copied, not baked (also NMBAKE_CACHE)");
-  cmd->add_flag("--keep-going", flags->keep_going, "a job: run the other bakes when one fails (exit 2 at the end)");
-  cmd->add_option("--job-report", flags->job_report, "a job: write each bake's status and outputs here (JSON)");
+  cmd->add_option(
+      "--cache", flags->cache,
+      "content-addressed cache folder: a bake whose key is there is copied, not baked (also NMBAKE_CACHE)");
+  cmd->add_flag("--keep-going", flags->keep_going,
+                "a job: run the other bakes when one fails (exit 2 at the end)");
+  cmd->add_option("--job-report", flags->job_report,
+                  "a job: write each bake's status and outputs here (JSON)");
   cmd->add_flag("--print-options", flags->print_options,
                 "print each bake's options as they were read (one JSON line a bake) and bake nothing");
   return [flags, &global, cmd]() { return run_bake(*flags, global, *cmd); };

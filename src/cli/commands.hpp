@@ -2,14 +2,13 @@
 // app and returns a function that runs it and gives the exit code.
 #pragma once
 
+#include <CLI/CLI.hpp>
 #include <functional>
 #include <initializer_list>
 #include <map>
 #include <string>
 #include <string_view>
 #include <vector>
-
-#include <CLI/CLI.hpp>
 
 #include "nmbake/common.hpp"
 #include "nmbake/options.hpp"

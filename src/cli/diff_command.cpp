@@ -33,7 +33,8 @@ int run_diff(const DiffFlags& f, const GlobalOptions& global) {
   if (!f.heatmap.empty()) {
     PixelFormat format;
     if (!pixel_format_from_path(f.heatmap, format)) {
-      std::fprintf(stderr, "nmbake: error: --heatmap %s: expected a .png, .tif or .exr path\n", f.heatmap.c_str());
+      std::fprintf(stderr, "nmbake: error: --heatmap %s: expected a .png, .tif or .exr path\n",
+                   f.heatmap.c_str());
       return kBadInput;
     }
   }
@@ -60,7 +61,8 @@ int run_diff(const DiffFlags& f, const GlobalOptions& global) {
   int code = kSuccess;
   auto bound = [&code](const char* name, double value, double limit) {
     if (limit >= 0.0 && value > limit) {
-      std::fprintf(stderr, "nmbake: diff gate failed: %s %.4f deg > --max-%s %.4f deg\n", name, value, name, limit);
+      std::fprintf(stderr, "nmbake: diff gate failed: %s %.4f deg > --max-%s %.4f deg\n", name, value, name,
+                   limit);
       code = kGateFailed;
     }
   };
@@ -74,17 +76,25 @@ int run_diff(const DiffFlags& f, const GlobalOptions& global) {
 
 Runner add_diff_command(CLI::App& app, const GlobalOptions& global) {
   auto flags = std::make_shared<DiffFlags>();
-  CLI::App* cmd = app.add_subcommand("diff", "compare two normal maps by angle; exit 1 when a bound is exceeded");
+  CLI::App* cmd =
+      app.add_subcommand("diff", "compare two normal maps by angle; exit 1 when a bound is exceeded");
   cmd->add_option("a", flags->a, "first map (any format OpenImageIO reads)")->required();
   cmd->add_option("b", flags->b, "second map, same size")->required();
   cmd->add_option("--mask", flags->mask, "compare only texels whose first channel is > 0.5");
-  cmd->add_option("--max-mean", flags->max_mean, "exit 1 when the mean angle exceeds this (degrees)")->check(CLI::NonNegativeNumber);
-  cmd->add_option("--max-p99", flags->max_p99, "exit 1 when the 99th percentile exceeds this (degrees)")->check(CLI::NonNegativeNumber);
-  cmd->add_option("--max-max", flags->max_max, "exit 1 when the largest angle exceeds this (degrees)")->check(CLI::NonNegativeNumber);
+  cmd->add_option("--max-mean", flags->max_mean, "exit 1 when the mean angle exceeds this (degrees)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--max-p99", flags->max_p99, "exit 1 when the 99th percentile exceeds this (degrees)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--max-max", flags->max_max, "exit 1 when the largest angle exceeds this (degrees)")
+      ->check(CLI::NonNegativeNumber);
   cmd->add_option("--heatmap", flags->heatmap, "write the angle as a heat map (black-blue-yellow-red)");
-  cmd->add_option("--heatmap-max", flags->heatmap_max, "degrees at the red end of the heat map")->default_val(5.0f)->check(CLI::PositiveNumber);
+  cmd->add_option("--heatmap-max", flags->heatmap_max, "degrees at the red end of the heat map")
+      ->default_val(5.0f)
+      ->check(CLI::PositiveNumber);
   cmd->add_option("--json", flags->json, "write the statistics as JSON");
-  cmd->add_option("--green-b", flags->green_b, "down: flip the second map's green before comparing (OpenGL vs DirectX)")->default_val("up");
+  cmd->add_option("--green-b", flags->green_b,
+                  "down: flip the second map's green before comparing (OpenGL vs DirectX)")
+      ->default_val("up");
   return [flags, &global]() { return run_diff(*flags, global); };
 }
 

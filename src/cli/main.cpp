@@ -1,15 +1,15 @@
 // nmbake: the command-line front end. Argument parsing lives here and in the
 // command files; the library only ever sees option structs.
+#include <tbb/global_control.h>
+
+#include <CLI/CLI.hpp>
 #include <cstdio>
 #include <exception>
 #include <memory>
 
-#include <CLI/CLI.hpp>
-#include <tbb/global_control.h>
-
 #include "commands.hpp"
-#include "nmbake/task.hpp"
 #include "nmbake/cleanup.hpp"
+#include "nmbake/task.hpp"
 
 namespace nmbake::cli {
 
@@ -28,7 +28,9 @@ int main(int argc, char** argv) {
   app.fallthrough();  // --threads, -q, -v also after the subcommand
   app.get_formatter()->column_width(36);
   GlobalOptions global;
-  app.add_option("--threads", global.threads, "worker threads, 0 = all cores")->default_val(0)->check(CLI::Range(0, 1024));
+  app.add_option("--threads", global.threads, "worker threads, 0 = all cores")
+      ->default_val(0)
+      ->check(CLI::Range(0, 1024));
   app.add_flag("-q,--quiet", global.quiet, "print nothing but errors");
   app.add_flag("-v,--verbose", global.verbose, "print the stage times");
 

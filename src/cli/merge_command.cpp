@@ -22,7 +22,8 @@ int run_merge(const MergeFlags& f, const GlobalOptions& global) {
     OutputSpec out;
     out.path = path;
     out.format_given = !f.format.empty();  // else `.png` takes each map's own depth, as in the bake
-    const bool ok = f.format.empty() ? pixel_format_from_path(path, out.format) : parse_word(f.format, out.format);
+    const bool ok =
+        f.format.empty() ? pixel_format_from_path(path, out.format) : parse_word(f.format, out.format);
     if (!ok) {
       print_error(path + ": unknown image extension or --format");
       return kBadInput;
@@ -58,16 +59,18 @@ int run_merge(const MergeFlags& f, const GlobalOptions& global) {
 
 Runner add_merge_command(CLI::App& app, const GlobalOptions& global) {
   auto flags = std::make_shared<MergeFlags>();
-  CLI::App* cmd = app.add_subcommand("merge", "merge the tile files of one bake (bake --tile I/N) into its maps");
+  CLI::App* cmd =
+      app.add_subcommand("merge", "merge the tile files of one bake (bake --tile I/N) into its maps");
   cmd->add_option("tiles", flags->tiles, "every tile file of the bake, in any order")->required();
   cmd->add_option("-o,--output", flags->outputs,
                   "output map(s), with <MAP> for a map set (default: the maps the bake names)")
       ->allow_extra_args(false);
   cmd->add_option("--format", flags->format, "png8 | png16 | tiff16 | exr-half | exr-float | exr-float-piz");
   cmd->add_option("--report", flags->report, "write the merge report (JSON) here");
-  cmd->add_option("--expect-output", flags->expected,
-                  "the outputs the tiles must name, in order (a plan's merge task gives them): written wherever they "
-                  "are; tiles naming others are refused")
+  cmd->add_option(
+         "--expect-output", flags->expected,
+         "the outputs the tiles must name, in order (a plan's merge task gives them): written wherever they "
+         "are; tiles naming others are refused")
       ->allow_extra_args(false);
   return [flags, &global]() { return run_merge(*flags, global); };
 }

@@ -1,10 +1,10 @@
 // `nmbake plan jobs.toml [--tiles N] [--ninja FILE] [--slurm DIR] [--json FILE]`:
 // the bakes of a job file as tasks for Ninja, Slurm or any farm manager
 // (plan.hpp).
+#include <unistd.h>
+
 #include <cstdio>
 #include <filesystem>
-
-#include <unistd.h>
 
 #include "commands.hpp"
 #include "nmbake/cache.hpp"
@@ -90,9 +90,12 @@ Runner add_plan_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--ninja", flags->ninja, "write a Ninja build file (ninja -f FILE re-bakes what changed)");
   cmd->add_option("--slurm", flags->slurm, "write DIR/submit.sh and the sbatch job arrays");
   cmd->add_option("--json", flags->json, "write the task graph as JSON");
-  cmd->add_option("--tiles", flags->tiles, "split each bake of at least --tiles-min-size into N tiles and a merge")
-      ->default_val(0)->check(CLI::Range(0, 4096));
-  cmd->add_option("--tiles-min-size", flags->tiles_min_size, "larger map side from which --tiles applies")->default_val(4096);
+  cmd->add_option("--tiles", flags->tiles,
+                  "split each bake of at least --tiles-min-size into N tiles and a merge")
+      ->default_val(0)
+      ->check(CLI::Range(0, 4096));
+  cmd->add_option("--tiles-min-size", flags->tiles_min_size, "larger map side from which --tiles applies")
+      ->default_val(4096);
   cmd->add_option("--cache", flags->cache, "every bake task uses this cache folder (also NMBAKE_CACHE)");
   return [flags, &global]() { return run_plan(*flags, global); };
 }

@@ -172,8 +172,9 @@ Runner add_preview_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--high", flags->high, "3D: the high mesh it was baked from");
   // How the map was baked (3D: all of them; the lit map: green and preset),
   // the rows of `bake`'s own option table.
-  add_table_flags(cmd, flags->baked, {"space", "preset", "green", "bitangent", "tbn", "blue", "front", "back", "hit",
-                                      "cage_mode"});
+  add_table_flags(
+      cmd, flags->baked,
+      {"space", "preset", "green", "bitangent", "tbn", "blue", "front", "back", "hit", "cage_mode"});
   cmd->add_option("--turntable", flags->turntable, "3D: views in the sheet, one row each, yaw + 360 k / N")
       ->default_val(1)
       ->check(CLI::Range(1, 64));

@@ -11,12 +11,11 @@
 #include <map>
 #include <tuple>
 
-#include "nmbake/load.hpp"
-#include "nmbake/tangents.hpp"
-
 #include "commands.hpp"
 #include "nmbake/image.hpp"
+#include "nmbake/load.hpp"
 #include "nmbake/preview.hpp"
+#include "nmbake/tangents.hpp"
 
 namespace nmbake::cli {
 
@@ -42,15 +41,17 @@ Mesh with_vertex_tangents(const Mesh& low, const std::vector<glm::vec4>& corner_
   Mesh out;
   out.parts = low.parts;  // the triangles keep their order
   out.materials = low.materials;
-  std::map<std::tuple<std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t>, std::uint32_t> ids;
+  std::map<std::tuple<std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t>,
+           std::uint32_t>
+      ids;
   out.indices.resize(low.indices.size());
   for (std::size_t c = 0; c < low.indices.size(); ++c) {
     const std::uint32_t v = low.indices[c];
     const glm::vec4& t = corner_tangents[c];
     std::uint32_t bits[4];
     std::memcpy(bits, &t, sizeof(bits));
-    const auto [it, added] =
-        ids.emplace(std::tuple(v, bits[0], bits[1], bits[2], bits[3]), static_cast<std::uint32_t>(out.positions.size()));
+    const auto [it, added] = ids.emplace(std::tuple(v, bits[0], bits[1], bits[2], bits[3]),
+                                         static_cast<std::uint32_t>(out.positions.size()));
     if (added) {
       out.positions.push_back(low.positions[v]);
       out.normals.push_back(low.normals[v]);
@@ -66,13 +67,15 @@ int write_tangents(const TangentFlags& f, const GlobalOptions& global) {
   std::string extension = std::filesystem::path(f.write).extension().string();
   for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   if (extension != ".gltf" && extension != ".glb") {
-    std::fprintf(stderr, "nmbake: error: %s: tangents are written as glTF (.glb or .gltf)\n", f.write.c_str());
+    std::fprintf(stderr, "nmbake: error: %s: tangents are written as glTF (.glb or .gltf)\n",
+                 f.write.c_str());
     return kBadInput;
   }
   Mesh low;
   LoadStats load_stats;
   if (const Status s = load_mesh(f.low, LoadOptions{true, true}, low, load_stats); !s) return fail(s);
-  if (!low.has_uvs()) return fail(Status::bad_input(f.low + ": the low mesh has no UVs: MikkTSpace needs them"));
+  if (!low.has_uvs())
+    return fail(Status::bad_input(f.low + ": the low mesh has no UVs: MikkTSpace needs them"));
   // The normals the bake uses (prepare_low_normals), so the written frame is
   // the one the map was baked in.
   MeshStats mesh_stats;
@@ -83,8 +86,8 @@ int write_tangents(const TangentFlags& f, const GlobalOptions& global) {
   const Mesh out = with_vertex_tangents(low, corner_tangents);
   if (const Status s = save_mesh(f.write, out); !s) return fail(s);
   if (!global.quiet) {
-    std::printf("tangents: %s: %zu vertices (%zu in %s), %zu triangles, %llu fallback tangents\n", f.write.c_str(),
-                out.vertex_count(), low.vertex_count(), f.low.c_str(), out.triangle_count(),
+    std::printf("tangents: %s: %zu vertices (%zu in %s), %zu triangles, %llu fallback tangents\n",
+                f.write.c_str(), out.vertex_count(), low.vertex_count(), f.low.c_str(), out.triangle_count(),
                 static_cast<unsigned long long>(tangent_stats.fallback_tangents));
   }
   return kSuccess;
@@ -92,8 +95,9 @@ int write_tangents(const TangentFlags& f, const GlobalOptions& global) {
 
 int run_tangents(const TangentFlags& f, const GlobalOptions& global) {
   if (f.view.empty() && f.uv_view.empty() && f.write.empty()) {
-    std::fprintf(stderr,
-                 "nmbake: error: nothing to do: give --view FILE.png, --uv-view FILE.png and/or --write FILE.glb\n");
+    std::fprintf(
+        stderr,
+        "nmbake: error: nothing to do: give --view FILE.png, --uv-view FILE.png and/or --write FILE.glb\n");
     return kBadInput;
   }
   if (!f.write.empty()) {
@@ -140,9 +144,9 @@ int run_tangents(const TangentFlags& f, const GlobalOptions& global) {
 
 Runner add_tangents_command(CLI::App& app, const GlobalOptions& global) {
   auto flags = std::make_shared<TangentFlags>();
-  CLI::App* cmd = app.add_subcommand(
-      "tangents",
-      "draw a low mesh's tangent frames (T red, B green, N blue) and UV layout, or write them as glTF TANGENT");
+  CLI::App* cmd = app.add_subcommand("tangents",
+                                     "draw a low mesh's tangent frames (T red, B green, N blue) and UV "
+                                     "layout, or write them as glTF TANGENT");
   cmd->add_option("low", flags->low, "the low mesh (OBJ, PLY, glTF, FBX..., with UVs)")->required();
   cmd->add_option("--write", flags->write,
                   "write the low mesh with its MikkTSpace tangents as glTF TANGENT (.glb or .gltf)");

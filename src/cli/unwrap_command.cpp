@@ -1,11 +1,11 @@
 // `nmbake unwrap`: a low mesh in, the same mesh with a generated UV atlas out.
+#include <unistd.h>
+
 #include <cstdio>
 #include <fstream>
 
-#include <unistd.h>
-
-#include "nmbake/cleanup.hpp"
 #include "commands.hpp"
+#include "nmbake/cleanup.hpp"
 #include "nmbake/load.hpp"
 #include "nmbake/unwrap.hpp"
 
@@ -80,13 +80,16 @@ int run_unwrap(const UnwrapFlags& f, const GlobalOptions& global) {
 Runner add_unwrap_command(CLI::App& app, const GlobalOptions& global) {
   auto flags = std::make_shared<UnwrapFlags>();
   CLI::App* cmd = app.add_subcommand("unwrap", "generate a UV atlas for a low mesh (charts, LSCM, packing)");
-  cmd->add_option("input", flags->input, "the low mesh (OBJ, PLY); existing UV seams are kept as chart boundaries")
+  cmd->add_option("input", flags->input,
+                  "the low mesh (OBJ, PLY); existing UV seams are kept as chart boundaries")
       ->required();
   cmd->add_option("-o,--output", flags->output, "the mesh with UVs (.obj or .ply)")->required();
   cmd->add_option("--size", flags->size, "atlas size in texels (the map size it is made for)")
       ->default_val(2048)
       ->check(CLI::Range(8, 32768));
-  cmd->add_option("--gutter", flags->gutter, "free texels between charts")->default_val(4)->check(CLI::Range(0, 1024));
+  cmd->add_option("--gutter", flags->gutter, "free texels between charts")
+      ->default_val(4)
+      ->check(CLI::Range(0, 1024));
   cmd->add_option("--max-deviation", flags->max_deviation, "largest normal deviation within a chart, degrees")
       ->default_val(flags->max_deviation)
       ->check(CLI::Range(1.0f, 179.0f));

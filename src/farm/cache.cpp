@@ -1,6 +1,11 @@
 // The bake cache (cache.hpp).
 #include "nmbake/cache.hpp"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <xxhash.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
@@ -11,17 +16,10 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <set>
 
-#include <fcntl.h>
-#include <sys/stat.h>
-#include <unistd.h>
-
-#include <nlohmann/json.hpp>
-#include <xxhash.h>
-
 #include "base/strings.hpp"
-
 #include "nmbake/cleanup.hpp"
 #include "nmbake/udim.hpp"
 

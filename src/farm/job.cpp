@@ -1,7 +1,8 @@
 // Job files (TOML, through toml++): their keys are the option table's
 // (options.hpp), and a job's own (name, outputs, report, cache, groups).
 #include "nmbake/job.hpp"
-#include "nmbake/options.hpp"
+
+#include <toml++/toml.h>
 
 #include <algorithm>
 #include <cmath>
@@ -9,7 +10,7 @@
 #include <set>
 #include <sstream>
 
-#include <toml++/toml.h>
+#include "nmbake/options.hpp"
 
 namespace nmbake {
 
@@ -59,7 +60,9 @@ bool option_value(const toml::node& node, const std::filesystem::path& folder, O
 Status apply_key(const std::string& file, const std::filesystem::path& folder, const std::string& key,
                  const toml::node& value, bool in_bake, BakeJob& job, std::vector<GivenOption>& given) {
   BakeOptions& o = job.options;
-  auto bad = [&](const std::string& why) { return Status::bad_input(where(file, value) + ": " + key + ": " + why); };
+  auto bad = [&](const std::string& why) {
+    return Status::bad_input(where(file, value) + ": " + key + ": " + why);
+  };
   auto get_string = [&](std::string& out) -> bool {
     if (auto s = value.value<std::string>()) {
       out = *s;
@@ -91,7 +94,9 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
     if (!list) return bad("expected [[bake.group]] tables");
     for (const toml::node& item : *list) {
       const toml::table* t = item.as_table();
-      if (!t) return Status::bad_input(where(file, item) + ": group: expected a table with low = [..] and high = [..]");
+      if (!t)
+        return Status::bad_input(where(file, item) +
+                                 ": group: expected a table with low = [..] and high = [..]");
       GroupSpec group;
       // As match_parts() names them: the name, else "group N".
       const auto label = [](const GroupSpec& named, std::size_t number) {
@@ -109,15 +114,18 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
         } else if (k == "low" || k == "high") {
           const toml::array* names = group_value.as_array();
           if (!names || names->empty()) {
-            return Status::bad_input(where(file, group_value) + ": group: " + k + ": expected a non-empty list of part names");
+            return Status::bad_input(where(file, group_value) + ": group: " + k +
+                                     ": expected a non-empty list of part names");
           }
           for (const toml::node& n : *names) {
             const auto name = n.value<std::string>();
-            if (!name) return Status::bad_input(where(file, n) + ": group: " + k + ": expected part names (strings)");
+            if (!name)
+              return Status::bad_input(where(file, n) + ": group: " + k + ": expected part names (strings)");
             (k == "low" ? group.low : group.high).push_back(*name);
           }
         } else {
-          return Status::bad_input(where(file, group_value) + ": group: unknown key \"" + k + "\" (name, low, high)");
+          return Status::bad_input(where(file, group_value) + ": group: unknown key \"" + k +
+                                   "\" (name, low, high)");
         }
       }
       if (group.low.empty() || group.high.empty()) {
@@ -161,12 +169,15 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
       }
       if (path.empty()) return Status::bad_input(where(file, item) + ": outputs: each output needs a path");
       out.path = resolve_path(folder, path);
-      const bool ok = format.empty() ? pixel_format_from_path(out.path, out.format) : parse_word(format, out.format);
+      const bool ok =
+          format.empty() ? pixel_format_from_path(out.path, out.format) : parse_word(format, out.format);
       out.format_given = !format.empty();
       if (!ok) {
-        return Status::bad_input(where(file, item) + ": outputs: " +
-                                 (format.empty() ? "unknown image extension of " + path + " (use .png, .tif, .tiff, .exr, .tga)"
-                                                 : "unknown format \"" + format + "\" (png8, png16, tiff16, exr-half, exr-float, exr-float-piz, tga)"));
+        return Status::bad_input(
+            where(file, item) + ": outputs: " +
+            (format.empty() ? "unknown image extension of " + path + " (use .png, .tif, .tiff, .exr, .tga)"
+                            : "unknown format \"" + format +
+                                  "\" (png8, png16, tiff16, exr-half, exr-float, exr-float-piz, tga)"));
       }
       o.outputs.push_back(out);
     }
@@ -226,10 +237,12 @@ Status load_job_file(const std::string& path, std::vector<BakeJob>& jobs) {
     }
     NMBAKE_TRY(apply_options(given, job.options));
     if (const Status s = validate_option_values(job.options); !s) {
-      return Status::bad_input(where(path, node) + ": [[bake]] \"" + printable_text(job.name) + "\": " + s.message());
+      return Status::bad_input(where(path, node) + ": [[bake]] \"" + printable_text(job.name) +
+                               "\": " + s.message());
     }
     if (job.options.low_path.empty() || job.options.high_path.empty() || job.options.outputs.empty()) {
-      return Status::bad_input(where(path, node) + ": [[bake]] \"" + job.name + "\" needs low, high and outputs");
+      return Status::bad_input(where(path, node) + ": [[bake]] \"" + job.name +
+                               "\" needs low, high and outputs");
     }
     jobs.push_back(std::move(job));
   }

@@ -2,22 +2,20 @@
 // them to Ninja, Slurm or any farm manager.
 #include "nmbake/plan.hpp"
 
+#include <sys/stat.h>
+
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <set>
 #include <string_view>
 
-#include <sys/stat.h>
-
-#include <nlohmann/json.hpp>
-
 #include "base/strings.hpp"
-
 #include "nmbake/cleanup.hpp"
-#include "nmbake/task.hpp"
 #include "nmbake/load.hpp"
+#include "nmbake/task.hpp"
 #include "nmbake/udim.hpp"
 
 namespace nmbake {
@@ -30,8 +28,9 @@ std::string shell_command(const std::vector<std::string>& argv) {
   std::string line;
   for (const std::string& word : argv) {
     if (!line.empty()) line += ' ';
-    const bool plain = !word.empty() && word.find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz"
-                                                               "0123456789_-./=:%+,@") == std::string::npos;
+    const bool plain = !word.empty() && word.find_first_not_of(
+                                            "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz"
+                                            "0123456789_-./=:%+,@") == std::string::npos;
     if (plain) {
       line += word;
       continue;
@@ -66,7 +65,8 @@ Status bake_outputs(const BakeJob& job, std::vector<std::string>& outputs) {
     if (low.has_uvs()) NMBAKE_TRY(find_udim_tiles(low, job.options.low_path, true, tiles));
   }
   for (const int tile : tiles) {
-    for (const MapOutput& out : map_outputs(job.options)) outputs.push_back(absolute(udim_path(out.path, tile)));
+    for (const MapOutput& out : map_outputs(job.options))
+      outputs.push_back(absolute(udim_path(out.path, tile)));
   }
   return Status::ok();
 }
@@ -206,8 +206,9 @@ Status plan_jobs(const std::vector<BakeJob>& jobs, const PlanOptions& options, s
     merge.command = {options.nmbake, "merge", "-q"};
     for (int i = 0; i < options.tiles; ++i) {
       const std::string spec = std::to_string(i + 1) + "/" + std::to_string(options.tiles);
-      const std::string tile_file = concat(absolute(map_path(job.options.outputs.front().path, MapKind::normal)), ".tile-", std::to_string(i + 1),
-                                           "-of-", std::to_string(options.tiles));
+      const std::string tile_file =
+          concat(absolute(map_path(job.options.outputs.front().path, MapKind::normal)), ".tile-",
+                 std::to_string(i + 1), "-of-", std::to_string(options.tiles));
       PlanTask t;
       t.id = concat("tile:", job.name, ":", std::to_string(i + 1));
       t.kind = "tile";
@@ -420,7 +421,9 @@ Status write_slurm_plan(const std::vector<PlanTask>& tasks, const std::string& j
       "# first succeeded (afterok; a failed bake cancels its merges). Prints the\n"
       "# job ids. --wait: returns when all is done, with sbatch's exit code.\n"
       "set -euo pipefail\n"
-      "cd " + shell_command({dir}) + "\n"
+      "cd " +
+      shell_command({dir}) +
+      "\n"
       "wait=()\n"
       "[ \"${1:-}\" = --wait ] && wait=(--wait)\n";
   if (merge_count == 0) {
@@ -428,9 +431,13 @@ Status write_slurm_plan(const std::vector<PlanTask>& tasks, const std::string& j
   } else {
     submit +=
         "bake=$(sbatch --parsable bake.sbatch)\n"
-        "echo \"bake array: job $bake (" + std::to_string(bake_count) + " tasks)\"\n"
-        "merge=$(sbatch --parsable \"${wait[@]}\" --kill-on-invalid-dep=yes --dependency=afterok:$bake merge.sbatch)\n"
-        "echo \"merge array: job $merge (" + std::to_string(merge_count) + " tasks, after $bake)\"\n";
+        "echo \"bake array: job $bake (" +
+        std::to_string(bake_count) +
+        " tasks)\"\n"
+        "merge=$(sbatch --parsable \"${wait[@]}\" --kill-on-invalid-dep=yes --dependency=afterok:$bake "
+        "merge.sbatch)\n"
+        "echo \"merge array: job $merge (" +
+        std::to_string(merge_count) + " tasks, after $bake)\"\n";
   }
   return write_file(dir + "/submit.sh", submit, true);
 }

@@ -19,7 +19,8 @@ namespace {
 constexpr int kEndOfBlock = 256;
 constexpr int kLiteralCodes = 257;  // HLIT = 0: literals and end-of-block, no lengths
 // The order in which the code-length code's lengths are stored (RFC 1951, 3.2.7).
-constexpr std::array<int, 19> kLengthOrder = {16, 17, 18, 0, 8, 7, 9, 6, 10, 5, 11, 4, 12, 3, 13, 2, 14, 1, 15};
+constexpr std::array<int, 19> kLengthOrder = {16, 17, 18, 0, 8,  7, 9,  6, 10, 5,
+                                              11, 4,  12, 3, 13, 2, 14, 1, 15};
 
 // Bits written least significant first into bytes appended to a vector that
 // the caller has sized with room to spare (8 bytes past the last one used).

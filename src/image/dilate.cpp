@@ -184,7 +184,8 @@ bool fill_value(const Image& image, const Neighbours& n, float* out) {
 
 }  // namespace
 
-void dilate(Image& image, std::vector<std::uint8_t>& coverage, int padding, DilateStats& stats, DilateMode mode) {
+void dilate(Image& image, std::vector<std::uint8_t>& coverage, int padding, DilateStats& stats,
+            DilateMode mode) {
   dilate(std::vector<DilateLayer>{{&image, mode}}, coverage, padding, stats);
 }
 
@@ -288,8 +289,8 @@ void dilate(const std::vector<DilateLayer>& layers, std::vector<std::uint8_t>& c
           const Image& layer = *layers[l].image;
           const DilateMode mode = layers[l].mode;
           float* value = values[l].data() + j * layer.channels;
-          const bool fallback =
-              mode == DilateMode::unit_vector ? fill_value(layer, n, value) : fill_plain(layer, n, value, mode);
+          const bool fallback = mode == DilateMode::unit_vector ? fill_value(layer, n, value)
+                                                                : fill_plain(layer, n, value, mode);
           if (fallback) ++fallback_count;
         }
       }

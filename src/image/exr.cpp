@@ -42,7 +42,8 @@ std::uint16_t float_to_half(float value) {
     const std::uint32_t nan = magnitude > 0x7f800000u ? 0x200u | ((magnitude >> 13) & 0x3ffu) : 0u;
     return static_cast<std::uint16_t>(sign | 0x7c00u | nan);
   }
-  if (magnitude >= 0x477ff000u) return static_cast<std::uint16_t>(sign | 0x7c00u);  // >= 65520 rounds to infinity
+  if (magnitude >= 0x477ff000u)
+    return static_cast<std::uint16_t>(sign | 0x7c00u);  // >= 65520 rounds to infinity
   if (magnitude < 0x38800000u) {
     // Below 2^-14: a subnormal half, in units of 2^-24. 2^-25 and less round to zero.
     if (magnitude <= 0x33000000u) return static_cast<std::uint16_t>(sign);
@@ -96,10 +97,14 @@ struct Channel {
 
 std::vector<Channel> channels_of(int channels) {
   switch (channels) {
-    case 1: return {{"Y", 0}};
-    case 2: return {{"A", 1}, {"Y", 0}};
-    case 3: return {{"B", 2}, {"G", 1}, {"R", 0}};
-    default: return {{"A", 3}, {"B", 2}, {"G", 1}, {"R", 0}};
+    case 1:
+      return {{"Y", 0}};
+    case 2:
+      return {{"A", 1}, {"Y", 0}};
+    case 3:
+      return {{"B", 2}, {"G", 1}, {"R", 0}};
+    default:
+      return {{"A", 3}, {"B", 2}, {"G", 1}, {"R", 0}};
   }
 }
 
@@ -110,10 +115,10 @@ std::vector<std::uint8_t> exr_header(const Image& image, bool half) {
   std::vector<std::uint8_t> v;
   for (const Channel& c : channels_of(image.channels)) {
     put_string(v, c.name);
-    put_i32(v, half ? 1 : 2);           // pixel type: HALF or FLOAT
-    v.insert(v.end(), {0, 0, 0, 0});    // pLinear, reserved
-    put_i32(v, 1);                      // x sampling
-    put_i32(v, 1);                      // y sampling
+    put_i32(v, half ? 1 : 2);         // pixel type: HALF or FLOAT
+    v.insert(v.end(), {0, 0, 0, 0});  // pLinear, reserved
+    put_i32(v, 1);                    // x sampling
+    put_i32(v, 1);                    // y sampling
   }
   v.push_back(0);
   put_attribute(out, "channels", "chlist", v);
@@ -216,7 +221,8 @@ std::vector<std::uint8_t> stream_exr(const Image& image, bool half, Put&& put, s
   ordered_pieces<Chunk>(
       chunk_count, [&](std::size_t c) { return make_chunk(image, half, c); },
       [&](std::unique_ptr<Chunk> chunk) {
-        for (int i = 0; i < 8; ++i) table[8 * chunk->index + i] = static_cast<std::uint8_t>(offset >> (8 * i));
+        for (int i = 0; i < 8; ++i)
+          table[8 * chunk->index + i] = static_cast<std::uint8_t>(offset >> (8 * i));
         put(chunk->header.data(), chunk->header.size());
         put(chunk->data.data(), chunk->data.size());
         offset += chunk->header.size() + chunk->data.size();
@@ -230,7 +236,8 @@ std::vector<std::uint8_t> encode_exr(const Image& image, bool half) {
   std::vector<std::uint8_t> file;
   std::size_t table_at = 0;
   const std::vector<std::uint8_t> table = stream_exr(
-      image, half, [&](const std::uint8_t* data, std::size_t size) { file.insert(file.end(), data, data + size); },
+      image, half,
+      [&](const std::uint8_t* data, std::size_t size) { file.insert(file.end(), data, data + size); },
       table_at);
   std::copy(table.begin(), table.end(), file.begin() + static_cast<std::ptrdiff_t>(table_at));
   return file;
@@ -244,8 +251,8 @@ Status write_exr(const Image& image, bool half, const std::string& path, const s
   StreamFile file(path, display_path);
   if (!file.is_open()) return file.open_status();
   std::size_t table_at = 0;
-  const std::vector<std::uint8_t> table =
-      stream_exr(image, half, [&](const std::uint8_t* data, std::size_t size) { file.put(data, size); }, table_at);
+  const std::vector<std::uint8_t> table = stream_exr(
+      image, half, [&](const std::uint8_t* data, std::size_t size) { file.put(data, size); }, table_at);
   file.put_at(table_at, table.data(), table.size());
   return file.close();
 }

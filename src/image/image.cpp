@@ -8,12 +8,6 @@
 // compression, half or float samples.
 #include "nmbake/image.hpp"
 
-#include "image/oiio.hpp"
-#include "image/exr.hpp"
-#include "image/png.hpp"
-#include "nmbake/memory.hpp"
-#include "nmbake/cleanup.hpp"
-
 #include <dlfcn.h>
 #include <unistd.h>
 
@@ -32,6 +26,12 @@
 #include <string>
 #include <system_error>
 #include <vector>
+
+#include "image/exr.hpp"
+#include "image/oiio.hpp"
+#include "image/png.hpp"
+#include "nmbake/cleanup.hpp"
+#include "nmbake/memory.hpp"
 
 namespace nmbake {
 
@@ -111,7 +111,7 @@ const oiio_module::Api* image_module(std::string& error) {
       return;
     }
     failure = std::string("the image module ") + oiio_module::kFileName +
- " (OpenImageIO: TIFF, PIZ EXR, TGA, and reading images) was not found in " + looked +
+              " (OpenImageIO: TIFF, PIZ EXR, TGA, and reading images) was not found in " + looked +
               "; set NMBAKE_MODULE_DIR to its folder";
   });
   if (!api) error = failure;
@@ -131,8 +131,8 @@ Status module_status(oiio_module::Outcome outcome, const std::string& message) {
 }
 
 // Writes the finished pixels to `temp` through the module; the caller renames.
-Status write_with_oiio(const Image& image, const std::string& path, const fs::path& temp,
-                       PixelFormat format, bool dither) {
+Status write_with_oiio(const Image& image, const std::string& path, const fs::path& temp, PixelFormat format,
+                       bool dither) {
   std::string reason;
   const oiio_module::Api* api = image_module(reason);
   if (!api) return Status::internal("cannot write '" + path + "': " + reason);
@@ -147,7 +147,8 @@ Status check_regular_file(const std::string& path) {
   std::error_code ec;
   const fs::file_status status = fs::status(path, ec);
   if (ec || !fs::exists(status)) return Status::bad_input("cannot read '" + path + "': no such file");
-  if (!fs::is_regular_file(status)) return Status::bad_input("cannot read '" + path + "': not a regular file");
+  if (!fs::is_regular_file(status))
+    return Status::bad_input("cannot read '" + path + "': not a regular file");
   return Status::ok();
 }
 
@@ -202,7 +203,8 @@ Status check_exr_header(const std::string& path) {
       const std::string shown_name = printable_text(name);
       if (!read_name(type)) return broken("the type of '" + shown_name + "' runs past the end");
       unsigned char size_bytes[4];
-      if (std::fread(size_bytes, 1, 4, f) != 4) return broken("the file ends in the size of '" + shown_name + "'");
+      if (std::fread(size_bytes, 1, 4, f) != 4)
+        return broken("the file ends in the size of '" + shown_name + "'");
       const std::uint32_t size = u32(size_bytes);
       const long at = std::ftell(f);
       if (at < 0) return Status::io("cannot read '" + path + "': " + std::strerror(errno));
@@ -218,7 +220,9 @@ Status check_exr_header(const std::string& path) {
       if (window || tiles || packing) {
         if (std::fread(value, 1, size, f) != size) return broken("the file ends in '" + shown_name + "'");
         if (window) {
-          const auto corner = [&](int i) { return static_cast<std::int64_t>(static_cast<std::int32_t>(u32(value + 4 * i))); };
+          const auto corner = [&](int i) {
+            return static_cast<std::int64_t>(static_cast<std::int32_t>(u32(value + 4 * i)));
+          };
           width = corner(2) - corner(0) + 1;
           height = corner(3) - corner(1) + 1;
         } else if (tiles) {
@@ -247,9 +251,10 @@ Status check_exr_header(const std::string& path) {
         chunks = ((width + tile_x - 1) / tile_x) * ((height + tile_y - 1) / tile_y);
       }
       if (static_cast<std::uintmax_t>(chunks) * 8u > file_bytes) {
-        return Status::bad_input("cannot read '" + path + "': its header says " + std::to_string(width) + "x" +
-                                 std::to_string(height) + " in " + std::to_string(chunks) + " chunks, whose offsets alone " +
-                                 std::to_string(file_bytes) + " bytes of openexr cannot hold: a broken or truncated file");
+        return Status::bad_input("cannot read '" + path + "': its header says " + std::to_string(width) +
+                                 "x" + std::to_string(height) + " in " + std::to_string(chunks) +
+                                 " chunks, whose offsets alone " + std::to_string(file_bytes) +
+                                 " bytes of openexr cannot hold: a broken or truncated file");
       }
     }
     if (!multipart) break;
@@ -425,7 +430,8 @@ std::size_t first_non_finite(const std::vector<float>& values) {
   for (std::size_t begin = 0; begin < values.size(); begin += kBlock) {
     const std::size_t end = std::min(values.size(), begin + kBlock);
     int bad = 0;
-    for (std::size_t i = begin; i < end; ++i) bad |= !(std::fabs(values[i]) <= std::numeric_limits<float>::max());
+    for (std::size_t i = begin; i < end; ++i)
+      bad |= !(std::fabs(values[i]) <= std::numeric_limits<float>::max());
     if (bad == 0) continue;
     for (std::size_t i = begin; i < end; ++i) {
       if (!std::isfinite(values[i])) return i;
@@ -448,7 +454,8 @@ Image mapped_copy(const Image& image, float scale, float offset) {
 
 }  // namespace
 
-Status write_image(const Image& image, const std::string& path, PixelFormat format, const WriteOptions& options) {
+Status write_image(const Image& image, const std::string& path, PixelFormat format,
+                   const WriteOptions& options) {
   // Caller bugs first: they are internal errors, not the user's.
   if (image.width <= 0 || image.height <= 0 || image.channels <= 0) {
     return Status::internal("cannot write '" + path + "': empty image (" + std::to_string(image.width) + "x" +
@@ -463,14 +470,16 @@ Status write_image(const Image& image, const std::string& path, PixelFormat form
                             " expected");
   }
   if (!std::isfinite(options.scale) || !std::isfinite(options.offset)) {
-    return Status::internal("cannot write '" + path + "': the integer mapping v * " + std::to_string(options.scale) +
-                            " + " + std::to_string(options.offset) + " is not finite");
+    return Status::internal("cannot write '" + path + "': the integer mapping v * " +
+                            std::to_string(options.scale) + " + " + std::to_string(options.offset) +
+                            " is not finite");
   }
   if (const std::size_t i = first_non_finite(image.pixels); i < image.pixels.size()) {
     const std::size_t texel = i / image.channels;
-    return Status::internal("cannot write '" + path + "': " + (std::isnan(image.pixels[i]) ? "NaN" : "infinity") +
-                            " at pixel (" + std::to_string(texel % image.width) + ", " +
-                            std::to_string(texel / image.width) + ") channel " + std::to_string(i % image.channels));
+    return Status::internal("cannot write '" + path +
+                            "': " + (std::isnan(image.pixels[i]) ? "NaN" : "infinity") + " at pixel (" +
+                            std::to_string(texel % image.width) + ", " + std::to_string(texel / image.width) +
+                            ") channel " + std::to_string(i % image.channels));
   }
 
   if (!format_matches_extension(format, path)) {
@@ -535,7 +544,8 @@ Status check_image_writer(PixelFormat format) {
     return Status::ok();
   }
   std::string reason;
-  if (!image_module(reason)) return Status::internal(std::string("cannot write ") + to_string(format) + ": " + reason);
+  if (!image_module(reason))
+    return Status::internal(std::string("cannot write ") + to_string(format) + ": " + reason);
   return Status::ok();
 }
 
@@ -564,11 +574,13 @@ Status read_image(const std::string& path, Image& out) {
   if (reader == "openexr") NMBAKE_TRY(check_exr_header(path));
   ImageFileInfo info;
   const oiio_module::Outcome header = api->read_info(path, reader, info, reason);
-  if (header != oiio_module::Outcome::ok) return module_status(header, "cannot read '" + path + "': " + reason);
+  if (header != oiio_module::Outcome::ok)
+    return module_status(header, "cannot read '" + path + "': " + reason);
   NMBAKE_TRY(check_image_header(path, info));
   Image image;
   const oiio_module::Outcome outcome = api->read(path, reader, image, reason);
-  if (outcome != oiio_module::Outcome::ok) return module_status(outcome, "cannot read '" + path + "': " + reason);
+  if (outcome != oiio_module::Outcome::ok)
+    return module_status(outcome, "cannot read '" + path + "': " + reason);
   for (std::size_t i = 0; i < image.pixels.size(); ++i) {
     if (std::isnan(image.pixels[i])) {
       const std::size_t texel = i / image.channels;

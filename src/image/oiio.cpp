@@ -11,7 +11,6 @@
 //  * integer quantisation is ours (quantise.hpp, shared with PNG); OIIO gets
 //    data already in the file's type and converts nothing.
 #include "image/oiio.hpp"
-#include "image/quantise.hpp"
 
 #include <OpenImageIO/imageio.h>
 
@@ -22,6 +21,8 @@
 #include <new>
 #include <string>
 #include <vector>
+
+#include "image/quantise.hpp"
 
 namespace nmbake::oiio_module {
 namespace {
@@ -62,7 +63,8 @@ bool traits_of(PixelFormat format, FormatTraits& out) {
   return false;
 }
 
-Outcome write(const Image& image, const std::string& file, PixelFormat format, bool dither, std::string& reason) {
+Outcome write(const Image& image, const std::string& file, PixelFormat format, bool dither,
+              std::string& reason) {
   FormatTraits traits;
   if (!traits_of(format, traits)) {
     reason = "the image module writes only TIFF, PIZ EXR and TGA";
@@ -98,9 +100,9 @@ Outcome write(const Image& image, const std::string& file, PixelFormat format, b
     for (std::size_t i = 0; i < data.size(); ++i) {
       const std::size_t texel = i / channels;
       data[i] = static_cast<std::uint8_t>(
-          dither ? detail::quantise_dithered(image.pixels[i], 255.0f, static_cast<std::uint32_t>(texel % width),
-                                             static_cast<std::uint32_t>(texel / width),
-                                             static_cast<std::uint32_t>(i % channels))
+          dither ? detail::quantise_dithered(
+                       image.pixels[i], 255.0f, static_cast<std::uint32_t>(texel % width),
+                       static_cast<std::uint32_t>(texel / width), static_cast<std::uint32_t>(i % channels))
                  : detail::quantise(image.pixels[i], 255.0f));
     }
     written = out->write_image(OIIO::TypeDesc::UINT8, data.data());
@@ -137,7 +139,8 @@ std::unique_ptr<OIIO::ImageInput> open_with(const std::string& path, const std::
   return in;
 }
 
-Outcome read_info(const std::string& path, const std::string& reader, ImageFileInfo& out, std::string& reason) {
+Outcome read_info(const std::string& path, const std::string& reader, ImageFileInfo& out,
+                  std::string& reason) {
   std::unique_ptr<OIIO::ImageInput> in = open_with(path, reader, nullptr, reason);
   if (!in) return Outcome::bad_input;  // image.cpp has read its first bytes: the file is there
   const OIIO::ImageSpec& spec = in->spec();
@@ -181,7 +184,8 @@ Outcome read(const std::string& path, const std::string& reader, Image& out, std
     }
   } catch (const std::bad_alloc&) {
     reason = "OpenImageIO cannot allocate what its header asks for (" + std::to_string(spec.width) + "x" +
-             std::to_string(spec.height) + ", " + std::to_string(spec.nchannels) + " channels): a broken file";
+             std::to_string(spec.height) + ", " + std::to_string(spec.nchannels) +
+             " channels): a broken file";
     return Outcome::bad_input;
   }
   if (!in->close()) {

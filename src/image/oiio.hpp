@@ -27,10 +27,12 @@ struct Api {
   // Writes `image` (already checked: sized, finite) to `file` in `format`
   // (tiff16, exr_float_piz, tga8), the same bytes for the same pixels;
   // `dither`: 8-bit samples (tga8) with ordered dithering (quantise.hpp).
-  Outcome (*write)(const Image& image, const std::string& file, PixelFormat format, bool dither, std::string& reason);
+  Outcome (*write)(const Image& image, const std::string& file, PixelFormat format, bool dither,
+                   std::string& reason);
   // `reader` is the OpenImageIO format name image.cpp picked from the file's
   // first bytes ("png", "openexr", ...): only that reader sees the file.
-  Outcome (*read_info)(const std::string& path, const std::string& reader, ImageFileInfo& out, std::string& reason);
+  Outcome (*read_info)(const std::string& path, const std::string& reader, ImageFileInfo& out,
+                       std::string& reason);
   // Float pixels, 0..1 for integer formats, alpha as stored.
   Outcome (*read)(const std::string& path, const std::string& reader, Image& out, std::string& reason);
 };

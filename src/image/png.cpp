@@ -39,9 +39,9 @@
 #include <cstring>
 #include <memory>
 
+#include "base/simd4.hpp"
 #include "image/deflate_huffman.hpp"
 #include "image/quantise.hpp"
-#include "base/simd4.hpp"
 #include "image/stream_file.hpp"
 
 namespace nmbake::image_detail {
@@ -56,7 +56,8 @@ void put_u32(std::vector<std::uint8_t>& out, std::uint32_t v) {
 }
 
 // A chunk: length, type, data, CRC-32 of type and data.
-void put_chunk(std::vector<std::uint8_t>& out, const char (&type)[5], const std::uint8_t* data, std::size_t size) {
+void put_chunk(std::vector<std::uint8_t>& out, const char (&type)[5], const std::uint8_t* data,
+               std::size_t size) {
   put_u32(out, static_cast<std::uint32_t>(size));
   const std::size_t type_at = out.size();
   out.insert(out.end(), type, type + 4);
@@ -74,8 +75,8 @@ struct Mapping {
 };
 
 template <bool kMapped>
-void quantise_row_as(const float* values, std::size_t width, std::size_t channels, int bits, std::uint8_t* out,
-                     bool dither, std::size_t y, Mapping m) {
+void quantise_row_as(const float* values, std::size_t width, std::size_t channels, int bits,
+                     std::uint8_t* out, bool dither, std::size_t y, Mapping m) {
   const std::size_t count = width * channels;
   const auto value = [&](std::size_t i) { return kMapped ? values[i] * m.scale + m.offset : values[i]; };
   if (bits == 8 && dither) {
@@ -173,7 +174,8 @@ void filter_row(const std::uint8_t* row, const std::uint8_t* above, std::size_t 
     return pa <= pb && pa <= pc ? a : b_or_c;
   };
   const std::size_t head = std::min(bpp, row_bytes);
-  for (std::size_t i = 0; i < head; ++i) out[1 + i] = static_cast<std::uint8_t>(row[i] - predict(0, above[i], 0));
+  for (std::size_t i = 0; i < head; ++i)
+    out[1 + i] = static_cast<std::uint8_t>(row[i] - predict(0, above[i], 0));
   for (std::size_t i = head; i < row_bytes; ++i) {
     out[1 + i] = static_cast<std::uint8_t>(row[i] - predict(row[i - bpp], above[i], above[i - bpp]));
   }
@@ -243,13 +245,14 @@ void stream_png(const Image& image, int bits, bool dither, Mapping mapping, Put&
     std::vector<std::uint8_t> above(row_bytes, 0), row(row_bytes);
     const std::size_t channels = static_cast<std::size_t>(image.channels);
     if (y0 > 0) {
-      quantise_row(image.pixels.data() + (y0 - 1) * values_per_row, width, channels, bits, above.data(), dither,
-                   y0 - 1, mapping);
+      quantise_row(image.pixels.data() + (y0 - 1) * values_per_row, width, channels, bits, above.data(),
+                   dither, y0 - 1, mapping);
     }
     Bytes filtered((y1 - y0) * (row_bytes + 1));
     filtered.size = (y1 - y0) * (row_bytes + 1);
     for (std::size_t y = y0; y < y1; ++y) {
-      quantise_row(image.pixels.data() + y * values_per_row, width, channels, bits, row.data(), dither, y, mapping);
+      quantise_row(image.pixels.data() + y * values_per_row, width, channels, bits, row.data(), dither, y,
+                   mapping);
       filter_row(row.data(), above.data(), row_bytes, bpp, filtered.data.get() + (y - y0) * (row_bytes + 1));
       std::swap(row, above);
     }
@@ -306,8 +309,8 @@ std::vector<std::uint8_t> encode_png(const Image& image, int bits, bool dither, 
   return file;
 }
 
-Status write_png(const Image& image, int bits, const std::string& path, const std::string& display_path, bool dither,
-                 float scale, float offset) {
+Status write_png(const Image& image, int bits, const std::string& path, const std::string& display_path,
+                 bool dither, float scale, float offset) {
   if (image.channels < 1 || image.channels > 4) {
     return Status::io("cannot write '" + display_path + "': PNG holds 1 to 4 channels, not " +
                       std::to_string(image.channels));

@@ -53,7 +53,8 @@ inline float dither_threshold(std::uint32_t x, std::uint32_t y, std::uint32_t c)
 
 // floor(clamp(v, 0, 1) * max + threshold), at most max: the mean over the
 // pattern is v * max (no bias), the error of one texel below one step.
-inline std::uint32_t quantise_dithered(float v, float max_value, std::uint32_t x, std::uint32_t y, std::uint32_t c) {
+inline std::uint32_t quantise_dithered(float v, float max_value, std::uint32_t x, std::uint32_t y,
+                                       std::uint32_t c) {
   const float p = std::clamp(v, 0.0f, 1.0f) * max_value;
   const auto q = static_cast<std::uint32_t>(
       static_cast<std::int64_t>(static_cast<double>(p) + static_cast<double>(dither_threshold(x, y, c))));

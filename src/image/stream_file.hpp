@@ -5,6 +5,9 @@
 // still runs to its end); close() reports it, naming the file.
 #pragma once
 
+#include <tbb/parallel_pipeline.h>
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <cstdint>
@@ -12,9 +15,6 @@
 #include <cstring>
 #include <memory>
 #include <string>
-
-#include <tbb/parallel_pipeline.h>
-#include <tbb/task_arena.h>
 
 #include "nmbake/common.hpp"
 
@@ -26,20 +26,21 @@ namespace nmbake::image_detail {
 template <class Piece, class Make, class Take>
 void ordered_pieces(std::size_t count, Make&& make, Take&& take) {
   std::size_t next = 0;
-  const std::size_t in_flight = 4 * static_cast<std::size_t>(std::max(1, tbb::this_task_arena::max_concurrency()));
+  const std::size_t in_flight =
+      4 * static_cast<std::size_t>(std::max(1, tbb::this_task_arena::max_concurrency()));
   tbb::parallel_pipeline(
-      in_flight,
-      tbb::make_filter<void, std::size_t>(tbb::filter_mode::serial_in_order,
-                                          [&](tbb::flow_control& fc) -> std::size_t {
-                                            if (next == count) {
-                                              fc.stop();
-                                              return 0;
-                                            }
-                                            return next++;
-                                          }) &
-          tbb::make_filter<std::size_t, std::unique_ptr<Piece>>(tbb::filter_mode::parallel, make) &
-          tbb::make_filter<std::unique_ptr<Piece>, void>(tbb::filter_mode::serial_in_order,
-                                                         [&](std::unique_ptr<Piece> piece) { take(std::move(piece)); }));
+      in_flight, tbb::make_filter<void, std::size_t>(tbb::filter_mode::serial_in_order,
+                                                     [&](tbb::flow_control& fc) -> std::size_t {
+                                                       if (next == count) {
+                                                         fc.stop();
+                                                         return 0;
+                                                       }
+                                                       return next++;
+                                                     }) &
+                     tbb::make_filter<std::size_t, std::unique_ptr<Piece>>(tbb::filter_mode::parallel, make) &
+                     tbb::make_filter<std::unique_ptr<Piece>, void>(
+                         tbb::filter_mode::serial_in_order,
+                         [&](std::unique_ptr<Piece> piece) { take(std::move(piece)); }));
 }
 
 class StreamFile {
@@ -63,7 +64,8 @@ class StreamFile {
   }
   // Overwrites bytes already written (a table known only at the end).
   void put_at(std::size_t offset, const std::uint8_t* data, std::size_t size) {
-    if (error_ == 0 && std::fseek(file_, static_cast<long>(offset), SEEK_SET) != 0) error_ = errno != 0 ? errno : EIO;
+    if (error_ == 0 && std::fseek(file_, static_cast<long>(offset), SEEK_SET) != 0)
+      error_ = errno != 0 ? errno : EIO;
     put(data, size);
   }
 
@@ -75,7 +77,9 @@ class StreamFile {
   }
 
  private:
-  Status failure(int error) const { return Status::io("cannot write '" + display_path_ + "': " + std::strerror(error)); }
+  Status failure(int error) const {
+    return Status::io("cannot write '" + display_path_ + "': " + std::strerror(error));
+  }
 
   std::FILE* file_;
   std::string display_path_;

@@ -12,8 +12,8 @@
 #include <glm/geometric.hpp>
 #include <numeric>
 
-#include "nmbake/preview.hpp"
 #include "inspect/preview_draw.hpp"
+#include "nmbake/preview.hpp"
 
 namespace nmbake {
 
@@ -27,7 +27,8 @@ float angle_degrees(const glm::vec3& a, const glm::vec3& b) {
   const glm::dvec3 da(a), db(b);
   const double la = glm::length(da), lb = glm::length(db);
   if (!(la > 0.0) || !(lb > 0.0)) return 180.0f;
-  return static_cast<float>(std::atan2(glm::length(glm::cross(da, db)), glm::dot(da, db)) * 57.29577951308232);
+  return static_cast<float>(std::atan2(glm::length(glm::cross(da, db)), glm::dot(da, db)) *
+                            57.29577951308232);
 }
 
 }  // namespace
@@ -41,8 +42,8 @@ AppearanceError summarize_appearance(std::vector<float> angles) {
   for (float a : angles) sum += a;
   e.mean = sum / static_cast<double>(angles.size());
   const auto rank = [&](double q) {
-    const std::size_t k =
-        std::min(angles.size() - 1, static_cast<std::size_t>(std::ceil(q * static_cast<double>(angles.size()))) - 1);
+    const std::size_t k = std::min(
+        angles.size() - 1, static_cast<std::size_t>(std::ceil(q * static_cast<double>(angles.size()))) - 1);
     std::nth_element(angles.begin(), angles.begin() + static_cast<std::ptrdiff_t>(k), angles.end());
     return static_cast<double>(angles[k]);
   };
@@ -69,8 +70,8 @@ std::uint32_t texel_of(glm::vec2 uv, int width, int height) {
 const std::vector<glm::vec2>& appearance_views() {
   static const std::vector<glm::vec2> views = [] {
     const float diagonal = 35.26439f;  // atan(1 / sqrt(2)): a cube diagonal
-    std::vector<glm::vec2> v = {{0.0f, 0.0f}, {90.0f, 0.0f}, {180.0f, 0.0f}, {270.0f, 0.0f},
-                                {0.0f, 89.0f}, {0.0f, -89.0f}};
+    std::vector<glm::vec2> v = {{0.0f, 0.0f},   {90.0f, 0.0f}, {180.0f, 0.0f},
+                                {270.0f, 0.0f}, {0.0f, 89.0f}, {0.0f, -89.0f}};
     for (float pitch : {diagonal, -diagonal}) {
       for (float yaw : {45.0f, 135.0f, 225.0f, 315.0f}) v.push_back({yaw, pitch});
     }
@@ -81,15 +82,17 @@ const std::vector<glm::vec2>& appearance_views() {
 
 std::string AppearanceError::to_text() const {
   char line[200];
-  std::snprintf(line, sizeof line, "%zu samples, mean %.4f deg, p95 %.3f, p99 %.3f, max %.2f", samples, mean, p95,
-                p99, max);
+  std::snprintf(line, sizeof line, "%zu samples, mean %.4f deg, p95 %.3f, p99 %.3f, max %.2f", samples, mean,
+                p95, p99, max);
   return line;
 }
 
 Status render_appearance(const LowSurface& surface, const Mesh& high, int map_width, int map_height,
                          const AppearanceOptions& options, AppearanceSamples& out) {
-  if (options.size < 16 || options.size > 4096) return Status::bad_input("view size out of range (16 to 4096)");
-  if (options.supersample < 1 || options.supersample > 8) return Status::bad_input("supersampling out of range (1 to 8)");
+  if (options.size < 16 || options.size > 4096)
+    return Status::bad_input("view size out of range (16 to 4096)");
+  if (options.supersample < 1 || options.supersample > 8)
+    return Status::bad_input("supersampling out of range (1 to 8)");
   if (!(options.depth_tolerance > 0.0f) || !std::isfinite(options.depth_tolerance)) {
     return Status::bad_input("the depth tolerance must be a positive share of the diagonal");
   }
@@ -164,16 +167,17 @@ Status render_appearance(const LowSurface& surface, const Mesh& high, int map_wi
   return Status::ok();
 }
 
-std::vector<float> appearance_angles(const AppearanceSamples& samples, const LowSurface& surface, const Image& map,
-                                     NormalSpace space, GreenChannel green, std::uint64_t* decode_fallbacks) {
+std::vector<float> appearance_angles(const AppearanceSamples& samples, const LowSurface& surface,
+                                     const Image& map, NormalSpace space, GreenChannel green,
+                                     std::uint64_t* decode_fallbacks) {
   NMBAKE_CHECK(map.channels >= 3 && map.width >= 1 && map.height >= 1, "a normal map");
   const std::size_t n = samples.sample_count();
   std::vector<float> angles(n);
   std::vector<std::uint8_t> fallbacks(n, 0);
   tbb::parallel_for(std::size_t{0}, n, [&](std::size_t s) {
     bool fallback = false;
-    const glm::vec3 decoded = decode_map_normal(surface, map, samples.low_triangle[s], samples.low_bary[s], space,
-                                                green, glm::vec3(0.0f, 0.0f, 1.0f), fallback);
+    const glm::vec3 decoded = decode_map_normal(surface, map, samples.low_triangle[s], samples.low_bary[s],
+                                                space, green, glm::vec3(0.0f, 0.0f, 1.0f), fallback);
     fallbacks[s] = fallback ? 1 : 0;
     angles[s] = angle_degrees(decoded, samples.high_normal[s]);
   });
@@ -183,7 +187,8 @@ std::vector<float> appearance_angles(const AppearanceSamples& samples, const Low
   return angles;
 }
 
-std::vector<float> appearance_angles_without_map(const AppearanceSamples& samples, const LowSurface& surface) {
+std::vector<float> appearance_angles_without_map(const AppearanceSamples& samples,
+                                                 const LowSurface& surface) {
   const std::size_t n = samples.sample_count();
   std::vector<float> angles(n);
   tbb::parallel_for(std::size_t{0}, n, [&](std::size_t s) {
@@ -203,10 +208,11 @@ std::vector<float> appearance_floor_angles(const AppearanceSamples& samples) {
   return angles;
 }
 
-AppearanceError appearance_error(const AppearanceSamples& samples, const LowSurface& surface, const Image& map,
-                                 NormalSpace space, GreenChannel green) {
+AppearanceError appearance_error(const AppearanceSamples& samples, const LowSurface& surface,
+                                 const Image& map, NormalSpace space, GreenChannel green) {
   std::uint64_t fallbacks = 0;
-  AppearanceError e = summarize_appearance(appearance_angles(samples, surface, map, space, green, &fallbacks));
+  AppearanceError e =
+      summarize_appearance(appearance_angles(samples, surface, map, space, green, &fallbacks));
   e.decode_fallbacks = fallbacks;
   return e;
 }

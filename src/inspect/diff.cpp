@@ -4,26 +4,30 @@
 // all precision (acos(1 - 1e-8) is already 0.008 degrees).
 #include "nmbake/diff.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <glm/ext/vector_double3.hpp>
+#include <glm/geometric.hpp>
+#include <nlohmann/json.hpp>
 #include <numbers>
 #include <vector>
-
-#include <glm/geometric.hpp>
-#include <glm/ext/vector_double3.hpp>
-#include <nlohmann/json.hpp>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
 namespace nmbake {
 
 const char* to_string(Quantisation q) {
   switch (q) {
-    case Quantisation::none: return "float";
-    case Quantisation::half: return "half";
-    case Quantisation::uint16: return "uint16";
-    case Quantisation::uint8: return "uint8";
+    case Quantisation::none:
+      return "float";
+    case Quantisation::half:
+      return "half";
+    case Quantisation::uint16:
+      return "uint16";
+    case Quantisation::uint8:
+      return "uint8";
   }
   return "float";
 }
@@ -38,23 +42,32 @@ Quantisation quantisation_of_data_type(const std::string& data_type) {
 namespace {
 int precision_rank(Quantisation q) {
   switch (q) {
-    case Quantisation::uint8: return 0;
-    case Quantisation::half: return 1;
-    case Quantisation::uint16: return 2;
-    case Quantisation::none: return 3;
+    case Quantisation::uint8:
+      return 0;
+    case Quantisation::half:
+      return 1;
+    case Quantisation::uint16:
+      return 2;
+    case Quantisation::none:
+      return 3;
   }
   return 3;
 }
 }  // namespace
 
-Quantisation coarser(Quantisation a, Quantisation b) { return precision_rank(a) <= precision_rank(b) ? a : b; }
+Quantisation coarser(Quantisation a, Quantisation b) {
+  return precision_rank(a) <= precision_rank(b) ? a : b;
+}
 
 float quantise(float value, Quantisation q) {
   const float v = std::clamp(value, 0.0f, 1.0f);
   switch (q) {
-    case Quantisation::none: return value;
-    case Quantisation::uint8: return std::round(v * 255.0f) / 255.0f;
-    case Quantisation::uint16: return std::round(v * 65535.0f) / 65535.0f;
+    case Quantisation::none:
+      return value;
+    case Quantisation::uint8:
+      return std::round(v * 255.0f) / 255.0f;
+    case Quantisation::uint16:
+      return std::round(v * 65535.0f) / 65535.0f;
     case Quantisation::half: {
       // Normal halves keep 11 significant bits; below 2^-14 the step is a
       // fixed 2^-24 (subnormals).
@@ -68,11 +81,13 @@ float quantise(float value, Quantisation q) {
 }
 
 double DiffStats::share_over_one_degree() const {
-  return compared_texels > 0 ? static_cast<double>(over_one_degree) / static_cast<double>(compared_texels) : 0.0;
+  return compared_texels > 0 ? static_cast<double>(over_one_degree) / static_cast<double>(compared_texels)
+                             : 0.0;
 }
 
 double DiffStats::share_changed() const {
-  return compared_texels > 0 ? static_cast<double>(changed_texels) / static_cast<double>(compared_texels) : 0.0;
+  return compared_texels > 0 ? static_cast<double>(changed_texels) / static_cast<double>(compared_texels)
+                             : 0.0;
 }
 
 std::string DiffStats::summary_line() const {
@@ -113,9 +128,7 @@ namespace {
 
 constexpr double kDegenerateLength = 1e-6;
 
-glm::dvec3 decode(const float* rgb) {
-  return {2.0 * rgb[0] - 1.0, 2.0 * rgb[1] - 1.0, 2.0 * rgb[2] - 1.0};
-}
+glm::dvec3 decode(const float* rgb) { return {2.0 * rgb[0] - 1.0, 2.0 * rgb[1] - 1.0, 2.0 * rgb[2] - 1.0}; }
 
 // Heat-map ramp: black -> blue -> yellow -> red.
 void ramp(double x, float* rgb) {
@@ -188,7 +201,8 @@ Status diff_images(const Image& a, const Image& b, const Image* mask, const Diff
           f |= 2;
           degrees = (la < kDegenerateLength) == (lb < kDegenerateLength) ? 0.0 : 90.0;
         } else {
-          degrees = std::atan2(glm::length(glm::cross(na, nb)), glm::dot(na, nb)) * (180.0 / std::numbers::pi);
+          degrees =
+              std::atan2(glm::length(glm::cross(na, nb)), glm::dot(na, nb)) * (180.0 / std::numbers::pi);
         }
         angle[i] = static_cast<float>(degrees);
         flags[i] = f;
@@ -240,9 +254,14 @@ Status diff_files(const std::string& path_a, const std::string& path_b, const st
                              std::to_string(info_a.height) + ", " + path_b + " is " +
                              std::to_string(info_b.width) + "x" + std::to_string(info_b.height));
   }
-  if (info_a.channels < 3) return Status::bad_input(path_a + ": a normal map needs 3 channels, it has " + std::to_string(info_a.channels));
-  if (info_b.channels < 3) return Status::bad_input(path_b + ": a normal map needs 3 channels, it has " + std::to_string(info_b.channels));
-  options.quantisation = coarser(quantisation_of_data_type(info_a.data_type), quantisation_of_data_type(info_b.data_type));
+  if (info_a.channels < 3)
+    return Status::bad_input(path_a + ": a normal map needs 3 channels, it has " +
+                             std::to_string(info_a.channels));
+  if (info_b.channels < 3)
+    return Status::bad_input(path_b + ": a normal map needs 3 channels, it has " +
+                             std::to_string(info_b.channels));
+  options.quantisation =
+      coarser(quantisation_of_data_type(info_a.data_type), quantisation_of_data_type(info_b.data_type));
 
   Image a, b, mask;
   NMBAKE_TRY(read_image(path_a, a));
@@ -251,8 +270,8 @@ Status diff_files(const std::string& path_a, const std::string& path_b, const st
     NMBAKE_TRY(read_image(mask_path, mask));
     if (mask.width != a.width || mask.height != a.height) {
       return Status::bad_input(mask_path + ": mask is " + std::to_string(mask.width) + "x" +
-                               std::to_string(mask.height) + ", the maps are " + std::to_string(a.width) + "x" +
-                               std::to_string(a.height));
+                               std::to_string(mask.height) + ", the maps are " + std::to_string(a.width) +
+                               "x" + std::to_string(a.height));
     }
   }
   return diff_images(a, b, mask_path.empty() ? nullptr : &mask, options, stats, heatmap);

@@ -4,11 +4,11 @@
 // with the eye straight above the surface.
 #include "nmbake/preview.hpp"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
-
 #include <glm/geometric.hpp>
-#include <tbb/parallel_for.h>
 
 namespace nmbake {
 
@@ -31,7 +31,8 @@ Image render_lit_map(const Image& map, const LitMapOptions& options) {
       for (int dy = 0; dy < factor; ++dy) {
         for (int dx = 0; dx < factor; ++dx) {
           const float* p = map.at(x * factor + dx, y * factor + dy);
-          glm::vec3 n(2.0f * p[0] - 1.0f, flip * (2.0f * p[1] - 1.0f), map.channels > 2 ? 2.0f * p[2] - 1.0f : 1.0f);
+          glm::vec3 n(2.0f * p[0] - 1.0f, flip * (2.0f * p[1] - 1.0f),
+                      map.channels > 2 ? 2.0f * p[2] - 1.0f : 1.0f);
           const float l = glm::length(n);
           n = l > 1e-6f && std::isfinite(l) ? n / l : glm::vec3(0.0f, 0.0f, 1.0f);
           const float diffuse = std::max(glm::dot(n, key), 0.0f);

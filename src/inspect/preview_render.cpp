@@ -12,10 +12,10 @@
 #include <glm/geometric.hpp>
 #include <numeric>
 
-#include "nmbake/preview.hpp"
+#include "inspect/preview_draw.hpp"
 #include "nmbake/load.hpp"
 #include "nmbake/parts.hpp"
-#include "inspect/preview_draw.hpp"
+#include "nmbake/preview.hpp"
 
 namespace nmbake {
 
@@ -308,8 +308,8 @@ Status render_preview(const LowSurface& surface, const Mesh& high, const Image& 
         const glm::vec2 b = low_hits[s].bary;
         bool fallback = false;
         const glm::vec3 low_normal = unit_or(interpolate(surface.normal, base, b), to_eye, fallback);
-        const glm::vec3 n = decode_map_normal(surface, map, tri, b, options.space, options.green, to_eye, fallback,
-                                             options.decode);
+        const glm::vec3 n = decode_map_normal(surface, map, tri, b, options.space, options.green, to_eye,
+                                              fallback, options.decode);
         row_decode_fallbacks[row] += fallback ? 1 : 0;
         low_colour[s] = shade(n, to_eye, lights);
         const std::int32_t hit = bake_hits.triangle[s];

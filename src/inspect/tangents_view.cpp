@@ -12,8 +12,8 @@
 #include <numeric>
 #include <tuple>
 
-#include "nmbake/preview.hpp"
 #include "inspect/preview_draw.hpp"
+#include "nmbake/preview.hpp"
 
 namespace nmbake {
 

@@ -24,22 +24,21 @@
 // importer converts a colour space (FBX LayerElementColor and Collada COLOR
 // hold the display values modellers paint, as a PLY's bytes: sRGB-encoded,
 // nmbake's convention); white on meshes without colours.
+#include <assimp/config.h>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+
 #include <array>
+#include <assimp/Importer.hpp>
 #include <cmath>
 #include <cstring>
 #include <functional>
-#include <set>
-#include <string>
-#include <vector>
-
-#include <assimp/Importer.hpp>
-#include <assimp/config.h>
-#include <assimp/metadata.h>
-#include <assimp/postprocess.h>
-#include <assimp/scene.h>
 #include <glm/gtc/matrix_inverse.hpp>
 #include <glm/mat3x3.hpp>
 #include <glm/mat4x4.hpp>
+#include <set>
+#include <string>
+#include <vector>
 
 #include "load/isolated.hpp"
 #include "load/parsers.hpp"
@@ -170,7 +169,8 @@ class AssimpReader {
         if (entry.node->mChildren[c] != nullptr) stack.push_back({entry.node->mChildren[c], world});
       }
     }
-    if (out_.indices.empty()) return Status::bad_input(path_ + ": no triangles (points and lines are skipped)");
+    if (out_.indices.empty())
+      return Status::bad_input(path_ + ": no triangles (points and lines are skipped)");
     if (!all_normals_) out_.normals.clear();
     if (!all_uvs_) out_.uvs.clear();
     if (!all_tangents_) out_.tangents.clear();
@@ -186,7 +186,8 @@ class AssimpReader {
   }
 
   Status read_node(const aiNode& node, std::size_t node_number, const glm::dmat4& world) {
-    const std::string name = node.mName.length > 0 ? std::string(node.mName.C_Str()) : "node" + std::to_string(node_number);
+    const std::string name =
+        node.mName.length > 0 ? std::string(node.mName.C_Str()) : "node" + std::to_string(node_number);
     if (!part_names_.insert(name).second) {
       return Status::bad_input(path_ + ": two parts are named '" + name + "': part names must be unique");
     }
@@ -256,7 +257,9 @@ class AssimpReader {
         }
         all_uvs_ = false;
       } else {
-        if (!all_uvs_) return error(part, where + "has UV channel " + std::to_string(set) + " but an earlier mesh has no UVs");
+        if (!all_uvs_)
+          return error(part,
+                       where + "has UV channel " + std::to_string(set) + " but an earlier mesh has no UVs");
         any_uvs_ = true;
       }
     } else {
@@ -267,7 +270,8 @@ class AssimpReader {
       // could not be baked with --tangents file.
       const bool has = mesh.mTangents != nullptr && mesh.mBitangents != nullptr && mesh.mNormals != nullptr;
       if (tangents_seen_ && has != all_tangents_) {
-        return error(part, where + (has ? "has tangents but an earlier mesh has none" : "has no tangents but an earlier mesh has"));
+        return error(part, where + (has ? "has tangents but an earlier mesh has none"
+                                        : "has no tangents but an earlier mesh has"));
       }
       tangents_seen_ = true;
       all_tangents_ = has;
@@ -281,7 +285,8 @@ class AssimpReader {
     std::vector<std::uint32_t> representatives;
     const std::vector<std::uint32_t> remap =
         weld(mesh, all_normals_, uv, all_tangents_, colors, representatives);
-    if (out_.positions.size() + representatives.size() > 0xffffffffu) return error(part, where + "more than 2^32 vertices in the file");
+    if (out_.positions.size() + representatives.size() > 0xffffffffu)
+      return error(part, where + "more than 2^32 vertices in the file");
     const auto base = static_cast<std::uint32_t>(out_.positions.size());
     for (const std::uint32_t v : representatives) {
       const aiVector3D& p = mesh.mVertices[v];
@@ -331,8 +336,9 @@ class AssimpReader {
       if (face.mNumIndices < 3) continue;
       for (unsigned c = 0; c < face.mNumIndices; ++c) {
         if (face.mIndices[c] >= mesh.mNumVertices) {
-          return error(part, where + "face " + std::to_string(f) + " index " + std::to_string(face.mIndices[c]) +
-                                 " is out of range (" + std::to_string(mesh.mNumVertices) + " vertices)");
+          return error(part, where + "face " + std::to_string(f) + " index " +
+                                 std::to_string(face.mIndices[c]) + " is out of range (" +
+                                 std::to_string(mesh.mNumVertices) + " vertices)");
         }
       }
       // A fan from corner 0, like the OBJ loader (see the top of the file).
@@ -391,10 +397,13 @@ Status load_assimp_here(const std::string& path, const LoadOptions& options, Mes
     // allocation of a count no file of this size can hold as std::bad_alloc
     // (a 10 KB 3DS claiming a 103 GB vertex array; found by fuzz_assimp).
     if (reason.find("bad_alloc") != std::string::npos) {
-      reason = "a count in the file asks for more memory than there is (std::bad_alloc): a broken or truncated file";
+      reason =
+          "a count in the file asks for more memory than there is (std::bad_alloc): a broken or truncated "
+          "file";
     }
     while (!reason.empty() && (reason.back() == '\n' || reason.back() == '\r')) reason.pop_back();
-    return Status::bad_input(path + ": Assimp: " + (reason.empty() ? std::string("cannot read the file") : reason));
+    return Status::bad_input(path +
+                             ": Assimp: " + (reason.empty() ? std::string("cannot read the file") : reason));
   }
   if ((scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) != 0) {
     return Status::bad_input(path + ": Assimp: the scene is incomplete (no meshes could be read)");
@@ -410,11 +419,12 @@ Status load_assimp_here(const std::string& path, const LoadOptions& options, Mes
 // some broken files and allocates what their counts say.
 Status load_assimp(const std::string& path, const LoadOptions& options, Mesh& out, LoadStats& stats) {
   if (!options.isolate_libraries) return load_assimp_here(path, options, out, stats, [] {});
-  return load_in_child(path, "Assimp",
-                       [&](Mesh& mesh, LoadStats& child_stats, const std::function<void()>& read_done) {
-                         return load_assimp_here(path, options, mesh, child_stats, read_done);
-                       },
-                       out, stats);
+  return load_in_child(
+      path, "Assimp",
+      [&](Mesh& mesh, LoadStats& child_stats, const std::function<void()>& read_done) {
+        return load_assimp_here(path, options, mesh, child_stats, read_done);
+      },
+      out, stats);
 }
 
 }  // namespace nmbake::load_detail

@@ -22,19 +22,18 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <map>
-#include <stdexcept>
-#include <string>
-#include <string_view>
-#include <tuple>
-#include <vector>
-
 #include <glm/gtc/matrix_inverse.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtc/type_ptr.hpp>
 #include <glm/mat3x3.hpp>
 #include <glm/mat4x4.hpp>
+#include <map>
 #include <nlohmann/json.hpp>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <tuple>
+#include <vector>
 
 #include "load/parsers.hpp"
 #include "load/tinygltf.hpp"
@@ -253,8 +252,8 @@ std::string read_accessor(const tinygltf::Model& model, int accessor_index, int 
   const std::string name = "accessor " + std::to_string(accessor_index);
   const int type_components = tinygltf::GetNumComponentsInType(static_cast<std::uint32_t>(a.type));
   if (type_components != components) {
-    return name + " has " + std::to_string(std::max(type_components, 0)) + " components per element, expected " +
-           std::to_string(components);
+    return name + " has " + std::to_string(std::max(type_components, 0)) +
+           " components per element, expected " + std::to_string(components);
   }
   const bool is_float = a.componentType == TINYGLTF_COMPONENT_TYPE_FLOAT;
   const bool integer_ok = !float_only && a.normalized && a.componentType != TINYGLTF_COMPONENT_TYPE_INT &&
@@ -270,10 +269,10 @@ std::string read_accessor(const tinygltf::Model& model, int accessor_index, int 
   float element_values[4] = {0.0f, 0.0f, 0.0f, 0.0f};
   if (a.bufferView >= 0) {
     Span span;
-    const std::size_t stride = static_cast<std::size_t>(
-        a.bufferView < static_cast<int>(model.bufferViews.size())
-            ? model.bufferViews[static_cast<std::size_t>(a.bufferView)].byteStride
-            : 0);
+    const std::size_t stride =
+        static_cast<std::size_t>(a.bufferView < static_cast<int>(model.bufferViews.size())
+                                     ? model.bufferViews[static_cast<std::size_t>(a.bufferView)].byteStride
+                                     : 0);
     if (std::string e = locate_view(model, a.bufferView, a.byteOffset, count, element_bytes, stride, span);
         !e.empty()) {
       return name + ": " + e;
@@ -281,8 +280,8 @@ std::string read_accessor(const tinygltf::Model& model, int accessor_index, int 
     for (std::size_t i = 0; i < count && !validate_only; ++i) {
       const unsigned char* element = span.data + i * span.stride;
       for (int c = 0; c < components; ++c) {
-        element_values[c] = static_cast<float>(
-            read_component(element + static_cast<std::size_t>(c) * component_size, a.componentType, a.normalized));
+        element_values[c] = static_cast<float>(read_component(
+            element + static_cast<std::size_t>(c) * component_size, a.componentType, a.normalized));
       }
       sink(i, element_values);
     }
@@ -295,34 +294,35 @@ std::string read_accessor(const tinygltf::Model& model, int accessor_index, int 
   if (a.sparse.isSparse) {
     const auto sparse_count = static_cast<std::size_t>(std::max(a.sparse.count, 0));
     const int index_type = a.sparse.indices.componentType;
-    if (index_type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE && index_type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+    if (index_type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
+        index_type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
         index_type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT) {
       return name + ": sparse indices of type " + component_name(index_type) + " are not supported";
     }
     Span indices;
     Span values;
     if (std::string e = locate_view(model, a.sparse.indices.bufferView,
-                                    static_cast<std::size_t>(std::max(a.sparse.indices.byteOffset, 0)), sparse_count,
-                                    component_bytes(index_type), 0, indices);
+                                    static_cast<std::size_t>(std::max(a.sparse.indices.byteOffset, 0)),
+                                    sparse_count, component_bytes(index_type), 0, indices);
         !e.empty()) {
       return name + ": sparse indices: " + e;
     }
     if (std::string e = locate_view(model, a.sparse.values.bufferView,
-                                    static_cast<std::size_t>(std::max(a.sparse.values.byteOffset, 0)), sparse_count,
-                                    element_bytes, 0, values);
+                                    static_cast<std::size_t>(std::max(a.sparse.values.byteOffset, 0)),
+                                    sparse_count, element_bytes, 0, values);
         !e.empty()) {
       return name + ": sparse values: " + e;
     }
     for (std::size_t i = 0; i < sparse_count && !validate_only; ++i) {
       const std::uint64_t target = read_index(indices.data + i * indices.stride, index_type);
       if (target >= count) {
-        return name + ": sparse index " + std::to_string(target) + " is out of range (" + std::to_string(count) +
-               " elements)";
+        return name + ": sparse index " + std::to_string(target) + " is out of range (" +
+               std::to_string(count) + " elements)";
       }
       for (int c = 0; c < components; ++c) {
-        element_values[c] =
-            static_cast<float>(read_component(values.data + i * values.stride + static_cast<std::size_t>(c) * component_size,
-                                              a.componentType, a.normalized));
+        element_values[c] = static_cast<float>(
+            read_component(values.data + i * values.stride + static_cast<std::size_t>(c) * component_size,
+                           a.componentType, a.normalized));
       }
       sink(static_cast<std::size_t>(target), element_values);
     }
@@ -415,10 +415,12 @@ class GltfReader {
 
   Status check_extension(const std::string& extension, const std::string& where) const {
     if (extension == "KHR_draco_mesh_compression") {
-      return Status::bad_input(path_ + ": " + where + " uses KHR_draco_mesh_compression: Draco-compressed meshes are not supported");
+      return Status::bad_input(path_ + ": " + where +
+                               " uses KHR_draco_mesh_compression: Draco-compressed meshes are not supported");
     }
     if (extension == "EXT_meshopt_compression" || extension == "KHR_meshopt_compression") {
-      return Status::bad_input(path_ + ": " + where + " uses " + extension + ": compressed buffers are not supported");
+      return Status::bad_input(path_ + ": " + where + " uses " + extension +
+                               ": compressed buffers are not supported");
     }
     return Status::ok();
   }
@@ -436,7 +438,8 @@ class GltfReader {
     std::vector<bool> is_child(model_.nodes.size(), false);
     for (const tinygltf::Node& node : model_.nodes) {
       for (int child : node.children) {
-        if (child >= 0 && static_cast<std::size_t>(child) < is_child.size()) is_child[static_cast<std::size_t>(child)] = true;
+        if (child >= 0 && static_cast<std::size_t>(child) < is_child.size())
+          is_child[static_cast<std::size_t>(child)] = true;
       }
     }
     for (std::size_t n = 0; n < model_.nodes.size(); ++n) {
@@ -592,7 +595,8 @@ class GltfReader {
     const int position_accessor = attribute("POSITION");
     if (position_accessor < 0) return error(part, where + "no POSITION attribute");
     if (static_cast<std::size_t>(position_accessor) >= model_.accessors.size()) {
-      return error(part, where + "POSITION: accessor " + std::to_string(position_accessor) + " does not exist");
+      return error(part,
+                   where + "POSITION: accessor " + std::to_string(position_accessor) + " does not exist");
     }
     // POSITION must have real data: its count then cannot exceed what the
     // file holds, so the arrays sized from it are bounded by the file (a
@@ -602,7 +606,8 @@ class GltfReader {
     }
     std::size_t vertex_count = 0;
     const auto ignore = [](std::size_t, const float*) {};
-    if (std::string e = read_accessor(model_, position_accessor, 3, true, vertex_count, ignore, true); !e.empty()) {
+    if (std::string e = read_accessor(model_, position_accessor, 3, true, vertex_count, ignore, true);
+        !e.empty()) {
       return error(part, where + "POSITION: " + e);
     }
     // Every attribute must have one element per position.
@@ -668,8 +673,10 @@ class GltfReader {
     int tangent_accessor = -1;
     if (options_.keep_tangents) {
       tangent_accessor = attribute("TANGENT");
-      if (tangent_accessor >= 0 && any_without_tangents_) return error(part, where + "has TANGENT but an earlier primitive has none");
-      if (tangent_accessor < 0 && any_tangents_) return error(part, where + "has no TANGENT but an earlier primitive has");
+      if (tangent_accessor >= 0 && any_without_tangents_)
+        return error(part, where + "has TANGENT but an earlier primitive has none");
+      if (tangent_accessor < 0 && any_tangents_)
+        return error(part, where + "has no TANGENT but an earlier primitive has");
       if (tangent_accessor >= 0) {
         any_tangents_ = true;
       } else {
@@ -692,9 +699,10 @@ class GltfReader {
                                " components per element, expected 3 (RGB) or 4 (RGBA)");
       }
     }
-    for (const auto& [accessor, key] : {std::pair{normal_accessor, std::string("NORMAL")}, std::pair{uv_accessor, uv_key},
-                                        std::pair{tangent_accessor, std::string("TANGENT")},
-                                        std::pair{color_accessor, std::string("COLOR_0")}}) {
+    for (const auto& [accessor, key] :
+         {std::pair{normal_accessor, std::string("NORMAL")}, std::pair{uv_accessor, uv_key},
+          std::pair{tangent_accessor, std::string("TANGENT")},
+          std::pair{color_accessor, std::string("COLOR_0")}}) {
       if (accessor < 0) continue;
       if (std::string e = check_count(accessor, key); !e.empty()) return error(part, where + e);
     }
@@ -703,21 +711,26 @@ class GltfReader {
 
     // The primitive's vertices, as the file has them (split where the file
     // splits them), in world space, decoded straight into the mesh.
-    if (out_.positions.size() + vertex_count > 0xffffffffu) return error(part, where + "more than 2^32 vertices in the file");
+    if (out_.positions.size() + vertex_count > 0xffffffffu)
+      return error(part, where + "more than 2^32 vertices in the file");
     const auto base = static_cast<std::uint32_t>(out_.positions.size());
     std::size_t count = 0;
     out_.positions.resize(base + vertex_count);
-    if (std::string e = read_accessor(model_, position_accessor, 3, true, count, [&](std::size_t v, const float* p) {
-          out_.positions[base + v] = glm::vec3(transform.matrix * glm::dvec4(p[0], p[1], p[2], 1.0));
-        });
+    if (std::string e = read_accessor(model_, position_accessor, 3, true, count,
+                                      [&](std::size_t v, const float* p) {
+                                        out_.positions[base + v] =
+                                            glm::vec3(transform.matrix * glm::dvec4(p[0], p[1], p[2], 1.0));
+                                      });
         !e.empty()) {
       return error(part, where + "POSITION: " + e);
     }
     if (all_normals_) {
       out_.normals.resize(base + vertex_count);
-      if (std::string e = read_accessor(model_, normal_accessor, 3, true, count, [&](std::size_t v, const float* n) {
-            out_.normals[base + v] = glm::vec3(transform.normal_matrix * glm::dvec3(n[0], n[1], n[2]));
-          });
+      if (std::string e = read_accessor(model_, normal_accessor, 3, true, count,
+                                        [&](std::size_t v, const float* n) {
+                                          out_.normals[base + v] = glm::vec3(transform.normal_matrix *
+                                                                             glm::dvec3(n[0], n[1], n[2]));
+                                        });
           !e.empty()) {
         return error(part, where + "NORMAL: " + e);
       }
@@ -728,9 +741,9 @@ class GltfReader {
       // glTF puts the UV origin at the top-left of the image; nmbake (like
       // OBJ, PLY and Blender) at the bottom-left: v' = 1 - v.
       out_.uvs.resize(base + vertex_count);
-      if (std::string e = read_accessor(model_, uv_accessor, 2, false, count, [&](std::size_t v, const float* uv) {
-            out_.uvs[base + v] = glm::vec2(uv[0], 1.0f - uv[1]);
-          });
+      if (std::string e = read_accessor(
+              model_, uv_accessor, 2, false, count,
+              [&](std::size_t v, const float* uv) { out_.uvs[base + v] = glm::vec2(uv[0], 1.0f - uv[1]); });
           !e.empty()) {
         return error(part, where + uv_key + ": " + e);
       }
@@ -741,11 +754,13 @@ class GltfReader {
       // w * cross(N, T) relative to the transformed frame, so w flips too.
       const glm::dmat3 linear(transform.matrix);
       out_.tangents.resize(base + vertex_count);
-      if (std::string e = read_accessor(model_, tangent_accessor, 4, true, count, [&](std::size_t v, const float* t) {
-            const float w = t[3] < 0.0f ? -1.0f : 1.0f;
-            out_.tangents[base + v] =
-                glm::vec4(glm::vec3(linear * glm::dvec3(t[0], t[1], t[2])), transform.mirrored ? -w : w);
-          });
+      if (std::string e = read_accessor(model_, tangent_accessor, 4, true, count,
+                                        [&](std::size_t v, const float* t) {
+                                          const float w = t[3] < 0.0f ? -1.0f : 1.0f;
+                                          out_.tangents[base + v] =
+                                              glm::vec4(glm::vec3(linear * glm::dvec3(t[0], t[1], t[2])),
+                                                        transform.mirrored ? -w : w);
+                                        });
           !e.empty()) {
         return error(part, where + "TANGENT: " + e);
       }
@@ -765,8 +780,9 @@ class GltfReader {
         };
         if (std::string e = read_accessor(model_, color_accessor, color_components, false, count,
                                           [&](std::size_t v, const float* c) {
-                                            out_.colors[base + v] = glm::vec4(encode(c[0]), encode(c[1]), encode(c[2]),
-                                                                              color_components == 4 ? c[3] : 1.0f);
+                                            out_.colors[base + v] =
+                                                glm::vec4(encode(c[0]), encode(c[1]), encode(c[2]),
+                                                          color_components == 4 ? c[3] : 1.0f);
                                           });
             !e.empty()) {
           return error(part, where + "COLOR_0: " + e);
@@ -825,7 +841,8 @@ class GltfReader {
 
 // Geometry only: images are neither decoded nor, being external, read
 // (TINYGLTF_NO_EXTERNAL_IMAGE); an embedded one is skipped unread.
-bool skip_image(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int, void*) {
+bool skip_image(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int,
+                void*) {
   return true;
 }
 
@@ -1135,7 +1152,8 @@ Status load_gltf(const std::string& path, const LoadOptions& options, Mesh& out,
   namespace fs = std::filesystem;
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) {
-    return Status::bad_input(path + ": cannot open: " + (fs::exists(path, ec) ? "not a regular file" : "no such file"));
+    return Status::bad_input(
+        path + ": cannot open: " + (fs::exists(path, ec) ? "not a regular file" : "no such file"));
   }
   const bool binary = lower_extension(path) == ".glb";
   const std::uint64_t file_bytes = fs::file_size(path, ec);
@@ -1210,7 +1228,8 @@ Status load_gltf(const std::string& path, const LoadOptions& options, Mesh& out,
     // tinygltf (built without Draco) stops at a Draco file's accessors,
     // which have no buffer view; say what the file really is.
     if (mentions_draco(bytes)) {
-      return Status::bad_input(path + ": the file uses KHR_draco_mesh_compression: Draco-compressed meshes are not supported");
+      return Status::bad_input(
+          path + ": the file uses KHR_draco_mesh_compression: Draco-compressed meshes are not supported");
     }
     return Status::bad_input(path + ": glTF: " + first_line(error_text));
   }

@@ -6,11 +6,10 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "load/parsers.hpp"
 #include "load/tinygltf.hpp"
@@ -58,26 +57,33 @@ Status encode_gltf(const Mesh& mesh, const std::string& bin_uri, std::string& by
   const std::size_t vertex_count = mesh.vertex_count();
   const int position_view =
       add_view(model, mesh.positions.data(), vertex_count * sizeof(glm::vec3), TINYGLTF_TARGET_ARRAY_BUFFER);
-  const int position = add_accessor(model, position_view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, vertex_count);
+  const int position =
+      add_accessor(model, position_view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, vertex_count);
   // The specification requires POSITION's bounds.
   const Bounds bounds = compute_bounds(mesh);
   model.accessors[static_cast<std::size_t>(position)].minValues = {bounds.min.x, bounds.min.y, bounds.min.z};
   model.accessors[static_cast<std::size_t>(position)].maxValues = {bounds.max.x, bounds.max.y, bounds.max.z};
   std::map<std::string, int> attributes{{"POSITION", position}};
   if (mesh.has_normals()) {
-    const int view = add_view(model, mesh.normals.data(), vertex_count * sizeof(glm::vec3), TINYGLTF_TARGET_ARRAY_BUFFER);
-    attributes["NORMAL"] = add_accessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, vertex_count);
+    const int view =
+        add_view(model, mesh.normals.data(), vertex_count * sizeof(glm::vec3), TINYGLTF_TARGET_ARRAY_BUFFER);
+    attributes["NORMAL"] =
+        add_accessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, vertex_count);
   }
   if (mesh.has_uvs()) {
     // Back to glTF's top-left UV origin (the loader's v' = 1 - v, undone).
     std::vector<glm::vec2> flipped(mesh.uvs);
     for (glm::vec2& uv : flipped) uv.y = 1.0f - uv.y;
-    const int view = add_view(model, flipped.data(), vertex_count * sizeof(glm::vec2), TINYGLTF_TARGET_ARRAY_BUFFER);
-    attributes["TEXCOORD_0"] = add_accessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC2, vertex_count);
+    const int view =
+        add_view(model, flipped.data(), vertex_count * sizeof(glm::vec2), TINYGLTF_TARGET_ARRAY_BUFFER);
+    attributes["TEXCOORD_0"] =
+        add_accessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC2, vertex_count);
   }
   if (mesh.has_tangents()) {
-    const int view = add_view(model, mesh.tangents.data(), vertex_count * sizeof(glm::vec4), TINYGLTF_TARGET_ARRAY_BUFFER);
-    attributes["TANGENT"] = add_accessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC4, vertex_count);
+    const int view =
+        add_view(model, mesh.tangents.data(), vertex_count * sizeof(glm::vec4), TINYGLTF_TARGET_ARRAY_BUFFER);
+    attributes["TANGENT"] =
+        add_accessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC4, vertex_count);
   }
   std::vector<glm::vec4> linear_colors;  // must live until the buffer is encoded
   if (mesh.has_colors()) {
@@ -88,10 +94,12 @@ Status encode_gltf(const Mesh& mesh, const std::string& bin_uri, std::string& by
       return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
     };
     linear_colors.reserve(vertex_count);
-    for (const glm::vec4& c : mesh.colors) linear_colors.emplace_back(decode(c.r), decode(c.g), decode(c.b), c.a);
+    for (const glm::vec4& c : mesh.colors)
+      linear_colors.emplace_back(decode(c.r), decode(c.g), decode(c.b), c.a);
     const int view =
         add_view(model, linear_colors.data(), vertex_count * sizeof(glm::vec4), TINYGLTF_TARGET_ARRAY_BUFFER);
-    attributes["COLOR_0"] = add_accessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC4, vertex_count);
+    attributes["COLOR_0"] =
+        add_accessor(model, view, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC4, vertex_count);
   }
   const int index_view = add_view(model, mesh.indices.data(), mesh.indices.size() * sizeof(std::uint32_t),
                                   TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
@@ -164,7 +172,8 @@ Status encode_gltf(const Mesh& mesh, const std::string& bin_uri, std::string& by
   bytes = std::move(stream).str();
   if (!binary) {
     nlohmann::json doc = nlohmann::json::parse(bytes, nullptr, /*allow_exceptions=*/false);
-    if (doc.is_discarded() || !doc.contains("buffers")) return Status::internal("glTF writer: unexpected JSON");
+    if (doc.is_discarded() || !doc.contains("buffers"))
+      return Status::internal("glTF writer: unexpected JSON");
     doc["buffers"][0]["uri"] = bin_uri;
     doc["buffers"][0]["byteLength"] = buffer.size();
     bytes = doc.dump(2);

@@ -51,7 +51,9 @@ class Writer {
     static_assert(std::is_trivially_copyable_v<T>);
     return bytes(&v, sizeof v);
   }
-  bool text(const std::string& s) { return value(static_cast<std::uint64_t>(s.size())) && bytes(s.data(), s.size()); }
+  bool text(const std::string& s) {
+    return value(static_cast<std::uint64_t>(s.size())) && bytes(s.data(), s.size());
+  }
   template <typename T>
   bool array(const std::vector<T>& v) {
     return value(static_cast<std::uint64_t>(v.size())) && bytes(v.data(), v.size() * sizeof(T));
@@ -146,7 +148,7 @@ bool decode_child_reply(const std::string& data, Status& status, Mesh& mesh, Loa
   if (code != static_cast<int>(StatusCode::ok)) {
     status = code == static_cast<int>(StatusCode::bad_input) ? Status::bad_input(message)
              : code == static_cast<int>(StatusCode::io)      ? Status::io(message)
-                                                              : Status::internal(message);
+                                                             : Status::internal(message);
     return true;
   }
   if (!(r.array(mesh.positions) && r.array(mesh.normals) && r.array(mesh.uvs) && r.array(mesh.tangents) &&
@@ -168,7 +170,8 @@ Status load_in_child(const std::string& path, const char* library, const ChildLo
   int fds[2];
   if (::pipe(fds) != 0) return Status::internal(path + ": cannot create a pipe: " + std::strerror(errno));
   struct stat file_status {};
-  const std::uint64_t file_bytes = ::stat(path.c_str(), &file_status) == 0 ? static_cast<std::uint64_t>(file_status.st_size) : 0;
+  const std::uint64_t file_bytes =
+      ::stat(path.c_str(), &file_status) == 0 ? static_cast<std::uint64_t>(file_status.st_size) : 0;
   const std::uint64_t cpu_seconds = child_cpu_seconds(file_bytes);
   std::fflush(nullptr);
   const pid_t child = ::fork();
@@ -208,10 +211,12 @@ Status load_in_child(const std::string& path, const char* library, const ChildLo
   ::close(fds[1]);
   std::string data;
   char buffer[1 << 16];
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(kChildWallFactor * cpu_seconds);
+  const auto deadline =
+      std::chrono::steady_clock::now() + std::chrono::seconds(kChildWallFactor * cpu_seconds);
   bool timed_out = false;
   for (;;) {
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
     if (left.count() <= 0) {
       timed_out = true;
       ::kill(child, SIGKILL);
@@ -235,10 +240,11 @@ Status load_in_child(const std::string& path, const char* library, const ChildLo
     const std::string limit = timed_out ? std::to_string(kChildWallFactor * cpu_seconds) + " s"
                                         : std::to_string(cpu_seconds) + " s of CPU time";
     if (library_returned) {
-      return Status::internal(path + ": nmbake did not finish converting what " + library + " read within " + limit);
+      return Status::internal(path + ": nmbake did not finish converting what " + library + " read within " +
+                              limit);
     }
-    return Status::bad_input(path + ": " + library + " did not finish reading the file within " + limit + " (" +
-                             std::to_string(kChildCpuSeconds) + " s + 1 s per " +
+    return Status::bad_input(path + ": " + library + " did not finish reading the file within " + limit +
+                             " (" + std::to_string(kChildCpuSeconds) + " s + 1 s per " +
                              std::to_string(kChildBytesPerCpuSecond >> 20) + " MiB of file): a broken file");
   }
   Status status;
@@ -252,9 +258,10 @@ Status load_in_child(const std::string& path, const char* library, const ChildLo
     }
     return status;
   }
-  const std::string how = WIFSIGNALED(wstatus) ? "crashed (signal " + std::to_string(WTERMSIG(wstatus)) + ", " +
-                                                     strsignal(WTERMSIG(wstatus)) + ")"
-                                               : "stopped (exit " + std::to_string(WEXITSTATUS(wstatus)) + ")";
+  const std::string how =
+      WIFSIGNALED(wstatus)
+          ? "crashed (signal " + std::to_string(WTERMSIG(wstatus)) + ", " + strsignal(WTERMSIG(wstatus)) + ")"
+          : "stopped (exit " + std::to_string(WEXITSTATUS(wstatus)) + ")";
   if (!library_returned) {
     return Status::bad_input(path + ": " + library + " " + how +
                              " reading the file: a broken file (the library runs in a process of its own)");

@@ -2,24 +2,22 @@
 // reusable buffer, then drops unreferenced vertices and validates the mesh.
 #include "nmbake/load.hpp"
 
-#include <algorithm>
-#include <atomic>
-#include <cctype>
-#include <chrono>
-#include <charconv>
-#include <cmath>
-#include <cerrno>
-#include <cstring>
-
 #include <fcntl.h>
 #include <sys/stat.h>
-#include <unistd.h>
-
-#include <functional>
-
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cctype>
+#include <cerrno>
+#include <charconv>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <functional>
 
 #include "load/parsers.hpp"
 
@@ -40,7 +38,8 @@ FileReader::~FileReader() {
 Status FileReader::open(const std::string& path) {
   path_ = path;
   // open(2) would see the path cut at the NUL: another file.
-  if (path.find('\0') != std::string::npos) return Status::bad_input(path + ": cannot open: the path holds a NUL byte");
+  if (path.find('\0') != std::string::npos)
+    return Status::bad_input(path + ": cannot open: the path holds a NUL byte");
   fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd_ < 0) return Status::bad_input(path + ": cannot open: " + std::strerror(errno));
   struct stat info {};
@@ -51,7 +50,8 @@ Status FileReader::open(const std::string& path) {
   (void)::posix_fadvise(fd_, 0, 0, POSIX_FADV_SEQUENTIAL);
 #endif
   // A small file gets a small buffer: most tests and low meshes are tiny.
-  capacity_ = static_cast<std::size_t>(std::clamp<std::uint64_t>(file_size_ + 1, kMinBufferBytes, kBufferBytes));
+  capacity_ =
+      static_cast<std::size_t>(std::clamp<std::uint64_t>(file_size_ + 1, kMinBufferBytes, kBufferBytes));
   buffer_ = std::make_unique_for_overwrite<char[]>(capacity_);
   data_ = buffer_.get();
   return Status::ok();
@@ -112,14 +112,16 @@ bool FileReader::next_line_slow(std::string_view& line) {
     const std::size_t scanned = end_ - pos_;
     if (eof_) break;
     if (scanned > kMaxLineBytes) {
-      read_status_ = Status::bad_input(path_ + ":" + std::to_string(line_number_ + 1) + ": line longer than " +
-                                       std::to_string(kMaxLineBytes >> 20) + " MiB (no line end): not a mesh file");
+      read_status_ =
+          Status::bad_input(path_ + ":" + std::to_string(line_number_ + 1) + ": line longer than " +
+                            std::to_string(kMaxLineBytes >> 20) + " MiB (no line end): not a mesh file");
       eof_ = true;
       pos_ = end_;
       return false;
     }
     fill(scanned + 1);
-    const char* newline = static_cast<const char*>(std::memchr(data_ + pos_ + scanned, '\n', end_ - pos_ - scanned));
+    const char* newline =
+        static_cast<const char*>(std::memchr(data_ + pos_ + scanned, '\n', end_ - pos_ - scanned));
     if (newline != nullptr) return next_line(line);
   }
   if (pos_ == end_) return false;
@@ -239,12 +241,13 @@ void drop_unreferenced_vertices(Mesh& mesh) {
   // Marked and counted on all cores: a loaded mesh nearly always uses every
   // vertex, and then this is all there is to do. Racing stores all write 1.
   std::vector<std::uint8_t> used(vertex_count, 0);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.indices.size(), 65536),
-                    [&](const tbb::blocked_range<std::size_t>& range) {
-                      for (std::size_t i = range.begin(); i != range.end(); ++i) {
-                        std::atomic_ref<std::uint8_t>(used[mesh.indices[i]]).store(1, std::memory_order_relaxed);
-                      }
-                    });
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, mesh.indices.size(), 65536),
+      [&](const tbb::blocked_range<std::size_t>& range) {
+        for (std::size_t i = range.begin(); i != range.end(); ++i) {
+          std::atomic_ref<std::uint8_t>(used[mesh.indices[i]]).store(1, std::memory_order_relaxed);
+        }
+      });
   const std::size_t used_count = tbb::parallel_reduce(
       tbb::blocked_range<std::size_t>(0, vertex_count, 65536), std::size_t{0},
       [&](const tbb::blocked_range<std::size_t>& range, std::size_t sum) {

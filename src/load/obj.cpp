@@ -32,18 +32,18 @@
 // range, a layout change) sends the rest of that slice through the serial
 // line parser from the state just before that line, so messages and line
 // numbers are the serial ones.
-#include <algorithm>
-#include <cstring>
-#include <string>
-#include <string_view>
-#include <vector>
-
-#include <glm/vec2.hpp>
-#include <glm/vec3.hpp>
-#include <glm/vec4.hpp>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <cstring>
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
+#include <string>
+#include <string_view>
+#include <vector>
 
 #include "base/huge_pages.hpp"
 #include "load/parsers.hpp"
@@ -74,7 +74,7 @@ struct RawCorner {
 enum class NameKind : std::uint8_t { object, group, material };
 struct NameStatement {
   NameKind kind = NameKind::object;
-  std::string name;     // the rest of the line, blanks trimmed
+  std::string name;                // the rest of the line, blanks trimmed
   std::uint64_t faces_before = 0;  // slice records: faces of the slice before it
 };
 
@@ -128,7 +128,7 @@ struct RawFace {
   std::uint64_t v_before = 0;
   std::uint64_t vt_before = 0;
   std::uint64_t vn_before = 0;
-  std::uint64_t line = 0;        // 0-based within the slice
+  std::uint64_t line = 0;  // 0-based within the slice
   const char* line_begin = nullptr;
 };
 
@@ -140,10 +140,10 @@ struct ObjSlice {
   std::vector<glm::vec3> positions;
   std::vector<glm::vec4> colors;       // one per position, only with keep_colors (white: none)
   std::size_t first_color = kNoColor;  // index in positions of the first with a colour
-  std::vector<glm::vec2> texcoords;  // only when kept
-  std::vector<glm::vec3> normals;    // only when kept
-  std::uint64_t texcoord_count = 0;  // vt statements, kept or not
-  std::uint64_t normal_count = 0;    // vn statements, kept or not
+  std::vector<glm::vec2> texcoords;    // only when kept
+  std::vector<glm::vec3> normals;      // only when kept
+  std::uint64_t texcoord_count = 0;    // vt statements, kept or not
+  std::uint64_t normal_count = 0;      // vn statements, kept or not
   std::vector<RawFace> faces;
   std::vector<RawCorner> corners;
   std::vector<NameStatement> names;
@@ -318,13 +318,15 @@ class ObjParser {
     for (int i = 0; i < count; ++i) {
       p = skip_blanks(p, end);
       if (p == end) {
-        if (i < required) return error("expected " + std::to_string(required) + " numbers, found " + std::to_string(i));
+        if (i < required)
+          return error("expected " + std::to_string(required) + " numbers, found " + std::to_string(i));
         return Status::ok();
       }
       const char* token_end = skip_token(p, end);
       const NumberError number_error = parse_float(p, token_end, values[i]);
       if (number_error != NumberError::none) {
-        return error(number_error_text(number_error, std::string_view(p, static_cast<std::size_t>(token_end - p))));
+        return error(
+            number_error_text(number_error, std::string_view(p, static_cast<std::size_t>(token_end - p))));
       }
       p = token_end;
     }
@@ -371,13 +373,14 @@ class ObjParser {
     std::int64_t value = 0;
     const NumberError number_error = parse_int(first, last, value);
     if (number_error != NumberError::none) {
-      return error(std::string("bad ") + what + " index '" + token_text(std::string_view(first, static_cast<std::size_t>(last - first))) + "'");
+      return error(std::string("bad ") + what + " index '" +
+                   token_text(std::string_view(first, static_cast<std::size_t>(last - first))) + "'");
     }
     if (value == 0) return error(std::string(what) + " index 0 (OBJ indices start at 1)");
     const std::int64_t resolved = value > 0 ? value - 1 : static_cast<std::int64_t>(count) + value;
     if (resolved < 0 || static_cast<std::uint64_t>(resolved) >= count) {
-      return error(std::string(what) + " index " + std::to_string(value) + " out of range (" + std::to_string(count) +
-                   " defined so far)");
+      return error(std::string(what) + " index " + std::to_string(value) + " out of range (" +
+                   std::to_string(count) + " defined so far)");
     }
     index = static_cast<std::uint32_t>(resolved);
     return Status::ok();
@@ -401,7 +404,8 @@ class ObjParser {
         }
       }
       if (vt_last < token_end) {
-        if (vt_last + 1 == token_end) return error("missing normal index in corner '" + token_text(token) + "'");
+        if (vt_last + 1 == token_end)
+          return error("missing normal index in corner '" + token_text(token) + "'");
         has_vn = true;
         if (options_.keep_normals) {
           NMBAKE_TRY(resolve_index(vt_last + 1, token_end, normal_count_, "normal", corner.vn));
@@ -422,8 +426,8 @@ class ObjParser {
       return error("corner '" + token_text(token) + (kept_vt ? "' has" : "' has no") +
                    " texture coordinate index but earlier corners " + (kept_vt ? "do not" : "do"));
     } else if (kept_vn != has_vn_) {
-      return error("corner '" + token_text(token) + (kept_vn ? "' has" : "' has no") + " normal index but earlier corners " +
-                   (kept_vn ? "do not" : "do"));
+      return error("corner '" + token_text(token) + (kept_vn ? "' has" : "' has no") +
+                   " normal index but earlier corners " + (kept_vn ? "do not" : "do"));
     }
     return Status::ok();
   }
@@ -475,7 +479,8 @@ class ObjParser {
     const std::size_t group_bytes = block_bytes(options_);
     // A few slices per core balance lines of uneven cost (faces against
     // vertices); their count does not change the result.
-    const auto slice_count = static_cast<std::size_t>(2 * std::max(1, tbb::this_task_arena::max_concurrency()));
+    const auto slice_count =
+        static_cast<std::size_t>(2 * std::max(1, tbb::this_task_arena::max_concurrency()));
     slices_.resize(slice_count);
     for (;;) {
       const char* bytes = nullptr;
@@ -501,7 +506,8 @@ class ObjParser {
         } else {
           const char* target = bytes + (static_cast<std::size_t>(end - bytes) * (s + 1)) / slice_count;
           if (target < begin) target = begin;
-          const auto* newline = static_cast<const char*>(std::memchr(target, '\n', static_cast<std::size_t>(end - target)));
+          const auto* newline =
+              static_cast<const char*>(std::memchr(target, '\n', static_cast<std::size_t>(end - target)));
           slice.end = newline == nullptr ? end : newline + 1;
         }
         begin = slice.end;
@@ -527,7 +533,8 @@ class ObjParser {
     const char* p = slice.begin;
     std::uint64_t line = 0;
     while (p < slice.end) {
-      const auto* newline = static_cast<const char*>(std::memchr(p, '\n', static_cast<std::size_t>(slice.end - p)));
+      const auto* newline =
+          static_cast<const char*>(std::memchr(p, '\n', static_cast<std::size_t>(slice.end - p)));
       if (!parse_line_records(p, line_content_end(p, newline), line, slice)) {
         slice.stop = p;
         slice.stop_line = line;
@@ -542,7 +549,8 @@ class ObjParser {
 
   // parse_line as records; false where the serial parser might report an
   // error (nothing of the line is recorded then).
-  bool parse_line_records(const char* line_begin, const char* line_end, std::uint64_t line, ObjSlice& slice) const {
+  bool parse_line_records(const char* line_begin, const char* line_end, std::uint64_t line,
+                          ObjSlice& slice) const {
     std::string_view keyword;
     const char* end = nullptr;
     if (!split_statement(line_begin, line_end, keyword, end)) return true;
@@ -665,7 +673,8 @@ class ObjParser {
       for (std::uint32_t c = 0; c < face.corner_count && resolved; ++c) {
         const RawCorner& raw = slice.corners[face.first_corner + c];
         Corner corner;
-        resolved = resolve_raw(raw.v, v_count, corner.v) && (raw.vt == 0 || resolve_raw(raw.vt, vt_count, corner.vt)) &&
+        resolved = resolve_raw(raw.v, v_count, corner.v) &&
+                   (raw.vt == 0 || resolve_raw(raw.vt, vt_count, corner.vt)) &&
                    (raw.vn == 0 || resolve_raw(raw.vn, vn_count, corner.vn));
         const bool kept_vt = raw.vt != 0;
         const bool kept_vn = raw.vn != 0;
@@ -698,7 +707,8 @@ class ObjParser {
       NMBAKE_TRY(add_face());
     }
     add_names_before(slice.faces.size());
-    if (slice.stop != nullptr) return parse_lines_serially(slice.stop, slice.end, first_line + slice.stop_line);
+    if (slice.stop != nullptr)
+      return parse_lines_serially(slice.stop, slice.end, first_line + slice.stop_line);
     return Status::ok();
   }
 
@@ -801,9 +811,9 @@ class ObjParser {
   std::vector<std::uint32_t> vertex_vn_;
 
   std::vector<NameStatement> names_;  // o / g / usemtl statements, faces_before = triangles before
-  std::vector<Corner> corners_;  // scratch of the current face
-  std::uint64_t line_number_ = 0;  // of the line being parsed, for messages
-  std::vector<ObjSlice> slices_;    // of the parallel path
+  std::vector<Corner> corners_;       // scratch of the current face
+  std::uint64_t line_number_ = 0;     // of the line being parsed, for messages
+  std::vector<ObjSlice> slices_;      // of the parallel path
 };
 
 }  // namespace

@@ -12,18 +12,18 @@
 // records); the first record these cannot take (a polygon, a bad value, the
 // end of the file) goes through the record-by-record reader, which also
 // names the byte of any error.
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
 #include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
 #include <string>
 #include <string_view>
 #include <vector>
-
-#include <glm/vec2.hpp>
-#include <glm/vec3.hpp>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_reduce.h>
 
 #include "base/huge_pages.hpp"
 #include "load/parsers.hpp"
@@ -44,13 +44,20 @@ enum class PlyType : std::uint8_t { int8, uint8, int16, uint16, int32, uint32, f
 // The largest value of an integer type (colour channels are fractions of it).
 double type_max(PlyType type) {
   switch (type) {
-    case PlyType::int8: return 127.0;
-    case PlyType::uint8: return 255.0;
-    case PlyType::int16: return 32767.0;
-    case PlyType::uint16: return 65535.0;
-    case PlyType::int32: return 2147483647.0;
-    case PlyType::uint32: return 4294967295.0;
-    default: return 1.0;
+    case PlyType::int8:
+      return 127.0;
+    case PlyType::uint8:
+      return 255.0;
+    case PlyType::int16:
+      return 32767.0;
+    case PlyType::uint16:
+      return 65535.0;
+    case PlyType::int32:
+      return 2147483647.0;
+    case PlyType::uint32:
+      return 4294967295.0;
+    default:
+      return 1.0;
   }
 }
 
@@ -60,11 +67,11 @@ bool parse_type(std::string_view name, PlyType& type) {
     PlyType type;
   };
   static constexpr Entry kTypes[] = {
-      {"char", PlyType::int8},     {"int8", PlyType::int8},       {"uchar", PlyType::uint8},
-      {"uint8", PlyType::uint8},   {"short", PlyType::int16},     {"int16", PlyType::int16},
-      {"ushort", PlyType::uint16}, {"uint16", PlyType::uint16},   {"int", PlyType::int32},
-      {"int32", PlyType::int32},   {"uint", PlyType::uint32},     {"uint32", PlyType::uint32},
-      {"float", PlyType::float32}, {"float32", PlyType::float32}, {"double", PlyType::float64},
+      {"char", PlyType::int8},       {"int8", PlyType::int8},       {"uchar", PlyType::uint8},
+      {"uint8", PlyType::uint8},     {"short", PlyType::int16},     {"int16", PlyType::int16},
+      {"ushort", PlyType::uint16},   {"uint16", PlyType::uint16},   {"int", PlyType::int32},
+      {"int32", PlyType::int32},     {"uint", PlyType::uint32},     {"uint32", PlyType::uint32},
+      {"float", PlyType::float32},   {"float32", PlyType::float32}, {"double", PlyType::float64},
       {"float64", PlyType::float64},
   };
   for (const Entry& entry : kTypes) {
@@ -110,14 +117,22 @@ T load_raw(const char* bytes, bool swap) {
 
 double load_as_double(const char* bytes, PlyType type, bool swap) {
   switch (type) {
-    case PlyType::int8: return load_raw<std::int8_t>(bytes, swap);
-    case PlyType::uint8: return load_raw<std::uint8_t>(bytes, swap);
-    case PlyType::int16: return load_raw<std::int16_t>(bytes, swap);
-    case PlyType::uint16: return load_raw<std::uint16_t>(bytes, swap);
-    case PlyType::int32: return load_raw<std::int32_t>(bytes, swap);
-    case PlyType::uint32: return load_raw<std::uint32_t>(bytes, swap);
-    case PlyType::float32: return load_raw<float>(bytes, swap);
-    case PlyType::float64: return load_raw<double>(bytes, swap);
+    case PlyType::int8:
+      return load_raw<std::int8_t>(bytes, swap);
+    case PlyType::uint8:
+      return load_raw<std::uint8_t>(bytes, swap);
+    case PlyType::int16:
+      return load_raw<std::int16_t>(bytes, swap);
+    case PlyType::uint16:
+      return load_raw<std::uint16_t>(bytes, swap);
+    case PlyType::int32:
+      return load_raw<std::int32_t>(bytes, swap);
+    case PlyType::uint32:
+      return load_raw<std::uint32_t>(bytes, swap);
+    case PlyType::float32:
+      return load_raw<float>(bytes, swap);
+    case PlyType::float64:
+      return load_raw<double>(bytes, swap);
   }
   return 0.0;
 }
@@ -125,12 +140,18 @@ double load_as_double(const char* bytes, PlyType type, bool swap) {
 // Only for integer types.
 std::int64_t load_as_int(const char* bytes, PlyType type, bool swap) {
   switch (type) {
-    case PlyType::int8: return load_raw<std::int8_t>(bytes, swap);
-    case PlyType::uint8: return load_raw<std::uint8_t>(bytes, swap);
-    case PlyType::int16: return load_raw<std::int16_t>(bytes, swap);
-    case PlyType::uint16: return load_raw<std::uint16_t>(bytes, swap);
-    case PlyType::int32: return load_raw<std::int32_t>(bytes, swap);
-    case PlyType::uint32: return load_raw<std::uint32_t>(bytes, swap);
+    case PlyType::int8:
+      return load_raw<std::int8_t>(bytes, swap);
+    case PlyType::uint8:
+      return load_raw<std::uint8_t>(bytes, swap);
+    case PlyType::int16:
+      return load_raw<std::int16_t>(bytes, swap);
+    case PlyType::uint16:
+      return load_raw<std::uint16_t>(bytes, swap);
+    case PlyType::int32:
+      return load_raw<std::int32_t>(bytes, swap);
+    case PlyType::uint32:
+      return load_raw<std::uint32_t>(bytes, swap);
     case PlyType::float32:
     case PlyType::float64:
       break;
@@ -196,7 +217,8 @@ class PlyParser {
     for (std::size_t e = 0; e < elements_.size(); ++e) {
       const PlyElement& element = elements_[e];
       if (static_cast<int>(e) == vertex_element_) {
-        NMBAKE_TRY(format_ == PlyFormat::ascii ? read_vertices_ascii(element) : read_vertices_binary(element));
+        NMBAKE_TRY(format_ == PlyFormat::ascii ? read_vertices_ascii(element)
+                                               : read_vertices_binary(element));
       } else if (static_cast<int>(e) == face_element_) {
         NMBAKE_TRY(format_ == PlyFormat::ascii ? read_faces_ascii(element) : read_faces_binary(element));
       } else {
@@ -215,7 +237,9 @@ class PlyParser {
   Status header_error(const std::string& reason) const {
     return text_error(path_, reader_.line_number(), reason);
   }
-  Status line_error(const std::string& reason) const { return text_error(path_, reader_.line_number(), reason); }
+  Status line_error(const std::string& reason) const {
+    return text_error(path_, reader_.line_number(), reason);
+  }
   Status byte_error(std::uint64_t offset, const std::string& reason) const {
     return binary_error(path_, offset, reason);
   }
@@ -234,7 +258,8 @@ class PlyParser {
       }
       split_words(line, words);
       if (first) {
-        if (words.size() != 1 || words[0] != "ply") return header_error("not a PLY file (first line is not 'ply')");
+        if (words.size() != 1 || words[0] != "ply")
+          return header_error("not a PLY file (first line is not 'ply')");
         first = false;
         continue;
       }
@@ -258,7 +283,8 @@ class PlyParser {
         element.name = std::string(words[1]);
         element.line = reader_.line_number();
         std::int64_t count = 0;
-        if (parse_int(words[2].data(), words[2].data() + words[2].size(), count) != NumberError::none || count < 0) {
+        if (parse_int(words[2].data(), words[2].data() + words[2].size(), count) != NumberError::none ||
+            count < 0) {
           return header_error("bad element count '" + token_text(words[2]) + "'");
         }
         element.count = static_cast<std::uint64_t>(count);
@@ -271,7 +297,8 @@ class PlyParser {
           if (!parse_type(words[2], property.count_type)) {
             return header_error("unknown property type '" + token_text(words[2]) + "'");
           }
-          if (!is_integer(property.count_type)) return header_error("list count type must be an integer type");
+          if (!is_integer(property.count_type))
+            return header_error("list count type must be an integer type");
           if (!parse_type(words[3], property.type)) {
             return header_error("unknown property type '" + token_text(words[3]) + "'");
           }
@@ -343,7 +370,8 @@ class PlyParser {
       return text_error(path_, vertex.line, "element 'vertex' lacks one of the properties x, y, z");
     }
     if (options_.keep_normals) {
-      const int present_count = int(vertex.find("nx") >= 0) + int(vertex.find("ny") >= 0) + int(vertex.find("nz") >= 0);
+      const int present_count =
+          int(vertex.find("nx") >= 0) + int(vertex.find("ny") >= 0) + int(vertex.find("nz") >= 0);
       if (present_count == 3) {
         assign("nx", kNx);
         assign("ny", kNy);
@@ -373,19 +401,23 @@ class PlyParser {
     }
     if (options_.keep_colors) {
       // red/green/blue (MeshLab, Blender, ZBrush) or r/g/b; alpha optional.
-      static constexpr std::string_view kColorNames[][4] = {{"red", "green", "blue", "alpha"},
-                                                           {"r", "g", "b", "a"},
-                                                           {"diffuse_red", "diffuse_green", "diffuse_blue", "diffuse_alpha"}};
+      static constexpr std::string_view kColorNames[][4] = {
+          {"red", "green", "blue", "alpha"},
+          {"r", "g", "b", "a"},
+          {"diffuse_red", "diffuse_green", "diffuse_blue", "diffuse_alpha"}};
       for (const auto& names : kColorNames) {
-        if (has_colors_ || vertex.find(names[0]) < 0 || vertex.find(names[1]) < 0 || vertex.find(names[2]) < 0) continue;
+        if (has_colors_ || vertex.find(names[0]) < 0 || vertex.find(names[1]) < 0 ||
+            vertex.find(names[2]) < 0)
+          continue;
         for (int c = 0; c < 4; ++c) {
           const int property = vertex.find(names[c]);
           if (property < 0) continue;  // no alpha: 1
           assign(names[c], kR + c);
           // Integer channels are fractions of their type's largest value.
           const PlyType type = vertex.properties[static_cast<std::size_t>(property)].type;
-          color_divisor_[c] = type == PlyType::float32 || type == PlyType::float64 ? 1.0f
-                                                                                   : static_cast<float>(type_max(type));
+          color_divisor_[c] = type == PlyType::float32 || type == PlyType::float64
+                                  ? 1.0f
+                                  : static_cast<float>(type_max(type));
           has_alpha_ = has_alpha_ || c == 3;
         }
         has_colors_ = true;
@@ -393,14 +425,16 @@ class PlyParser {
     }
     for (std::size_t i = 0; i < vertex.properties.size(); ++i) {
       if (slot_of_property_[i] >= 0 && vertex.properties[i].is_list) {
-        return text_error(path_, vertex.line, "vertex property '" + token_text(vertex.properties[i].name) + "' is a list");
+        return text_error(path_, vertex.line,
+                          "vertex property '" + token_text(vertex.properties[i].name) + "' is a list");
       }
     }
     return Status::ok();
   }
 
   Status plan_face_layout() {
-    if (face_element_ < 0) return Status::bad_input(path_ + ": no triangles (no element 'face' in the header)");
+    if (face_element_ < 0)
+      return Status::bad_input(path_ + ": no triangles (no element 'face' in the header)");
     const PlyElement& face = elements_[static_cast<std::size_t>(face_element_)];
     index_property_ = face.find("vertex_indices");
     if (index_property_ < 0) index_property_ = face.find("vertex_index");
@@ -409,7 +443,8 @@ class PlyParser {
     }
     const PlyProperty& property = face.properties[static_cast<std::size_t>(index_property_)];
     if (!property.is_list || !is_integer(property.type)) {
-      return text_error(path_, face.line, "face property '" + token_text(property.name) + "' must be a list of integers");
+      return text_error(path_, face.line,
+                        "face property '" + token_text(property.name) + "' must be a list of integers");
     }
     return Status::ok();
   }
@@ -438,8 +473,9 @@ class PlyParser {
     if (has_normals_) out_.normals[index] = glm::vec3(values[kNx], values[kNy], values[kNz]);
     if (has_uvs_) out_.uvs[index] = glm::vec2(values[kU], values[kV]);
     if (has_colors_) {
-      out_.colors[index] = glm::vec4(values[kR] / color_divisor_[0], values[kG] / color_divisor_[1],
-                                     values[kB] / color_divisor_[2], has_alpha_ ? values[kA] / color_divisor_[3] : 1.0f);
+      out_.colors[index] =
+          glm::vec4(values[kR] / color_divisor_[0], values[kG] / color_divisor_[1],
+                    values[kB] / color_divisor_[2], has_alpha_ ? values[kA] / color_divisor_[3] : 1.0f);
     }
   }
 
@@ -465,13 +501,13 @@ class PlyParser {
   // ---------------------------------------------------------------- binary
 
   Status truncated(std::uint64_t offset, const PlyElement& element, std::uint64_t entry) const {
-    return byte_error(offset, "file ends inside " + token_text(element.name) + " " + std::to_string(entry) + " of " +
-                                  std::to_string(element.count));
+    return byte_error(offset, "file ends inside " + token_text(element.name) + " " + std::to_string(entry) +
+                                  " of " + std::to_string(element.count));
   }
 
   Status non_finite(std::uint64_t offset, std::uint64_t vertex, double value) const {
-    return byte_error(offset, "vertex " + std::to_string(vertex) + ": non-finite value " + std::to_string(value) +
-                                  " (NaN, Inf or beyond float range)");
+    return byte_error(offset, "vertex " + std::to_string(vertex) + ": non-finite value " +
+                                  std::to_string(value) + " (NaN, Inf or beyond float range)");
   }
 
   struct WantedValue {
@@ -505,7 +541,8 @@ class PlyParser {
       }
       std::vector<WantedValue> wanted;
       for (std::size_t i = 0; i < element.properties.size(); ++i) {
-        if (slot_of_property_[i] >= 0) wanted.push_back({offsets[i], element.properties[i].type, slot_of_property_[i]});
+        if (slot_of_property_[i] >= 0)
+          wanted.push_back({offsets[i], element.properties[i].type, slot_of_property_[i]});
       }
       std::uint64_t v = options_.serial ? 0 : read_vertex_blocks(element, stride, wanted);
       // The rest (nothing, or the record with an error, or a truncated end)
@@ -553,7 +590,8 @@ class PlyParser {
     const std::size_t records_per_block = std::max<std::size_t>(1, block_bytes(options_) / stride);
     std::uint64_t v = 0;
     while (v < element.count) {
-      const auto want = static_cast<std::size_t>(std::min<std::uint64_t>(records_per_block, element.count - v));
+      const auto want =
+          static_cast<std::size_t>(std::min<std::uint64_t>(records_per_block, element.count - v));
       const char* bytes = nullptr;
       const std::size_t record_count = reader_.peek(want * stride, bytes) / stride;
       if (record_count == 0) break;
@@ -585,7 +623,9 @@ class PlyParser {
     const char* bytes = reader_.take(type_size(property.count_type));
     if (bytes == nullptr) return truncated(offset, element, entry);
     const std::int64_t value = load_as_int(bytes, property.count_type, swap_);
-    if (value < 0) return byte_error(offset, token_text(element.name) + " " + std::to_string(entry) + ": negative list count");
+    if (value < 0)
+      return byte_error(offset,
+                        token_text(element.name) + " " + std::to_string(entry) + ": negative list count");
     count = static_cast<std::uint64_t>(value);
     const std::uint64_t remaining = reader_.file_size() - std::min(reader_.file_size(), reader_.offset());
     if (count * type_size(property.type) > remaining) return truncated(offset, element, entry);
@@ -633,7 +673,8 @@ class PlyParser {
     }
     std::uint64_t f = first;
     while (f < element.count) {
-      const auto want = static_cast<std::size_t>(std::min<std::uint64_t>(records_per_block, element.count - f));
+      const auto want =
+          static_cast<std::size_t>(std::min<std::uint64_t>(records_per_block, element.count - f));
       const char* bytes = nullptr;
       const std::size_t record_count = reader_.peek(want * kStride, bytes) / kStride;
       if (record_count == 0) break;
@@ -673,7 +714,8 @@ class PlyParser {
   Status read_face_binary(const PlyElement& element, std::uint64_t f) {
     const PlyProperty& index_property = element.properties[static_cast<std::size_t>(index_property_)];
     const std::size_t index_size = type_size(index_property.type);
-    if (element.properties.size() == 1 && type_size(index_property.count_type) == 1 && index_size == 4 && !swap_) {
+    if (element.properties.size() == 1 && type_size(index_property.count_type) == 1 && index_size == 4 &&
+        !swap_) {
       // As the record-by-record reader always did for this layout: a
       // truncated triangle is reported at its start, a truncated polygon at
       // its first missing index.
@@ -685,7 +727,8 @@ class PlyParser {
       }
       const std::int64_t count = load_as_int(count_byte, index_property.count_type, swap_);
       if (count < 0) return byte_error(face_offset, "face " + std::to_string(f) + ": negative list count");
-      NMBAKE_TRY(read_indices_binary(static_cast<std::uint64_t>(count), index_property, index_size, element, f));
+      NMBAKE_TRY(
+          read_indices_binary(static_cast<std::uint64_t>(count), index_property, index_size, element, f));
       emit_face();
       return Status::ok();
     }
@@ -798,7 +841,8 @@ class PlyParser {
     if (!next_token(token)) return ascii_truncated(element, entry);
     std::int64_t value = 0;
     NMBAKE_TRY(ascii_int(token, value));
-    if (value < 0) return line_error(token_text(element.name) + " " + std::to_string(entry) + ": negative list count");
+    if (value < 0)
+      return line_error(token_text(element.name) + " " + std::to_string(entry) + ": negative list count");
     count = static_cast<std::uint64_t>(value);
     return Status::ok();
   }
@@ -860,7 +904,8 @@ class PlyParser {
 
   Status skip_element_ascii(const PlyElement& element) {
     for (std::uint64_t entry = 0; entry < element.count; ++entry) {
-      for (const PlyProperty& property : element.properties) NMBAKE_TRY(skip_property_ascii(property, element, entry));
+      for (const PlyProperty& property : element.properties)
+        NMBAKE_TRY(skip_property_ascii(property, element, entry));
     }
     return Status::ok();
   }

@@ -4,6 +4,9 @@
 // the shortest decimal form that round-trips (std::to_chars), PLY raw float32.
 // The file appears atomically: written to a temporary file in the same folder,
 // then renamed over the target.
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <atomic>
 #include <bit>
 #include <cerrno>
@@ -12,12 +15,9 @@
 #include <filesystem>
 #include <string>
 
-#include <fcntl.h>
-#include <unistd.h>
-
 #include "load/parsers.hpp"
-#include "nmbake/load.hpp"
 #include "nmbake/cleanup.hpp"
+#include "nmbake/load.hpp"
 
 namespace nmbake {
 namespace {
@@ -163,7 +163,8 @@ void write_ply(Writer& out, const Mesh& mesh) {
   out.text("\nproperty float x\nproperty float y\nproperty float z\n");
   if (mesh.has_normals()) out.text("property float nx\nproperty float ny\nproperty float nz\n");
   if (mesh.has_uvs()) out.text("property float u\nproperty float v\n");
-  if (mesh.has_colors()) out.text("property float red\nproperty float green\nproperty float blue\nproperty float alpha\n");
+  if (mesh.has_colors())
+    out.text("property float red\nproperty float green\nproperty float blue\nproperty float alpha\n");
   out.text("element face ");
   out.integer(mesh.triangle_count());
   out.text("\nproperty list uchar uint vertex_indices\nend_header\n");
@@ -221,7 +222,8 @@ Status save_mesh(const std::string& path, const Mesh& mesh) {
   const std::string extension = load_detail::lower_extension(path);
   const bool gltf = extension == ".gltf" || extension == ".glb";
   if (extension != ".obj" && extension != ".ply" && !gltf) {
-    return Status::bad_input(path + ": unknown mesh format '" + extension + "' (expected .obj, .ply, .gltf or .glb)");
+    return Status::bad_input(path + ": unknown mesh format '" + extension +
+                             "' (expected .obj, .ply, .gltf or .glb)");
   }
   NMBAKE_TRY(validate_mesh(mesh, path));
   NMBAKE_TRY(check_output_target(path));

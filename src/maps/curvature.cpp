@@ -21,8 +21,8 @@
 #include <glm/geometric.hpp>
 
 #include "base/huge_pages.hpp"
-#include "nmbake/maps.hpp"
 #include "base/simd4.hpp"
+#include "nmbake/maps.hpp"
 
 namespace nmbake {
 

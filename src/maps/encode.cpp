@@ -13,13 +13,13 @@
 // (general_lanes(), the same operations in the same order).
 #include "nmbake/encode.hpp"
 
-#include <algorithm>
-#include <cmath>
-#include <memory>
-
-#include <glm/geometric.hpp>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <glm/geometric.hpp>
+#include <memory>
 
 #include "base/simd4.hpp"
 
@@ -69,13 +69,15 @@ namespace {
 // BxN = sign CxN and TxB = sign TxC (NxT is C itself). The regularity test
 // |det| > 1e-6 |T||B||N| is done on squares, without square roots.
 // False when the frame is singular (or not finite): `t` is then unset.
-inline bool inverse_tangent(const glm::vec3& n, const glm::vec3& T, const glm::vec3& N, float sign, glm::vec3& t) {
+inline bool inverse_tangent(const glm::vec3& n, const glm::vec3& T, const glm::vec3& N, float sign,
+                            glm::vec3& t) {
   const glm::vec3 c = glm::cross(N, T);
   const glm::vec3 bn = sign * glm::cross(c, N);
   const glm::vec3 tb = sign * glm::cross(T, c);
   const float det = glm::dot(T, bn);
   const float scale2 = glm::dot(T, T) * glm::dot(c, c) * glm::dot(N, N);
-  if (!(det * det > 1e-12f * scale2) || !(scale2 > 0.0f) || !std::isfinite(det) || !std::isfinite(scale2)) return false;
+  if (!(det * det > 1e-12f * scale2) || !(scale2 > 0.0f) || !std::isfinite(det) || !std::isfinite(scale2))
+    return false;
   t = glm::vec3(glm::dot(n, bn), glm::dot(n, c), glm::dot(n, tb));
   if (det < 0.0f) t = -t;
   return true;
@@ -96,12 +98,14 @@ inline bool decode_columns(bool unit_frame, glm::vec3& T, glm::vec3& B, glm::vec
 // The exact inverse for any frame: Cramer's rule, M^-1 n = (n.(BxN),
 // n.(NxT), n.(TxB)) / det(M), det(M) = T.(BxN), unnormalised (only the sign
 // of det matters). Regular when |det| > 1e-6 |T||B||N| (on squares).
-inline bool inverse_general(const glm::vec3& n, glm::vec3 T, glm::vec3 B, glm::vec3 N, bool unit_frame, glm::vec3& t) {
+inline bool inverse_general(const glm::vec3& n, glm::vec3 T, glm::vec3 B, glm::vec3 N, bool unit_frame,
+                            glm::vec3& t) {
   if (!decode_columns(unit_frame, T, B, N)) return false;
   const glm::vec3 r0 = glm::cross(B, N), r1 = glm::cross(N, T), r2 = glm::cross(T, B);
   const float det = glm::dot(T, r0);
   const float scale2 = glm::dot(T, T) * glm::dot(B, B) * glm::dot(N, N);
-  if (!(det * det > 1e-12f * scale2) || !(scale2 > 0.0f) || !std::isfinite(det) || !std::isfinite(scale2)) return false;
+  if (!(det * det > 1e-12f * scale2) || !(scale2 > 0.0f) || !std::isfinite(det) || !std::isfinite(scale2))
+    return false;
   t = glm::vec3(glm::dot(n, r0), glm::dot(n, r1), glm::dot(n, r2));
   if (det < 0.0f) t = -t;
   return true;
@@ -109,8 +113,8 @@ inline bool inverse_general(const glm::vec3& n, glm::vec3 T, glm::vec3 B, glm::v
 
 }  // namespace
 
-bool world_to_tangent(const glm::vec3& n, const glm::vec3& T, const glm::vec3& B, const glm::vec3& N, float sign,
-                      bool unit_frame, glm::vec3& out) {
+bool world_to_tangent(const glm::vec3& n, const glm::vec3& T, const glm::vec3& B, const glm::vec3& N,
+                      float sign, bool unit_frame, glm::vec3& out) {
   glm::vec3 t(0.0f);
   bool regular = inverse_general(n, T, B, N, unit_frame, t);
   if (!regular) {
@@ -180,7 +184,9 @@ struct Counts {
 };
 
 // Decodes with a frame of their own: the general inverse, per sample.
-bool own_frame(const NormalDecode& decode) { return decode.bitangent == Bitangent::vertex || decode.unit_frame; }
+bool own_frame(const NormalDecode& decode) {
+  return decode.bitangent == Bitangent::vertex || decode.unit_frame;
+}
 
 // What one sample adds to its texel's sum: the hit normal in the chosen
 // space (tangent: normalised per sample, so every sample weighs the same;
@@ -212,7 +218,8 @@ bool sample_contribution(const LowSurface& surface, const TexelSamples& samples,
   bool have = false;
   if (smooth) {
     const glm::vec2 hb = hits.bary[s];
-    n_high = high.normals[h[0]] * (1.0f - hb.x - hb.y) + high.normals[h[1]] * hb.x + high.normals[h[2]] * hb.y;
+    n_high =
+        high.normals[h[0]] * (1.0f - hb.x - hb.y) + high.normals[h[1]] * hb.x + high.normals[h[2]] * hb.y;
     const float l2 = glm::dot(n_high, n_high);
     if (l2 > 1e-24f && std::isfinite(l2)) {
       // Tangent space needs only its direction (each sample's t is
@@ -224,7 +231,8 @@ bool sample_contribution(const LowSurface& surface, const TexelSamples& samples,
     }
   }
   if (!have) {
-    n_high = glm::cross(high.positions[h[1]] - high.positions[h[0]], high.positions[h[2]] - high.positions[h[0]]);
+    n_high =
+        glm::cross(high.positions[h[1]] - high.positions[h[0]], high.positions[h[2]] - high.positions[h[0]]);
     const float l = glm::length(n_high);
     if (l > 0.0f && std::isfinite(l)) {
       n_high /= l;
@@ -242,8 +250,9 @@ bool sample_contribution(const LowSurface& surface, const TexelSamples& samples,
   glm::vec3 t;
   if (options.tangent_encode == TangentEncode::inverse && own_frame(options.decode)) {
     const glm::vec3 T(tw);
-    const glm::vec3 B = options.decode.bitangent == Bitangent::vertex ? interpolate(surface.bitangent, base, b)
-                                                                      : sign * glm::cross(N, T);
+    const glm::vec3 B = options.decode.bitangent == Bitangent::vertex
+                            ? interpolate(surface.bitangent, base, b)
+                            : sign * glm::cross(N, T);
     if (inverse_general(n_high, T, B, N, options.decode.unit_frame, t)) {
       const float lt2 = glm::dot(t, t);
       if (lt2 > 0.0f && std::isfinite(lt2)) {
@@ -257,7 +266,8 @@ bool sample_contribution(const LowSurface& surface, const TexelSamples& samples,
     out = t;
     return true;
   }
-  if (options.tangent_encode == TangentEncode::inverse && inverse_tangent(n_high, glm::vec3(tw), N, sign, t)) {
+  if (options.tangent_encode == TangentEncode::inverse &&
+      inverse_tangent(n_high, glm::vec3(tw), N, sign, t)) {
     const float lt2 = glm::dot(t, t);
     if (lt2 > 0.0f && std::isfinite(lt2)) {
       out = t * (1.0f / std::sqrt(lt2));
@@ -280,7 +290,8 @@ bool sample_contribution(const LowSurface& surface, const TexelSamples& samples,
 
 bool plain_samples(const TexelSamples& samples, const Hits& hits, std::size_t s0, int count) {
   bool plain = true;
-  for (int i = 0; i < count; ++i) plain = plain && samples.triangle[s0 + i] >= 0 && hits.triangle[s0 + i] >= 0;
+  for (int i = 0; i < count; ++i)
+    plain = plain && samples.triangle[s0 + i] >= 0 && hits.triangle[s0 + i] >= 0;
   return plain;
 }
 
@@ -288,8 +299,8 @@ bool plain_samples(const TexelSamples& samples, const Hits& hits, std::size_t s0
 // per axis. Four samples on one low triangle (nearly all groups) have their
 // frame interpolated across the lanes, others lane by lane; the same operations.
 [[gnu::always_inline]] inline void gather_four(const LowSurface& surface, const TexelSamples& samples,
-                                               const Mesh& high, const Hits& hits, std::size_t s0, Axes& n, Axes& N,
-                                               Axes& T, Axes* B) {
+                                               const Mesh& high, const Hits& hits, std::size_t s0, Axes& n,
+                                               Axes& N, Axes& T, Axes* B) {
   f4 high_n[4];
   for (int i = 0; i < 4; ++i) {
     const std::uint32_t* h = &high.indices[3 * static_cast<std::size_t>(hits.triangle[s0 + i])];
@@ -323,8 +334,8 @@ bool plain_samples(const TexelSamples& samples, const Hits& hits, std::size_t s0
 // with its target's instruction: t (flipped to det > 0), |t|^2 and `ok`, the
 // mask of the lanes that are the plain case.
 template <class V, class M>
-[[gnu::always_inline]] inline void inverse_lanes(V nx, V ny, V nz, V Nx, V Ny, V Nz, V Tx, V Ty, V Tz, V Tw, V& tx,
-                                                 V& ty, V& tz, V& lt2, M& ok) {
+[[gnu::always_inline]] inline void inverse_lanes(V nx, V ny, V nz, V Nx, V Ny, V Nz, V Tx, V Ty, V Tz, V Tw,
+                                                 V& tx, V& ty, V& tz, V& lt2, M& ok) {
   const V zero = V{} + 0.0f, one = zero + 1.0f;
   const V l2 = nx * nx + ny * ny + nz * nz;
   // finite: v - v is 0 (inf - inf and NaN are NaN)
@@ -332,11 +343,15 @@ template <class V, class M>
   // c = N x T, bn = sign (c x N), tb = sign (T x c).
   const V sign = Tw < zero ? -one : one;
   const V cx = Ny * Tz - Ty * Nz, cy = Nz * Tx - Tz * Nx, cz = Nx * Ty - Tx * Ny;
-  const V bnx = sign * (cy * Nz - Ny * cz), bny = sign * (cz * Nx - Nz * cx), bnz = sign * (cx * Ny - Nx * cy);
-  const V tbx = sign * (Ty * cz - cy * Tz), tby = sign * (Tz * cx - cz * Tx), tbz = sign * (Tx * cy - cx * Ty);
+  const V bnx = sign * (cy * Nz - Ny * cz), bny = sign * (cz * Nx - Nz * cx),
+          bnz = sign * (cx * Ny - Nx * cy);
+  const V tbx = sign * (Ty * cz - cy * Tz), tby = sign * (Tz * cx - cz * Tx),
+          tbz = sign * (Tx * cy - cx * Ty);
   const V det = Tx * bnx + Ty * bny + Tz * bnz;
-  const V scale2 = (Tx * Tx + Ty * Ty + Tz * Tz) * (cx * cx + cy * cy + cz * cz) * (Nx * Nx + Ny * Ny + Nz * Nz);
-  ok &= (det * det > (zero + 1e-12f) * scale2) & (scale2 > zero) & ((det - det) == zero) & ((scale2 - scale2) == zero);
+  const V scale2 =
+      (Tx * Tx + Ty * Ty + Tz * Tz) * (cx * cx + cy * cy + cz * cz) * (Nx * Nx + Ny * Ny + Nz * Nz);
+  ok &= (det * det > (zero + 1e-12f) * scale2) & (scale2 > zero) & ((det - det) == zero) &
+        ((scale2 - scale2) == zero);
   const V flip = det < zero ? -one : one;
   tx = nx * bnx + ny * bny + nz * bnz;
   ty = nx * cx + ny * cy + nz * cz;
@@ -362,8 +377,8 @@ struct FrameLanes {
 };
 
 template <class V>
-[[gnu::always_inline]] inline void column_squares(FrameLanes<V>& f, V Tw, const NormalDecode& decode, V& t2, V& b2,
-                                                  V& n2) {
+[[gnu::always_inline]] inline void column_squares(FrameLanes<V>& f, V Tw, const NormalDecode& decode, V& t2,
+                                                  V& b2, V& n2) {
   const V zero = V{} + 0.0f, one = zero + 1.0f;
   if (decode.bitangent == Bitangent::pixel) {
     const V sign = Tw < zero ? -one : one;
@@ -378,12 +393,14 @@ template <class V>
 
 template <class V, class M>
 [[gnu::always_inline]] inline void general_lanes(V nx, V ny, V nz, FrameLanes<V> f, V lt, V lb, V ln,
-                                                 const NormalDecode& decode, V& tx, V& ty, V& tz, V& lt2, M& ok) {
+                                                 const NormalDecode& decode, V& tx, V& ty, V& tz, V& lt2,
+                                                 M& ok) {
   const V zero = V{} + 0.0f, one = zero + 1.0f;
   const V l2 = nx * nx + ny * ny + nz * nz;
   ok = (l2 > zero + 1e-24f) & ((l2 - l2) == zero);
   if (decode.unit_frame) {
-    ok &= (lt > zero) & ((lt - lt) == zero) & (lb > zero) & ((lb - lb) == zero) & (ln > zero) & ((ln - ln) == zero);
+    ok &= (lt > zero) & ((lt - lt) == zero) & (lb > zero) & ((lb - lb) == zero) & (ln > zero) &
+          ((ln - ln) == zero);
     f.Tx = f.Tx / lt, f.Ty = f.Ty / lt, f.Tz = f.Tz / lt;
     f.Bx = f.Bx / lb, f.By = f.By / lb, f.Bz = f.Bz / lb;
     f.Nx = f.Nx / ln, f.Ny = f.Ny / ln, f.Nz = f.Nz / ln;
@@ -394,7 +411,8 @@ template <class V, class M>
   const V det = f.Tx * r0x + f.Ty * r0y + f.Tz * r0z;
   const V scale2 = (f.Tx * f.Tx + f.Ty * f.Ty + f.Tz * f.Tz) * (f.Bx * f.Bx + f.By * f.By + f.Bz * f.Bz) *
                    (f.Nx * f.Nx + f.Ny * f.Ny + f.Nz * f.Nz);
-  ok &= (det * det > (zero + 1e-12f) * scale2) & (scale2 > zero) & ((det - det) == zero) & ((scale2 - scale2) == zero);
+  ok &= (det * det > (zero + 1e-12f) * scale2) & (scale2 > zero) & ((det - det) == zero) &
+        ((scale2 - scale2) == zero);
   const V flip = det < zero ? -one : one;
   tx = nx * r0x + ny * r0y + nz * r0z;
   ty = nx * r1x + ny * r1y + nz * r1z;
@@ -407,8 +425,8 @@ template <class V, class M>
 // The lanes that are not plain, one by one; the plain ones stored as they are.
 template <class V, class M>
 void finish_lanes(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
-                  const EncodeOptions& options, std::size_t s0, const M& ok, const V& ox, const V& oy, const V& oz,
-                  Counts& counts, glm::vec3* out, bool* used) {
+                  const EncodeOptions& options, std::size_t s0, const M& ok, const V& ox, const V& oy,
+                  const V& oz, Counts& counts, glm::vec3* out, bool* used) {
   constexpr int width = sizeof(V) / sizeof(float);
   for (int i = 0; i < width; ++i) {
     if (!ok[i]) {
@@ -460,14 +478,18 @@ typedef std::int32_t i8 __attribute__((vector_size(32)));
 [[gnu::target("avx2"), gnu::always_inline]] inline f8 join(f4 lo, f4 hi) {
   return __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7);
 }
-[[gnu::target("avx2"), gnu::always_inline]] inline f4 low_half(f8 v) { return __builtin_shufflevector(v, v, 0, 1, 2, 3); }
-[[gnu::target("avx2"), gnu::always_inline]] inline f4 high_half(f8 v) { return __builtin_shufflevector(v, v, 4, 5, 6, 7); }
+[[gnu::target("avx2"), gnu::always_inline]] inline f4 low_half(f8 v) {
+  return __builtin_shufflevector(v, v, 0, 1, 2, 3);
+}
+[[gnu::target("avx2"), gnu::always_inline]] inline f4 high_half(f8 v) {
+  return __builtin_shufflevector(v, v, 4, 5, 6, 7);
+}
 
 // Eight samples: two groups of four gathered as encode_four() does, joined
 // into eight-lane vectors for the arithmetic.
-[[gnu::target("avx2")]] void encode_eight(const LowSurface& surface, const TexelSamples& samples, const Mesh& high,
-                                          const Hits& hits, const EncodeOptions& options, std::size_t s0,
-                                          Counts& counts, glm::vec3* out, bool* used) {
+[[gnu::target("avx2")]] void encode_eight(const LowSurface& surface, const TexelSamples& samples,
+                                          const Mesh& high, const Hits& hits, const EncodeOptions& options,
+                                          std::size_t s0, Counts& counts, glm::vec3* out, bool* used) {
   if (!plain_samples(samples, hits, s0, 8)) {
     encode_four(surface, samples, high, hits, options, s0, counts, out, used);
     encode_four(surface, samples, high, hits, options, s0 + 4, counts, out + 4, used + 4);
@@ -485,11 +507,12 @@ typedef std::int32_t i8 __attribute__((vector_size(32)));
     f8 t2, b2, n2;
     column_squares(f, join(T0.w, T1.w), options.decode, t2, b2, n2);
     general_lanes(join(n0.x, n1.x), join(n0.y, n1.y), join(n0.z, n1.z), f, __builtin_ia32_sqrtps256(t2),
-                  __builtin_ia32_sqrtps256(b2), __builtin_ia32_sqrtps256(n2), options.decode, tx, ty, tz, lt2, ok);
+                  __builtin_ia32_sqrtps256(b2), __builtin_ia32_sqrtps256(n2), options.decode, tx, ty, tz, lt2,
+                  ok);
   } else {
     inverse_lanes(join(n0.x, n1.x), join(n0.y, n1.y), join(n0.z, n1.z), join(N0.x, N1.x), join(N0.y, N1.y),
-                  join(N0.z, N1.z), join(T0.x, T1.x), join(T0.y, T1.y), join(T0.z, T1.z), join(T0.w, T1.w), tx, ty,
-                  tz, lt2, ok);
+                  join(N0.z, N1.z), join(T0.x, T1.x), join(T0.y, T1.y), join(T0.z, T1.z), join(T0.w, T1.w),
+                  tx, ty, tz, lt2, ok);
   }
   const f8 inv = (f8{} + 1.0f) / __builtin_ia32_sqrtps256(lt2);
   const f8 ox = tx * inv, oy = ty * inv, oz = tz * inv;
@@ -523,7 +546,8 @@ void encode_impl(const LowSurface& surface, const TexelSamples& samples, const M
   const int spp = samples.samples;
   const bool tangent_space = options.space == NormalSpace::tangent;
   const bool smooth = options.high_normals == HighNormals::smooth && high.has_normals();
-  const bool in_lanes = lanes > 1 && tangent_space && smooth && options.tangent_encode == TangentEncode::inverse;
+  const bool in_lanes =
+      lanes > 1 && tangent_space && smooth && options.tangent_encode == TangentEncode::inverse;
   if (tangent_space && options.decode.bitangent == Bitangent::vertex) {
     NMBAKE_CHECK(surface.bitangent.size() == surface.tangent.size(), "per-corner bitangents filled");
   }
@@ -561,7 +585,8 @@ void encode_impl(const LowSurface& surface, const TexelSamples& samples, const M
 #if NMBAKE_ENCODE_EIGHT
         if (eight) {
           for (; k + 8 <= row_samples; k += 8) {
-            encode_eight(surface, samples, high, hits, options, first + k, counts, &contribution[k], &used[k]);
+            encode_eight(surface, samples, high, hits, options, first + k, counts, &contribution[k],
+                         &used[k]);
           }
         }
 #endif
@@ -570,7 +595,8 @@ void encode_impl(const LowSurface& surface, const TexelSamples& samples, const M
         }
       }
       for (; k < row_samples; ++k) {
-        used[k] = sample_contribution(surface, samples, high, hits, options, smooth, first + k, counts, contribution[k]);
+        used[k] = sample_contribution(surface, samples, high, hits, options, smooth, first + k, counts,
+                                      contribution[k]);
       }
 
       for (int x = 0; x < width; ++x) {
@@ -594,8 +620,8 @@ void encode_impl(const LowSurface& surface, const TexelSamples& samples, const M
               for (int j = 0; j < spp; ++j) {
                 const std::size_t s = texel * spp + j;
                 if (samples.triangle[s] < 0) continue;
-                low_normal_sum += interpolate(surface.normal, 3 * static_cast<std::size_t>(samples.triangle[s]),
-                                              samples.bary[s]);
+                low_normal_sum += interpolate(
+                    surface.normal, 3 * static_cast<std::size_t>(samples.triangle[s]), samples.bary[s]);
               }
               const float ln = glm::length(low_normal_sum);
               if (ln > 0.0f && std::isfinite(ln)) value = low_normal_sum / ln;
@@ -640,8 +666,9 @@ void encode_rows(const LowSurface& surface, const TexelSamples& samples, const M
 
 namespace detail {
 
-void encode_in_lanes(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
-                     const EncodeOptions& options, Image& out, EncodeStats& stats, int lanes) {
+void encode_in_lanes(const LowSurface& surface, const TexelSamples& samples, const Mesh& high,
+                     const Hits& hits, const EncodeOptions& options, Image& out, EncodeStats& stats,
+                     int lanes) {
   encode_impl(surface, samples, high, hits, options, out, stats, lanes, 0, samples.height, true);
 }
 

@@ -10,12 +10,12 @@
 // through the encode stage's world_to_tangent.
 #include "nmbake/height2normal.hpp"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
-
-#include <glm/geometric.hpp>
 #include <glm/ext/vector_double3.hpp>
-#include <tbb/parallel_for.h>
+#include <glm/geometric.hpp>
 
 namespace nmbake {
 
@@ -56,7 +56,8 @@ Neighbours neighbours(int i, int size, HeightBorder border) {
 
 }  // namespace
 
-Image height_to_normal(const Image& height, const HeightToNormalOptions& options, HeightToNormalStats& stats) {
+Image height_to_normal(const Image& height, const HeightToNormalOptions& options,
+                       HeightToNormalStats& stats) {
   NMBAKE_CHECK(height.width > 0 && height.height > 0 && height.channels > 0, "empty height map");
   stats = HeightToNormalStats{};
   Image out;
@@ -128,15 +129,16 @@ glm::vec3 cube_direction(int face, double s, double t) {
   return glm::vec3(p / glm::length(p));
 }
 
-Status cube_sphere_height_to_normal(const Image& atlas, const CubeSphereOptions& options, const LowSurface* low,
-                                    Image& out, HeightToNormalStats& stats) {
+Status cube_sphere_height_to_normal(const Image& atlas, const CubeSphereOptions& options,
+                                    const LowSurface* low, Image& out, HeightToNormalStats& stats) {
   stats = HeightToNormalStats{};
   if (atlas.width < 3 || atlas.height < 2 || atlas.channels < 1) {
     return Status::bad_input("a cube-sphere atlas needs at least 3 x 2 texels, this one is " +
                              std::to_string(atlas.width) + "x" + std::to_string(atlas.height));
   }
   if (!(options.uv_gutter >= 0.0f && options.uv_gutter < 1.0f / 6.0f)) {
-    return Status::bad_input("cube-sphere gutter " + std::to_string(options.uv_gutter) + " is outside [0, 1/6)");
+    return Status::bad_input("cube-sphere gutter " + std::to_string(options.uv_gutter) +
+                             " is outside [0, 1/6)");
   }
   const bool tangent_space = options.space == NormalSpace::tangent;
   if (tangent_space && low == nullptr) {
@@ -229,10 +231,12 @@ Status cube_sphere_height_to_normal(const Image& atlas, const CubeSphereOptions&
       const std::size_t base = 3 * static_cast<std::size_t>(triangle);
       const glm::vec2 b = samples.bary[texel];
       const float b0 = 1.0f - b.x - b.y;
-      const glm::vec4 T = low->tangent[base] * b0 + low->tangent[base + 1] * b.x + low->tangent[base + 2] * b.y;
+      const glm::vec4 T =
+          low->tangent[base] * b0 + low->tangent[base + 1] * b.x + low->tangent[base + 2] * b.y;
       const glm::vec3 N = low->normal[base] * b0 + low->normal[base + 1] * b.x + low->normal[base + 2] * b.y;
       glm::vec3 tangent_value;
-      if (!world_to_tangent(n, glm::vec3(T), N, T.w < 0.0f ? -1.0f : 1.0f, TangentEncode::inverse, tangent_value)) {
+      if (!world_to_tangent(n, glm::vec3(T), N, T.w < 0.0f ? -1.0f : 1.0f, TangentEncode::inverse,
+                            tangent_value)) {
         ++counts.singular;
       }
       if (options.green == GreenChannel::down) tangent_value.y = -tangent_value.y;
@@ -252,9 +256,10 @@ Status assemble_cube_atlas(const std::vector<Image>& faces, Image& atlas) {
   const int n = faces[0].width;
   for (std::size_t f = 0; f < 6; ++f) {
     if (faces[f].width != n || faces[f].height != n || n <= 0 || faces[f].channels < 1) {
-      return Status::bad_input("cube face " + std::to_string(f) + " is " + std::to_string(faces[f].width) + "x" +
-                               std::to_string(faces[f].height) + ": every face must be square and of one size (" +
-                               std::to_string(n) + "x" + std::to_string(n) + ")");
+      return Status::bad_input("cube face " + std::to_string(f) + " is " + std::to_string(faces[f].width) +
+                               "x" + std::to_string(faces[f].height) +
+                               ": every face must be square and of one size (" + std::to_string(n) + "x" +
+                               std::to_string(n) + ")");
     }
   }
   atlas.width = 3 * n;
@@ -265,7 +270,8 @@ Status assemble_cube_atlas(const std::vector<Image>& faces, Image& atlas) {
     // Cell row 0 (faces 0-2) is the bottom half of the image.
     const int x0 = (f % 3) * n, y0 = (1 - f / 3) * n;
     for (int y = 0; y < n; ++y) {
-      for (int x = 0; x < n; ++x) atlas.at(x0 + x, y0 + y)[0] = faces[static_cast<std::size_t>(f)].at(x, y)[0];
+      for (int x = 0; x < n; ++x)
+        atlas.at(x0 + x, y0 + y)[0] = faces[static_cast<std::size_t>(f)].at(x, y)[0];
     }
   }
   return Status::ok();

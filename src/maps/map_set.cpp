@@ -1,14 +1,13 @@
 // The map set (maps.hpp): names, traits, the <MAP> token, and MapSet, which
 // runs every map's module band by band and hands the write stage its images.
-#include "nmbake/maps.hpp"
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <filesystem>
 
-#include <tbb/parallel_for.h>
-
 #include "base/huge_pages.hpp"
 #include "maps/modules.hpp"
+#include "nmbake/maps.hpp"
 
 namespace nmbake {
 
@@ -121,12 +120,18 @@ glm::vec3 part_color(const std::string& name) {
   const float f = hue - static_cast<float>(sector);
   const float p = v * (1.0f - s), q = v * (1.0f - s * f), t = v * (1.0f - s * (1.0f - f));
   switch (sector) {
-    case 0: return {v, t, p};
-    case 1: return {q, v, p};
-    case 2: return {p, v, t};
-    case 3: return {p, q, v};
-    case 4: return {t, p, v};
-    default: return {v, p, q};
+    case 0:
+      return {v, t, p};
+    case 1:
+      return {q, v, p};
+    case 2:
+      return {p, v, t};
+    case 3:
+      return {p, q, v};
+    case 4:
+      return {t, p, v};
+    default:
+      return {v, p, q};
   }
 }
 
@@ -240,12 +245,12 @@ void MapSet::trace_rays(const HighScene& scene, const Mesh& high, const LowSurfa
   }
 }
 
-void MapSet::encode_band(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
-                         EncodeStats& normal_stats) {
+void MapSet::encode_band(const LowSurface& surface, const TexelSamples& samples, const Mesh& high,
+                         const Hits& hits, EncodeStats& normal_stats) {
   NMBAKE_CHECK(samples.row_begin >= first_row_ && samples.row_begin + samples.height <= last_row_,
                "the band lies in the map set's rows");
-  const BandInputs in{surface, samples, high, hits, &visibility_, &bent_, &thickness_,
-                      samples.row_begin - first_row_};
+  const BandInputs in{surface,      samples, high,        hits,
+                      &visibility_, &bent_,  &thickness_, samples.row_begin - first_row_};
   HitValueImages values;
   std::vector<Module*> by_rows;
   for (const auto& m : modules_) {
@@ -258,10 +263,18 @@ void MapSet::encode_band(const LowSurface& surface, const TexelSamples& samples,
       continue;
     }
     switch (m->kind) {
-      case MapKind::height: values.height = &m->image; break;
-      case MapKind::position: values.position = &m->image; break;
-      case MapKind::curvature: values.curvature = &m->image; break;
-      default: values.miss = &m->image; break;
+      case MapKind::height:
+        values.height = &m->image;
+        break;
+      case MapKind::position:
+        values.position = &m->image;
+        break;
+      case MapKind::curvature:
+        values.curvature = &m->image;
+        break;
+      default:
+        values.miss = &m->image;
+        break;
     }
   }
   const bool hit_values = values.height || values.position || values.curvature || values.miss;
@@ -346,7 +359,8 @@ std::vector<MapReport> MapSet::reports(int tile) const {
       put("mirrored_rays", static_cast<double>(occlusion_stats_.mirrored_rays));
       put("normal_fallbacks", static_cast<double>(occlusion_stats_.normal_fallbacks));
       put("untraced_rays", static_cast<double>(occlusion_stats_.untraced_rays));
-      if (m->kind == MapKind::bent_normal) put("all_occluded_samples", static_cast<double>(occlusion_stats_.all_occluded));
+      if (m->kind == MapKind::bent_normal)
+        put("all_occluded_samples", static_cast<double>(occlusion_stats_.all_occluded));
     }
     if (m->kind == MapKind::id && settings_.id_colors != nullptr) {
       // From the bake's mesh data (a merge of tiles has none: not counters).

@@ -3,12 +3,12 @@
 // stores and what it reports. Private to src/maps/.
 #pragma once
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <array>
 #include <memory>
 #include <vector>
-
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
 #include "nmbake/maps.hpp"
 
@@ -22,8 +22,8 @@ struct BandInputs {
   const Hits& hits;
   const std::vector<float>* visibility;  // trace_occlusion(), when a map needs it
   const std::vector<glm::vec3>* bent;
-  const std::vector<float>* thickness;   // trace_thickness()
-  int out_row;                           // row of the module's image that holds the band's first row
+  const std::vector<float>* thickness;  // trace_thickness()
+  int out_row;                          // row of the module's image that holds the band's first row
 };
 
 struct MapSet::Module {

@@ -4,7 +4,6 @@
 // decode in tangent space, per sample normalised, averaged per texel and
 // renormalised, rgb = 0.5 n + 0.5.
 #include <cmath>
-
 #include <glm/geometric.hpp>
 
 #include "maps/modules.hpp"
@@ -79,8 +78,8 @@ struct BentNormalModule final : MapSet::Module {
               }
               const glm::vec4 tw = interpolate(in.surface.tangent, base, b);
               glm::vec3 t;
-              if (!world_to_tangent(d, glm::vec3(tw), N, tw.w < 0.0f ? -1.0f : 1.0f, settings.encode.tangent_encode,
-                                    t)) {
+              if (!world_to_tangent(d, glm::vec3(tw), N, tw.w < 0.0f ? -1.0f : 1.0f,
+                                    settings.encode.tangent_encode, t)) {
                 ++singular[static_cast<std::size_t>(y)];
               }
               sum += t;
@@ -91,7 +90,8 @@ struct BentNormalModule final : MapSet::Module {
             } else {
               ++zero[static_cast<std::size_t>(y)];
               const float ll = glm::length(low_sum);
-              value = tangent || !(ll > 0.0f && std::isfinite(ll)) ? glm::vec3(0.0f, 0.0f, 1.0f) : low_sum / ll;
+              value =
+                  tangent || !(ll > 0.0f && std::isfinite(ll)) ? glm::vec3(0.0f, 0.0f, 1.0f) : low_sum / ll;
             }
             if (flip_green) value.y = -value.y;
           }
@@ -116,10 +116,14 @@ struct BentNormalModule final : MapSet::Module {
 
 std::unique_ptr<MapSet::Module> make_direction_module(MapKind map) {
   switch (map) {
-    case MapKind::normal: return std::make_unique<NormalModule>(map, false);
-    case MapKind::object_normal: return std::make_unique<NormalModule>(map, true);
-    case MapKind::bent_normal: return std::make_unique<BentNormalModule>();
-    default: return nullptr;
+    case MapKind::normal:
+      return std::make_unique<NormalModule>(map, false);
+    case MapKind::object_normal:
+      return std::make_unique<NormalModule>(map, true);
+    case MapKind::bent_normal:
+      return std::make_unique<BentNormalModule>();
+    default:
+      return nullptr;
   }
 }
 

@@ -2,15 +2,15 @@
 // from the rays cast from them (ao, thickness). Each texel is the mean of its
 // samples' values (maps_detail::texel_means); a sample whose ray missed takes
 // the map's miss value (maps.hpp's table).
+#include <tbb/parallel_reduce.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
-
 #include <glm/geometric.hpp>
-#include <tbb/parallel_reduce.h>
 
-#include "maps/modules.hpp"
 #include "base/simd4.hpp"
+#include "maps/modules.hpp"
 
 namespace nmbake {
 
@@ -96,7 +96,8 @@ std::uint64_t count_beyond(const Image& image, const std::vector<std::uint8_t>& 
   return tbb::parallel_reduce(
       tbb::blocked_range<std::size_t>(0, coverage.size(), 1 << 16), std::uint64_t{0},
       [&](const tbb::blocked_range<std::size_t>& r, std::uint64_t n) {
-        for (std::size_t t = r.begin(); t != r.end(); ++t) n += coverage[t] && std::fabs(image.pixels[t]) > limit;
+        for (std::size_t t = r.begin(); t != r.end(); ++t)
+          n += coverage[t] && std::fabs(image.pixels[t]) > limit;
         return n;
       },
       [](std::uint64_t a, std::uint64_t b) { return a + b; });
@@ -169,8 +170,9 @@ Percentile covered_percentile_99(const Image& image, const std::vector<std::uint
   const auto at = bin_values.begin() + static_cast<std::ptrdiff_t>(rank - below);
   std::nth_element(bin_values.begin(), at, bin_values.end());
   out.value = *at;
-  out.above = texels - below - in_bin +
-              static_cast<std::uint64_t>(std::count_if(at, bin_values.end(), [&](float v) { return v > out.value; }));
+  out.above =
+      texels - below - in_bin +
+      static_cast<std::uint64_t>(std::count_if(at, bin_values.end(), [&](float v) { return v > out.value; }));
   return out;
 }
 
@@ -201,7 +203,9 @@ struct HeightModule final : MapSet::Module, SignedRange {
     set("clamped_texels", static_cast<double>(given > 0.0f ? count_beyond(image, coverage, range) : 0));
     set("flat_range_fallback", flat() ? 1.0 : 0.0);
   }
-  void integer_mapping(float& scale, float& offset) const override { SignedRange::integer_mapping(scale, offset); }
+  void integer_mapping(float& scale, float& offset) const override {
+    SignedRange::integer_mapping(scale, offset);
+  }
   float given = 0.0f;
 };
 
@@ -231,7 +235,9 @@ struct CurvatureModule final : MapSet::Module, SignedRange {
     set("clamped_texels", static_cast<double>(clamped));
     set("flat_range_fallback", flat() ? 1.0 : 0.0);
   }
-  void integer_mapping(float& scale, float& offset) const override { SignedRange::integer_mapping(scale, offset); }
+  void integer_mapping(float& scale, float& offset) const override {
+    SignedRange::integer_mapping(scale, offset);
+  }
   float given = 0.0f;
 };
 
@@ -268,7 +274,8 @@ void hit_values(const BandInputs& in, const MapSettings& settings, const HitValu
     }
   }
   const auto row_of = [&](Image* image, int y) {
-    return image ? image->pixels.data() + static_cast<std::size_t>(in.out_row + y) * width * image->channels : nullptr;
+    return image ? image->pixels.data() + static_cast<std::size_t>(in.out_row + y) * width * image->channels
+                 : nullptr;
   };
   // Raw pointers, so the loop reloads none of them after its stores.
   const std::uint8_t* const coverage = samples.coverage.data();
@@ -348,14 +355,16 @@ void hit_values(const BandInputs& in, const MapSettings& settings, const HitValu
 struct OcclusionModule final : MapSet::Module {
   OcclusionModule() : Module(MapKind::ao) {}
   void encode_band(const BandInputs& in, const MapSettings&, EncodeStats&) override {
-    texel_means<1>(in, image, {1.0f}, [&](std::size_t s, std::array<float, 1>& v) { v[0] = (*in.visibility)[s]; });
+    texel_means<1>(in, image, {1.0f},
+                   [&](std::size_t s, std::array<float, 1>& v) { v[0] = (*in.visibility)[s]; });
   }
 };
 
 struct ThicknessModule final : MapSet::Module {
   explicit ThicknessModule(float distance) : Module(MapKind::thickness), distance_(distance) {}
   void encode_band(const BandInputs& in, const MapSettings&, EncodeStats&) override {
-    texel_means<1>(in, image, {0.0f}, [&](std::size_t s, std::array<float, 1>& v) { v[0] = (*in.thickness)[s]; });
+    texel_means<1>(in, image, {0.0f},
+                   [&](std::size_t s, std::array<float, 1>& v) { v[0] = (*in.thickness)[s]; });
   }
   void integer_mapping(float& scale, float& offset) const override {
     scale = distance_ > 0.0f && std::isfinite(1.0f / distance_) ? 1.0f / distance_ : 0.0f;
@@ -448,13 +457,18 @@ std::unique_ptr<MapSet::Module> make_value_module(MapKind map, const MapSettings
     }
     case MapKind::position:
       return std::make_unique<PositionModule>();
-    case MapKind::miss: return std::make_unique<MissModule>();
-    case MapKind::ao: return std::make_unique<OcclusionModule>();
-    case MapKind::thickness: return std::make_unique<ThicknessModule>(settings.thickness.distance);
-    case MapKind::vertex_color: return std::make_unique<VertexColorModule>();
+    case MapKind::miss:
+      return std::make_unique<MissModule>();
+    case MapKind::ao:
+      return std::make_unique<OcclusionModule>();
+    case MapKind::thickness:
+      return std::make_unique<ThicknessModule>(settings.thickness.distance);
+    case MapKind::vertex_color:
+      return std::make_unique<VertexColorModule>();
     case MapKind::id:
       return std::make_unique<IdModule>();
-    default: return nullptr;
+    default:
+      return nullptr;
   }
 }
 

@@ -8,18 +8,18 @@
 // (Thürmer & Wüthrich 1998) would not. The contract asks for area weighting.
 #include "nmbake/mesh.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <numeric>
-#include <string>
-
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_reduce.h>
+#include <numeric>
+#include <string>
 
 namespace nmbake {
 namespace {
@@ -44,7 +44,8 @@ bool normalize_safe(glm::vec3& n) {
 // exact, so results do not depend on where the mesh sits in float range.
 float exact_unit_scale(const Mesh& mesh) {
   float largest = 0.0f;
-  for (const glm::vec3& p : mesh.positions) largest = std::max({largest, std::fabs(p.x), std::fabs(p.y), std::fabs(p.z)});
+  for (const glm::vec3& p : mesh.positions)
+    largest = std::max({largest, std::fabs(p.x), std::fabs(p.y), std::fabs(p.z)});
   if (!(largest > 0.0f) || !std::isfinite(largest)) return 1.0f;
   int exponent = 0;
   std::frexp(largest, &exponent);
@@ -87,7 +88,8 @@ std::vector<glm::vec3> angle_weighted_sums(const Mesh& mesh, MeshStats& stats) {
   const float scale = exact_unit_scale(mesh);
   for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
     const std::uint32_t v[3] = {mesh.indices[3 * t], mesh.indices[3 * t + 1], mesh.indices[3 * t + 2]};
-    const glm::vec3 p[3] = {mesh.positions[v[0]] * scale, mesh.positions[v[1]] * scale, mesh.positions[v[2]] * scale};
+    const glm::vec3 p[3] = {mesh.positions[v[0]] * scale, mesh.positions[v[1]] * scale,
+                            mesh.positions[v[2]] * scale};
     const glm::vec3 ab = p[1] - p[0], ac = p[2] - p[0], bc = p[2] - p[1];
     const glm::vec3 cross = glm::cross(ab, ac);
     const float longest_squared = std::max({glm::dot(ab, ab), glm::dot(ac, ac), glm::dot(bc, bc)});
@@ -140,14 +142,16 @@ std::size_t first_failing(std::size_t count, const Failing& failing) {
 Status check_coordinate_range(const Mesh& mesh, const std::string& name) {
   const auto beyond = [](float c) { return !(std::fabs(c) <= kMaxCoordinate); };
   const std::size_t count = mesh.positions.size();
-  if (const std::size_t i = first_failing(count, [&](std::size_t k) {
-        const glm::vec3& p = mesh.positions[k];
-        return beyond(p.x) || beyond(p.y) || beyond(p.z);
-      });
+  if (const std::size_t i = first_failing(count,
+                                          [&](std::size_t k) {
+                                            const glm::vec3& p = mesh.positions[k];
+                                            return beyond(p.x) || beyond(p.y) || beyond(p.z);
+                                          });
       i < count) {
     const glm::vec3& p = mesh.positions[i];
     char text[160];
-    std::snprintf(text, sizeof text, " at (%g, %g, %g) is too far from the origin: coordinates must be within +-%g",
+    std::snprintf(text, sizeof text,
+                  " at (%g, %g, %g) is too far from the origin: coordinates must be within +-%g",
                   static_cast<double>(p.x), static_cast<double>(p.y), static_cast<double>(p.z),
                   static_cast<double>(kMaxCoordinate));
     return Status::bad_input(name + ": vertex " + std::to_string(i) + text + " (move or scale the mesh)");
@@ -197,7 +201,8 @@ Status validate_mesh(const Mesh& mesh, const std::string& name) {
   }
   // Checked on all cores; the first bad element (lowest index) is reported,
   // as a serial scan would.
-  if (const std::size_t i = first_failing(vertex_count, [&](std::size_t k) { return !finite3(mesh.positions[k]); });
+  if (const std::size_t i =
+          first_failing(vertex_count, [&](std::size_t k) { return !finite3(mesh.positions[k]); });
       i < vertex_count) {
     return Status::bad_input(name + ": vertex " + std::to_string(i) + " has a non-finite position " +
                              vec_text(&mesh.positions[i].x, 3));
@@ -209,7 +214,8 @@ Status validate_mesh(const Mesh& mesh, const std::string& name) {
                              vec_text(&mesh.normals[i].x, 3));
   }
   if (const std::size_t i = first_failing(
-          mesh.uvs.size(), [&](std::size_t k) { return !std::isfinite(mesh.uvs[k].x) || !std::isfinite(mesh.uvs[k].y); });
+          mesh.uvs.size(),
+          [&](std::size_t k) { return !std::isfinite(mesh.uvs[k].x) || !std::isfinite(mesh.uvs[k].y); });
       i < mesh.uvs.size()) {
     return Status::bad_input(name + ": vertex " + std::to_string(i) + " has a non-finite UV " +
                              vec_text(&mesh.uvs[i].x, 2));

@@ -15,7 +15,8 @@ bool ends_with_nocase(std::string_view name, std::string_view suffix) {
   if (suffix.empty() || name.size() <= suffix.size()) return false;  // the base must not be empty
   const std::string_view tail = name.substr(name.size() - suffix.size());
   for (std::size_t i = 0; i < suffix.size(); ++i) {
-    if (std::tolower(static_cast<unsigned char>(tail[i])) != std::tolower(static_cast<unsigned char>(suffix[i]))) {
+    if (std::tolower(static_cast<unsigned char>(tail[i])) !=
+        std::tolower(static_cast<unsigned char>(suffix[i]))) {
       return false;
     }
   }
@@ -81,10 +82,12 @@ Status check_low_parts(const Mesh& low, const MatchOptions& options, const std::
         const auto [it, added] = low_to_group.emplace(name, g);
         if (!added) {
           if (it->second == g) {
-            return Status::bad_input(low_path + ": group '" + group + "' lists low part '" + name + "' twice");
+            return Status::bad_input(low_path + ": group '" + group + "' lists low part '" + name +
+                                     "' twice");
           }
           const GroupSpec& first = options.groups[it->second];
-          const std::string first_name = first.name.empty() ? "group " + std::to_string(it->second + 1) : first.name;
+          const std::string first_name =
+              first.name.empty() ? "group " + std::to_string(it->second + 1) : first.name;
           return Status::bad_input(low_path + ": low part '" + name + "' is in two groups ('" + first_name +
                                    "' and '" + group + "')");
         }
@@ -101,8 +104,8 @@ Status check_low_parts(const Mesh& low, const MatchOptions& options, const std::
   return Status::ok();
 }
 
-Status match_parts(const Mesh& low, const Mesh& high, const MatchOptions& options, const std::string& low_path,
-                   const std::string& high_path, BakeGroups& out) {
+Status match_parts(const Mesh& low, const Mesh& high, const MatchOptions& options,
+                   const std::string& low_path, const std::string& high_path, BakeGroups& out) {
   out = BakeGroups{};
   NMBAKE_TRY(check_low_parts(low, options, low_path));
   const std::vector<MeshPart> low_parts = parts_of(low);
@@ -127,7 +130,8 @@ Status match_parts(const Mesh& low, const Mesh& high, const MatchOptions& option
       for (const std::string& name : spec.high) {
         if (std::find(high_names.begin(), high_names.end(), name) == high_names.end()) {
           return Status::bad_input(high_path + ": group '" + group.name + "' names high part '" + name +
-                                   "', which the file does not have (parts: " + quoted_list(high_names) + ")");
+                                   "', which the file does not have (parts: " + quoted_list(high_names) +
+                                   ")");
         }
         // A high part may serve several groups, but once each.
         std::vector<std::uint32_t>& in = high_to_groups[name];
@@ -194,13 +198,14 @@ Status match_parts(const Mesh& low, const Mesh& high, const MatchOptions& option
   }
   if (!unmatched.empty()) {
     if (options.unmatched == Unmatched::error) {
-      return Status::bad_input(low_path + ": low parts with no high part to bake from: " + quoted_list(unmatched) +
-                               " (high parts: " + quoted_list(high_names) +
-                               "; name them X" + options.low_suffix + " / X" + options.high_suffix +
-                               ", list them in a group, or pass --unmatched all)");
+      return Status::bad_input(
+          low_path + ": low parts with no high part to bake from: " + quoted_list(unmatched) +
+          " (high parts: " + quoted_list(high_names) + "; name them X" + options.low_suffix + " / X" +
+          options.high_suffix + ", list them in a group, or pass --unmatched all)");
     }
     if (unused_high.empty()) {
-      return Status::bad_input(high_path + ": --unmatched all: every high part is in a group, none is left for " +
+      return Status::bad_input(high_path +
+                               ": --unmatched all: every high part is in a group, none is left for " +
                                quoted_list(unmatched));
     }
     const auto g = static_cast<std::uint32_t>(groups.size());
@@ -226,7 +231,8 @@ Status match_parts(const Mesh& low, const Mesh& high, const MatchOptions& option
     const auto it = high_to_groups.find(part.name);
     if (it == high_to_groups.end()) continue;
     for (const std::uint32_t g : it->second) {
-      for (std::uint32_t t = 0; t < part.triangle_count; ++t) out.high_triangles[g].push_back(part.first_triangle + t);
+      for (std::uint32_t t = 0; t < part.triangle_count; ++t)
+        out.high_triangles[g].push_back(part.first_triangle + t);
       groups[g].high_triangles += part.triangle_count;
     }
   }
@@ -248,8 +254,10 @@ Status match_parts(const Mesh& low, const Mesh& high, const MatchOptions& option
   return Status::ok();
 }
 
-Status order_cage_by_parts(const Mesh& low, const MatchOptions& options, const std::string& cage_path, Mesh& cage) {
-  const bool named = std::any_of(cage.parts.begin(), cage.parts.end(), [](const MeshPart& p) { return !p.name.empty(); });
+Status order_cage_by_parts(const Mesh& low, const MatchOptions& options, const std::string& cage_path,
+                           Mesh& cage) {
+  const bool named =
+      std::any_of(cage.parts.begin(), cage.parts.end(), [](const MeshPart& p) { return !p.name.empty(); });
   if (low.parts.empty() || !named) return Status::ok();
   // Unused ranges of each cage name, in file order.
   std::map<std::string, std::vector<const MeshPart*>> ranges;
@@ -273,20 +281,23 @@ Status order_cage_by_parts(const Mesh& low, const MatchOptions& options, const s
     const auto it = ranges.find(wanted);
     std::size_t& k = taken[wanted];
     if (it == ranges.end() || k >= it->second.size()) {
-      return Status::bad_input(cage_path + ": no cage part for low part '" + part.name + "' (expected '" +
-                               (ends_with_nocase(part.name, options.low_suffix)
-                                    ? part.name.substr(0, part.name.size() - options.low_suffix.size()) + options.cage_suffix
-                                    : part.name) +
-                               "')");
+      return Status::bad_input(
+          cage_path + ": no cage part for low part '" + part.name + "' (expected '" +
+          (ends_with_nocase(part.name, options.low_suffix)
+               ? part.name.substr(0, part.name.size() - options.low_suffix.size()) + options.cage_suffix
+               : part.name) +
+          "')");
     }
     const MeshPart& cage_part = *it->second[k++];
     if (cage_part.triangle_count != part.triangle_count) {
       return Status::bad_input(cage_path + ": cage part '" + cage_part.name + "' has " +
-                               std::to_string(cage_part.triangle_count) + " triangles, low part '" + part.name +
-                               "' has " + std::to_string(part.triangle_count));
+                               std::to_string(cage_part.triangle_count) + " triangles, low part '" +
+                               part.name + "' has " + std::to_string(part.triangle_count));
     }
-    indices.insert(indices.end(), cage.indices.begin() + 3 * static_cast<std::ptrdiff_t>(cage_part.first_triangle),
-                   cage.indices.begin() + 3 * static_cast<std::ptrdiff_t>(cage_part.first_triangle + cage_part.triangle_count));
+    indices.insert(indices.end(),
+                   cage.indices.begin() + 3 * static_cast<std::ptrdiff_t>(cage_part.first_triangle),
+                   cage.indices.begin() +
+                       3 * static_cast<std::ptrdiff_t>(cage_part.first_triangle + cage_part.triangle_count));
   }
   for (const auto& [name, list] : ranges) {
     if (taken[name] < list.size()) {

@@ -3,11 +3,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <glm/geometric.hpp>
 #include <numeric>
 #include <string>
 #include <tuple>
-
-#include <glm/geometric.hpp>
 
 namespace nmbake {
 
@@ -19,24 +18,29 @@ void find_hard_edges(const Mesh& low, LowSurface& s) {
   const std::size_t corner_count = s.position.size();
   const std::vector<std::uint32_t> id = position_identity(low);
   const float cos_limit = std::cos(kHardEdgeDegrees * 3.14159265358979f / 180.0f);
-  const auto differ = [&](std::uint32_t a, std::uint32_t b) { return glm::dot(s.normal[a], s.normal[b]) < cos_limit; };
+  const auto differ = [&](std::uint32_t a, std::uint32_t b) {
+    return glm::dot(s.normal[a], s.normal[b]) < cos_limit;
+  };
   // Corners grouped by position, in corner order.
   std::vector<std::uint32_t> order(corner_count);
   std::iota(order.begin(), order.end(), 0u);
-  std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return id[a] < id[b]; });
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::uint32_t a, std::uint32_t b) { return id[a] < id[b]; });
   std::vector<std::uint8_t> hard(corner_count, 0);
   for (std::size_t i = 0; i < corner_count;) {
     std::size_t j = i;
     while (j < corner_count && id[order[j]] == id[order[i]]) ++j;
     for (std::size_t a = i; a < j; ++a) {
-      for (std::size_t b = i; b < j && !hard[order[a]]; ++b) hard[order[a]] = differ(order[a], order[b]) ? 1 : 0;
+      for (std::size_t b = i; b < j && !hard[order[a]]; ++b)
+        hard[order[a]] = differ(order[a], order[b]) ? 1 : 0;
     }
     i = j;
   }
   // None: left empty, so the banded cage costs nothing on a smooth mesh.
   if (std::find(hard.begin(), hard.end(), 1) == hard.end()) return;
   s.hard_corners.assign(s.triangle_count(), 0);
-  for (std::size_t c = 0; c < corner_count; ++c) s.hard_corners[c / 3] |= static_cast<std::uint8_t>(hard[c] << (c % 3));
+  for (std::size_t c = 0; c < corner_count; ++c)
+    s.hard_corners[c / 3] |= static_cast<std::uint8_t>(hard[c] << (c % 3));
   // Edges between two hard corners, keyed by their positions: hard where the
   // triangles on the two sides disagree at either end.
   struct Side {
@@ -48,7 +52,8 @@ void find_hard_edges(const Mesh& low, LowSurface& s) {
     const std::uint32_t d = static_cast<std::uint32_t>(c - c % 3 + (c + 1) % 3);
     if (!hard[c] || !hard[d] || id[c] == id[d]) continue;
     const bool forward = id[c] < id[d];
-    sides.push_back({forward ? id[c] : id[d], forward ? id[d] : id[c], forward ? static_cast<std::uint32_t>(c) : d,
+    sides.push_back({forward ? id[c] : id[d], forward ? id[d] : id[c],
+                     forward ? static_cast<std::uint32_t>(c) : d,
                      forward ? d : static_cast<std::uint32_t>(c)});
   }
   std::stable_sort(sides.begin(), sides.end(),
@@ -59,7 +64,8 @@ void find_hard_edges(const Mesh& low, LowSurface& s) {
     bool is_hard = false;
     for (std::size_t a = i; a < j && !is_hard; ++a) {
       for (std::size_t b = a + 1; b < j && !is_hard; ++b) {
-        is_hard = differ(sides[a].corner_lo, sides[b].corner_lo) || differ(sides[a].corner_hi, sides[b].corner_hi);
+        is_hard =
+            differ(sides[a].corner_lo, sides[b].corner_lo) || differ(sides[a].corner_hi, sides[b].corner_hi);
       }
     }
     if (is_hard) {
@@ -129,7 +135,8 @@ std::vector<std::uint32_t> position_identity(const Mesh& mesh) {
     const glm::vec3& p = mesh.positions[mesh.indices[c]];
     return std::tuple(p.x, p.y, p.z);
   };
-  std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return key(a) < key(b); });
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::uint32_t a, std::uint32_t b) { return key(a) < key(b); });
   std::vector<std::uint32_t> identity(n);
   for (std::size_t i = 0; i < n;) {
     std::size_t j = i;

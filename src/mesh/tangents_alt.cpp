@@ -5,7 +5,6 @@
 // triangle, [e1 e2] = [T B] [duv1 duv2] for the UV-gradient directions.
 #include <algorithm>
 #include <cmath>
-
 #include <glm/geometric.hpp>
 
 #include "nmbake/tangents.hpp"
@@ -62,7 +61,8 @@ bool orthogonalize(const glm::vec3& n, const glm::vec3& t, const glm::vec3& b, g
 
 }  // namespace
 
-void compute_tangents_lengyel(const Mesh& mesh, std::vector<glm::vec4>& corner_tangents, TangentStats& stats) {
+void compute_tangents_lengyel(const Mesh& mesh, std::vector<glm::vec4>& corner_tangents,
+                              TangentStats& stats) {
   stats = TangentStats{};
   const std::size_t triangles = mesh.triangle_count();
   std::vector<glm::vec3> tan(mesh.vertex_count(), glm::vec3(0.0f)), bit(mesh.vertex_count(), glm::vec3(0.0f));
@@ -132,10 +132,17 @@ void compute_tangents_file(const Mesh& mesh, std::vector<glm::vec4>& corner_tang
 void compute_tangents(const Mesh& mesh, TangentBasis basis, std::vector<glm::vec4>& corner_tangents,
                       TangentStats& stats) {
   switch (basis) {
-    case TangentBasis::lengyel: compute_tangents_lengyel(mesh, corner_tangents, stats); return;
-    case TangentBasis::face: compute_tangents_face(mesh, corner_tangents, stats); return;
-    case TangentBasis::file: compute_tangents_file(mesh, corner_tangents, stats); return;
-    case TangentBasis::mikktspace: break;
+    case TangentBasis::lengyel:
+      compute_tangents_lengyel(mesh, corner_tangents, stats);
+      return;
+    case TangentBasis::face:
+      compute_tangents_face(mesh, corner_tangents, stats);
+      return;
+    case TangentBasis::file:
+      compute_tangents_file(mesh, corner_tangents, stats);
+      return;
+    case TangentBasis::mikktspace:
+      break;
   }
   compute_tangents(mesh, corner_tangents, stats);
 }

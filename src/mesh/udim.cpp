@@ -28,8 +28,9 @@ Status find_udim_tiles(const Mesh& low, const std::string& low_path, bool udim, 
   tiles.clear();
   std::set<int> used;
   for (std::size_t t = 0; t < low.triangle_count(); ++t) {
-    const glm::vec2 c = (low.uvs[low.indices[3 * t]] + low.uvs[low.indices[3 * t + 1]] + low.uvs[low.indices[3 * t + 2]]) /
-                        3.0f;
+    const glm::vec2 c =
+        (low.uvs[low.indices[3 * t]] + low.uvs[low.indices[3 * t + 1]] + low.uvs[low.indices[3 * t + 2]]) /
+        3.0f;
     const double u = std::floor(static_cast<double>(c.x));
     const double v = std::floor(static_cast<double>(c.y));
     if (u < 0.0 || u > 9.0 || v < 0.0 || v > 99.0) {
@@ -43,8 +44,9 @@ Status find_udim_tiles(const Mesh& low, const std::string& low_path, bool udim, 
   if (!udim && (tiles.size() != 1 || tiles.front() != 1001)) {
     std::string list;
     for (const int tile : tiles) list += (list.empty() ? "" : ", ") + std::to_string(tile);
-    return Status::bad_input(low_path + ": UVs lie outside [0, 1]^2 (UDIM tiles " + list +
-                             "): put <UDIM> in the output path to bake one map per tile, e.g. -o normal.<UDIM>.png");
+    return Status::bad_input(
+        low_path + ": UVs lie outside [0, 1]^2 (UDIM tiles " + list +
+        "): put <UDIM> in the output path to bake one map per tile, e.g. -o normal.<UDIM>.png");
   }
   return Status::ok();
 }

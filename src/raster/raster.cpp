@@ -24,8 +24,9 @@
 // precision: at 16384^2 a float keeps only ~1/1000 texel.
 #include "nmbake/raster.hpp"
 
-#include "base/huge_pages.hpp"
-#include "base/shuffle_compat.hpp"
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <bit>
@@ -33,14 +34,11 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <glm/vec2.hpp>
 #include <limits>
 
-#include <tbb/blocked_range.h>
-#include <tbb/enumerable_thread_specific.h>
-#include <tbb/parallel_for.h>
-
-#include <glm/vec2.hpp>
-
+#include "base/huge_pages.hpp"
+#include "base/shuffle_compat.hpp"
 #include "nmbake/common.hpp"
 
 namespace nmbake {
@@ -164,7 +162,8 @@ bool setup_triangle(const glm::vec2* uv, int width, int height, SetupTriangle& t
 // a constant and a multiplication by one are monotone under rounding), so
 // each test holds on a half-line of x and all six on an interval. Only the
 // failing texels at either end and the two ends themselves are tested.
-inline bool overlap_span(const SetupTriangle& t, int y, int x_begin, int x_end, int& span_begin, int& span_end) {
+inline bool overlap_span(const SetupTriangle& t, int y, int x_begin, int x_end, int& span_begin,
+                         int& span_end) {
   int lo = x_begin;
   while (lo <= x_end && !box_overlaps(t, lo, y, 1.0)) ++lo;
   if (lo > x_end) return false;
@@ -599,7 +598,8 @@ void rasterize_impl(const LowSurface& surface, int width, int height, int sample
             for (int y = y_begin; y <= y_end; ++y) {
               for (int x = x_begin; x <= x_end; ++x) {
                 const std::size_t texel = local_texel(x, y);
-                if (inside_count[texel] == samples || !selected(x, y) || !box_overlaps(tri, x, y, 1.0)) continue;
+                if (inside_count[texel] == samples || !selected(x, y) || !box_overlaps(tri, x, y, 1.0))
+                  continue;
                 const std::size_t local0 = texel * sample_stride;
                 const std::size_t global0 = first_sample(x, y);
                 for (int s = 0; s < samples; ++s) {
@@ -664,18 +664,20 @@ void rasterize(const LowSurface& surface, int width, int height, int samples, Te
   rasterize_impl(surface, width, height, samples, out, stats, row_begin, row_end, false);
 }
 
-void rasterize_selected(const LowSurface& surface, int width, int height, int samples, int row_begin, int row_end,
-                        const std::uint32_t* texels, std::size_t count, TexelSamples& out, RasterStats& stats,
-                        std::vector<std::uint32_t>& slot) {
+void rasterize_selected(const LowSurface& surface, int width, int height, int samples, int row_begin,
+                        int row_end, const std::uint32_t* texels, std::size_t count, TexelSamples& out,
+                        RasterStats& stats, std::vector<std::uint32_t>& slot) {
   NMBAKE_CHECK(row_begin >= 0 && row_begin < row_end && row_end <= height, "row band must lie in the image");
-  const std::size_t band_texels = static_cast<std::size_t>(width) * static_cast<std::size_t>(row_end - row_begin);
+  const std::size_t band_texels =
+      static_cast<std::size_t>(width) * static_cast<std::size_t>(row_end - row_begin);
   if (slot.size() != band_texels) slot.assign(band_texels, kNotSelected);
   for (std::size_t i = 0; i < count; ++i) {
     NMBAKE_CHECK(texels[i] < band_texels && (i == 0 || texels[i] > texels[i - 1]),
                  "selected texels lie in the band, ascending");
     slot[texels[i]] = static_cast<std::uint32_t>(i);
   }
-  rasterize_impl(surface, width, height, samples, out, stats, row_begin, row_end, false, Selection{slot.data(), count});
+  rasterize_impl(surface, width, height, samples, out, stats, row_begin, row_end, false,
+                 Selection{slot.data(), count});
   for (std::size_t i = 0; i < count; ++i) slot[texels[i]] = kNotSelected;
 }
 

@@ -13,14 +13,14 @@
 // directions (Pharr, Jakob, Humphreys, PBRT 3rd ed., 13.6.3).
 #include "nmbake/occlusion.hpp"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstring>
-
 #include <glm/geometric.hpp>
-#include <tbb/parallel_for.h>
 
 #include "trace/scene.hpp"
 
@@ -123,11 +123,11 @@ void frame_around(const glm::vec3& n, glm::vec3& t, glm::vec3& b) {
 // --- One sample's hit --------------------------------------------------------
 
 struct HitFrame {
-  glm::vec3 point;            // on the high triangle
-  glm::vec3 origin;           // offset off the surface (outwards: AO; inwards: thickness)
-  glm::vec3 n_shading;        // unit
-  glm::vec3 n_geometric;      // unit, on n_shading's side
-  glm::vec3 t, b;             // frame around n_shading
+  glm::vec3 point;        // on the high triangle
+  glm::vec3 origin;       // offset off the surface (outwards: AO; inwards: thickness)
+  glm::vec3 n_shading;    // unit
+  glm::vec3 n_geometric;  // unit, on n_shading's side
+  glm::vec3 t, b;         // frame around n_shading
   bool fallback = false;
 };
 
@@ -164,7 +164,8 @@ HitFrame hit_frame(const Mesh& high, const LowSurface& surface, std::int32_t low
       // Neither: the low surface's own normal at the sample.
       f.fallback = true;
       const std::size_t base = 3 * static_cast<std::size_t>(low_triangle);
-      ns = interpolate_corners(surface.normal[base], surface.normal[base + 1], surface.normal[base + 2], low_bary);
+      ns = interpolate_corners(surface.normal[base], surface.normal[base + 1], surface.normal[base + 2],
+                               low_bary);
       const float l = glm::length(ns);
       ns = l > 0.0f && std::isfinite(l) ? ns / l : glm::vec3(0.0f, 0.0f, 1.0f);
       ng = ns;
@@ -206,7 +207,8 @@ Target sample_target(const HighScene::Impl& impl, const LowSurface& surface, std
   const int per_scene = impl.groups_per_scene;
   if (impl.group_count() <= 1) return {impl.scene, 0xffffffffu};
   const int g = static_cast<int>(surface.group[static_cast<std::size_t>(low_triangle)]);
-  return {impl.scenes[static_cast<std::size_t>(g / per_scene)], per_scene > 1 ? 1u << (g % per_scene) : 0xffffffffu};
+  return {impl.scenes[static_cast<std::size_t>(g / per_scene)],
+          per_scene > 1 ? 1u << (g % per_scene) : 0xffffffffu};
 }
 
 // Rays [first, first + count) of one sample's AO pattern into `p`; returns
@@ -346,7 +348,8 @@ void trace_occlusion(const HighScene& scene, const Mesh& high, const LowSurface&
   int tiles_x = 0;
   const int tile_count = tile_count_of(samples, tiles_x);
   struct Counts {
-    std::uint64_t samples = 0, rays = 0, unoccluded = 0, mirrored = 0, fallbacks = 0, all_occluded = 0, untraced = 0;
+    std::uint64_t samples = 0, rays = 0, unoccluded = 0, mirrored = 0, fallbacks = 0, all_occluded = 0,
+                  untraced = 0;
   };
   std::vector<Counts> tile_counts(static_cast<std::size_t>(tile_count));
   tbb::parallel_for(0, tile_count, [&](int tile) {
@@ -364,8 +367,8 @@ void trace_occlusion(const HighScene& scene, const Mesh& high, const LowSurface&
       glm::vec3 sum(0.0f);
       for (int first = 0; first < options.rays; first += kPacket) {
         const int count = std::min(kPacket, options.rays - first);
-        c.mirrored += static_cast<std::uint64_t>(
-            fill_occlusion_packet(packet, f, pattern, shift, first, count, options.distance, target.mask, c.untraced));
+        c.mirrored += static_cast<std::uint64_t>(fill_occlusion_packet(
+            packet, f, pattern, shift, first, count, options.distance, target.mask, c.untraced));
         rtcOccluded16(packet.valid, target.scene, &context, &packet.ray);
         for (int i = 0; i < count; ++i) {
           // Occluded: Embree set tfar to -inf. A ray not traced counts as open.
@@ -402,7 +405,8 @@ void trace_occlusion(const HighScene& scene, const Mesh& high, const LowSurface&
 }
 
 RawTraceResult trace_occlusion_raw(const HighScene& scene, const Mesh& high, const LowSurface& surface,
-                                   const TexelSamples& samples, const Hits& hits, const OcclusionOptions& options) {
+                                   const TexelSamples& samples, const Hits& hits,
+                                   const OcclusionOptions& options) {
   NMBAKE_CHECK(scene.impl() != nullptr, "scene built");
   const HighScene::Impl& impl = *scene.impl();
   const Pattern pattern(options.rays);
@@ -434,7 +438,8 @@ RawTraceResult trace_occlusion_raw(const HighScene& scene, const Mesh& high, con
           packets[slot].emplace_back();
           scenes[slot].push_back(target.scene);
           fill_occlusion_packet(packets[slot].back(), f, pattern, shift, first,
-                                std::min(kPacket, options.rays - first), options.distance, target.mask, untraced);
+                                std::min(kPacket, options.rays - first), options.distance, target.mask,
+                                untraced);
         }
       });
     });
@@ -443,7 +448,7 @@ RawTraceResult trace_occlusion_raw(const HighScene& scene, const Mesh& high, con
       const std::size_t slot = static_cast<std::size_t>(tile - chunk);
       RTCIntersectContext context;
       rtcInitIntersectContext(&context);
-        std::uint64_t rays = 0, open = 0;
+      std::uint64_t rays = 0, open = 0;
       for (std::size_t i = 0; i < packets[slot].size(); ++i) {
         OcclusionPacket& p = packets[slot][i];
         rtcOccluded16(p.valid, scenes[slot][i], &context, &p.ray);
@@ -492,8 +497,8 @@ void trace_thickness(const HighScene& scene, const Mesh& high, const LowSurface&
       float sum = 0.0f;
       for (int first = 0; first < options.rays; first += kPacket) {
         const int count = std::min(kPacket, options.rays - first);
-        fill_thickness_packet(packet, f, pattern, shift, first, count, options.distance, cone_cos, target.mask,
-                              c.untraced);
+        fill_thickness_packet(packet, f, pattern, shift, first, count, options.distance, cone_cos,
+                              target.mask, c.untraced);
         rtcIntersect16(packet.valid, target.scene, &context, &packet.rayhit);
         for (int i = 0; i < count; ++i) {
           if (packet.valid[i] == 0 || packet.rayhit.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) continue;

@@ -33,9 +33,12 @@ bool parse_distance(const std::string& text, Distance& out) {
 
 std::string to_string(const Distance& distance) {
   switch (distance.kind) {
-    case Distance::Kind::automatic: return "auto";
-    case Distance::Kind::percent: return std::to_string(distance.value) + "%";
-    case Distance::Kind::absolute: break;
+    case Distance::Kind::automatic:
+      return "auto";
+    case Distance::Kind::percent:
+      return std::to_string(distance.value) + "%";
+    case Distance::Kind::absolute:
+      break;
   }
   return std::to_string(distance.value);
 }

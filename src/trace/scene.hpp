@@ -4,12 +4,12 @@
 // to src/: Embree's types stay in the trace files.
 #pragma once
 
+#include <embree3/rtcore.h>
+
 #include <cmath>
 #include <cstdint>
-#include <vector>
-
-#include <embree3/rtcore.h>
 #include <glm/vec3.hpp>
+#include <vector>
 
 #include "nmbake/mesh.hpp"
 #include "nmbake/trace.hpp"

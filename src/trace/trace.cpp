@@ -10,19 +10,19 @@
 // same for any thread count.
 #include "nmbake/trace.hpp"
 
+#include <embree3/rtcore.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstring>
-#include <mutex>
-#include <string>
-
-#include <embree3/rtcore.h>
 #include <glm/geometric.hpp>
 #include <glm/vec3.hpp>
 #include <glm/vector_relational.hpp>
-#include <tbb/parallel_for.h>
+#include <mutex>
+#include <string>
 
 #include "base/huge_pages.hpp"
 #include "base/simd4.hpp"
@@ -71,7 +71,8 @@ void backface_filter(const RTCFilterFunctionNArguments* args) {
     const glm::vec3 dir(RTCRayN_dir_x(args->ray, args->N, i), RTCRayN_dir_y(args->ray, args->N, i),
                         RTCRayN_dir_z(args->ray, args->N, i));
     const std::uint32_t* tri = &mesh->indices[3 * static_cast<std::size_t>(prim)];
-    const glm::vec3 n = face_normal(mesh->positions[tri[0]], mesh->positions[tri[1]], mesh->positions[tri[2]]);
+    const glm::vec3 n =
+        face_normal(mesh->positions[tri[0]], mesh->positions[tri[1]], mesh->positions[tri[2]]);
     if (glm::dot(n, dir) > 0.0f) args->valid[i] = 0;
   }
 }
@@ -105,11 +106,12 @@ Status HighScene::build(const Mesh& mesh, BuildQuality quality, bool backface_fi
   auto impl = std::make_unique<Impl>();
   impl->mesh = &mesh;
   if (groups != nullptr && groups->first_triangle.size() > 2) {
-    NMBAKE_CHECK(groups->first_triangle.front() == 0 && groups->first_triangle.back() == mesh.triangle_count(),
-                 "groups cover the mesh");
+    NMBAKE_CHECK(
+        groups->first_triangle.front() == 0 && groups->first_triangle.back() == mesh.triangle_count(),
+        "groups cover the mesh");
     impl->first_triangle = groups->first_triangle;
-    impl->groups_per_scene = groups->groups_per_scene > 0 ? std::min(groups->groups_per_scene, 32)
-                                                          : kGroupsPerSceneDefault;
+    impl->groups_per_scene =
+        groups->groups_per_scene > 0 ? std::min(groups->groups_per_scene, 32) : kGroupsPerSceneDefault;
   } else {
     impl->first_triangle = {0, static_cast<std::uint32_t>(mesh.triangle_count())};
     impl->groups_per_scene = 1;
@@ -141,8 +143,8 @@ Status HighScene::build(const Mesh& mesh, BuildQuality quality, bool backface_fi
       RTCGeometry geometry = rtcNewGeometry(impl->device, RTC_GEOMETRY_TYPE_TRIANGLE);
       // Shared buffers: the high mesh is never copied; a group is a range of
       // its index buffer.
-      rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, mesh.positions.data(), 0,
-                                 sizeof(glm::vec3), mesh.positions.size());
+      rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                 mesh.positions.data(), 0, sizeof(glm::vec3), mesh.positions.size());
       rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, mesh.indices.data(),
                                  3 * sizeof(std::uint32_t) * first, 3 * sizeof(std::uint32_t), count);
       rtcSetGeometryBuildQuality(geometry, rtc_quality);
@@ -187,8 +189,8 @@ float point_segment_distance(const glm::vec3& p, const glm::vec3& a, const glm::
 // interpolated at `b`, F the shading normal at hard corners and A elsewhere,
 // w = smoothstep(1 - d / band) of the distance d from P to the nearest hard
 // edge.
-glm::vec3 banded_direction(const LowSurface& surface, std::int32_t tri, glm::vec2 b, const RayOptions& options,
-                           const glm::vec3& point, const glm::vec3& averaged) {
+glm::vec3 banded_direction(const LowSurface& surface, std::int32_t tri, glm::vec2 b,
+                           const RayOptions& options, const glm::vec3& point, const glm::vec3& averaged) {
   const std::size_t t = static_cast<std::size_t>(tri);
   const std::size_t base = 3 * t;
   const std::uint8_t hard = surface.hard_corners[t];
@@ -202,7 +204,8 @@ glm::vec3 banded_direction(const LowSurface& surface, std::int32_t tri, glm::vec
   float nearest = band;
   for (std::uint32_t e = surface.band_first[t]; e < surface.band_first[t + 1]; ++e) {
     const std::uint32_t edge = surface.band_edges[e];
-    nearest = std::min(nearest, point_segment_distance(point, surface.hard_edge_a[edge], surface.hard_edge_b[edge]));
+    nearest = std::min(nearest,
+                       point_segment_distance(point, surface.hard_edge_a[edge], surface.hard_edge_b[edge]));
   }
   const float x = 1.0f - nearest / band;  // 1 on a hard edge, 0 a band away
   const float w = x * x * (3.0f - 2.0f * x);
@@ -234,8 +237,10 @@ glm::vec3 banded_direction(const LowSurface& surface, std::int32_t tri, glm::vec
     used_fallback = true;
     glm::vec3 a = interpolate(surface.cage_normal, base, b);
     const float la = glm::length(a);
-    a = la > 0.0f ? a / la : glm::normalize(face_normal(surface.position[base], surface.position[base + 1],
-                                                         surface.position[base + 2]) + glm::vec3(0, 0, 1e-30f));
+    a = la > 0.0f ? a / la
+                  : glm::normalize(face_normal(surface.position[base], surface.position[base + 1],
+                                               surface.position[base + 2]) +
+                                   glm::vec3(0, 0, 1e-30f));
     ray.origin = ray.surface_point;
     ray.direction = -a;
     ray.t_surface = 0.0f;
@@ -243,9 +248,11 @@ glm::vec3 banded_direction(const LowSurface& surface, std::int32_t tri, glm::vec
     return ray;
   }
 
-  const std::vector<glm::vec3>& normals = options.cage == CageMode::interpolated ? surface.normal : surface.cage_normal;
+  const std::vector<glm::vec3>& normals =
+      options.cage == CageMode::interpolated ? surface.normal : surface.cage_normal;
   glm::vec3 a = interpolate(normals, base, b);
-  if (options.cage == CageMode::banded && banded_triangle(surface, tri)) a = banded_direction(surface, tri, b, options, ray.surface_point, a);
+  if (options.cage == CageMode::banded && banded_triangle(surface, tri))
+    a = banded_direction(surface, tri, b, options, ray.surface_point, a);
   float length = glm::length(a);
   if (!(length > 1e-12f) || !std::isfinite(length)) {
     used_fallback = true;
@@ -273,7 +280,8 @@ Ray make_ray(const LowSurface& surface, std::int32_t tri, glm::vec2 b, const Ray
 
 float edge_band_reach(const RayOptions& options) {
   float reach = options.edge_band * (options.front + options.back);
-  for (const GroupDistances& g : options.groups) reach = std::max(reach, options.edge_band * (g.front + g.back));
+  for (const GroupDistances& g : options.groups)
+    reach = std::max(reach, options.edge_band * (g.front + g.back));
   return reach;
 }
 
@@ -304,7 +312,9 @@ void prepare_edge_band(LowSurface& surface, float reach) {
     for (int k = 0; k < 3; ++k) c[k] = std::clamp(static_cast<int>((p[k] - lo[k]) / cell), 0, dims[k] - 1);
     return c;
   };
-  const auto index = [&](int x, int y, int z) { return (static_cast<std::size_t>(z) * dims.y + y) * dims.x + x; };
+  const auto index = [&](int x, int y, int z) {
+    return (static_cast<std::size_t>(z) * dims.y + y) * dims.x + x;
+  };
   std::vector<std::uint32_t> count(static_cast<std::size_t>(dims.x) * dims.y * dims.z + 1, 0);
   std::vector<std::pair<std::size_t, std::uint32_t>> entries;
   std::vector<glm::vec3> edge_lo(edge_count), edge_hi(edge_count);
@@ -336,7 +346,8 @@ void prepare_edge_band(LowSurface& surface, float reach) {
           const std::size_t c = index(x, y, z);
           for (std::uint32_t i = cell_first[c]; i < cell_first[c + 1]; ++i) {
             const std::uint32_t e = entries[i].second;
-            if (glm::all(glm::lessThanEqual(edge_lo[e], thi)) && glm::all(glm::lessThanEqual(tlo, edge_hi[e])))
+            if (glm::all(glm::lessThanEqual(edge_lo[e], thi)) &&
+                glm::all(glm::lessThanEqual(tlo, edge_hi[e])))
               candidates.push_back(e);
           }
         }
@@ -428,8 +439,8 @@ template <int M>
 // trace() and trace_raw() both queue through it, so their packets are the
 // same.
 template <class Full, class Empty>
-[[gnu::always_inline]] inline void queue_texel(Packet& p, const TexelSamples& samples, std::size_t first, Full&& full,
-                                               Empty&& empty) {
+[[gnu::always_inline]] inline void queue_texel(Packet& p, const TexelSamples& samples, std::size_t first,
+                                               Full&& full, Empty&& empty) {
   const int spp = samples.samples;
   const std::int32_t* tri = samples.triangle.data() + first;
   const glm::vec2* bary = samples.bary.data() + first;
@@ -488,8 +499,8 @@ TileRect tile_rect(const TexelSamples& samples, int tile, int tiles_x) {
 
 // f(first sample of the texel), texel by texel.
 template <class F>
-[[gnu::always_inline]] inline void for_each_texel_in_trace_order(const TexelSamples& samples, const TileRect& t,
-                                                                 F&& f) {
+[[gnu::always_inline]] inline void for_each_texel_in_trace_order(const TexelSamples& samples,
+                                                                 const TileRect& t, F&& f) {
   const std::size_t spp = static_cast<std::size_t>(samples.samples);
   for (int by = t.y0; by < t.y1; by += kBlock) {
     for (int bx = t.x0; bx < t.x1; bx += kBlock) {
@@ -504,8 +515,8 @@ template <class F>
 
 // f(sample), sample by sample.
 template <class F>
-[[gnu::always_inline]] inline void for_each_sample_in_trace_order(const TexelSamples& samples, const TileRect& t,
-                                                                  F&& f) {
+[[gnu::always_inline]] inline void for_each_sample_in_trace_order(const TexelSamples& samples,
+                                                                  const TileRect& t, F&& f) {
   const std::size_t spp = static_cast<std::size_t>(samples.samples);
   for_each_texel_in_trace_order(samples, t, [&](std::size_t first) {
     for (std::size_t s = first; s < first + spp; ++s) f(s);
@@ -573,7 +584,8 @@ detail::Axes banded_axes(const LowSurface& surface, std::int32_t tri, const deta
 // fallback.
 std::uint64_t build_queued_rays(Packet& p, const LowSurface& surface, const RayOptions& options) {
   using namespace detail;
-  const std::vector<glm::vec3>& normals = options.cage == CageMode::interpolated ? surface.normal : surface.cage_normal;
+  const std::vector<glm::vec3>& normals =
+      options.cage == CageMode::interpolated ? surface.normal : surface.cage_normal;
   // The banded cage's rays are the averaged cage's except on triangles with a
   // hard corner: a surface without hard edges never looks.
   const bool banded = options.cage == CageMode::banded && !surface.hard_corners.empty();
@@ -719,7 +731,8 @@ std::uint64_t store_first_hits(const Packet& p, float front, Hits& hits) {
 }  // namespace
 
 void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples& samples,
-           const RayOptions& options, Hits& hits, TraceStats& stats, const std::function<void(double)>& progress) {
+           const RayOptions& options, Hits& hits, TraceStats& stats,
+           const std::function<void(double)>& progress) {
   NMBAKE_CHECK(scene.impl() != nullptr, "scene built");
   const std::size_t sample_count = samples.sample_count();
   // Kept from the previous band: every sample's triangle is written below
@@ -782,7 +795,8 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
         if (again.count == 0) return;
         rtcIntersect16(again.valid, impl.scenes[again_scene], &context, &again.rayhit);
         counts.rays += static_cast<std::uint64_t>(again.count);
-        keep_nearer_hits(again, &impl.first_triangle[static_cast<std::size_t>(again_scene * per_scene)], false, hits);
+        keep_nearer_hits(again, &impl.first_triangle[static_cast<std::size_t>(again_scene * per_scene)],
+                         false, hits);
         reset_packet(again);
       };
       for_each_sample_in_trace_order(samples, rect, [&](std::size_t s) {
@@ -868,14 +882,17 @@ void trace(const HighScene& scene, const LowSurface& surface, const TexelSamples
       // A ray Embree would not take is not traced (add_ray): a miss, counted.
       if (options.hit == HitRule::first) {
         if (packet.count == kPacket) flush();
-        counts.fallbacks += add_ray(packet, s, ray.origin, ray.direction, ray.tfar, ray.t_surface, 1.0f) ? 0 : 1;
+        counts.fallbacks +=
+            add_ray(packet, s, ray.origin, ray.direction, ray.tfar, ray.t_surface, 1.0f) ? 0 : 1;
         packet.rayhit.ray.mask[packet.count - 1] = mask;
       } else {
         if (packet.count > kPacket - 2) flush();
         // Outwards from P up to the cage, and inwards up to `back`.
-        counts.fallbacks += add_ray(packet, s, ray.surface_point, -ray.direction, ray.t_surface, 0.0f, -1.0f) ? 0 : 1;
         counts.fallbacks +=
-            add_ray(packet, s, ray.surface_point, ray.direction, ray.tfar - ray.t_surface, 0.0f, 1.0f) ? 0 : 1;
+            add_ray(packet, s, ray.surface_point, -ray.direction, ray.t_surface, 0.0f, -1.0f) ? 0 : 1;
+        counts.fallbacks +=
+            add_ray(packet, s, ray.surface_point, ray.direction, ray.tfar - ray.t_surface, 0.0f, 1.0f) ? 0
+                                                                                                       : 1;
         packet.rayhit.ray.mask[packet.count - 2] = mask;
         packet.rayhit.ray.mask[packet.count - 1] = mask;
       }
@@ -975,7 +992,7 @@ DistanceEstimate estimate_distances(const HighScene& scene, const LowSurface& su
       bool any = false;
       for (int side = 0; side < 2; ++side) {
         const glm::vec3 dir = side == 0 ? -ray.direction : ray.direction;  // outwards, then inwards
-        if (!embree_accepts(ray.surface_point, dir, reach)) continue;  // not traced: a probe miss
+        if (!embree_accepts(ray.surface_point, dir, reach)) continue;      // not traced: a probe miss
         RTCRayHit rh;
         rh.ray.org_x = ray.surface_point.x;
         rh.ray.org_y = ray.surface_point.y;

@@ -5,17 +5,16 @@
 // deviation from the chart's mean normal against how much new border it
 // adds; tiny charts are merged into their neighbours afterwards.
 // Topology (edges, faces around edges) comes from an OpenMesh half-edge mesh.
+#include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
+#include <OpenMesh/Core/System/omstream.hh>
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <glm/geometric.hpp>
+#include <glm/trigonometric.hpp>
 #include <limits>
 #include <queue>
 #include <unordered_map>
-
-#include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
-#include <OpenMesh/Core/System/omstream.hh>
-#include <glm/geometric.hpp>
-#include <glm/trigonometric.hpp>
 
 #include "unwrap/unwrap_internal.hpp"
 
@@ -134,7 +133,8 @@ void segment_charts(const Mesh& mesh, const ChartOptions& options, Topology& top
       }
       fh = om.add_face(vh[0], vh[1], vh[2]);
     }
-    NMBAKE_CHECK(fh.is_valid() && static_cast<std::size_t>(fh.idx()) == t, "unwrap: face insertion out of order");
+    NMBAKE_CHECK(fh.is_valid() && static_cast<std::size_t>(fh.idx()) == t,
+                 "unwrap: face insertion out of order");
     for (int k = 0; k < 3; ++k) om_corner[3 * t + k] = static_cast<std::uint32_t>(vh[k].idx());
 
     const glm::dvec3 p0 = topo.positions[topo.corners[3 * t]];
@@ -230,8 +230,10 @@ void segment_charts(const Mesh& mesh, const ChartOptions& options, Topology& top
     bool operator>(const Candidate& o) const { return cost != o.cost ? cost > o.cost : face > o.face; }
   };
   auto face_centroid = [&](std::uint32_t f) {
-    return (glm::dvec3(topo.positions[topo.corners[3 * f]]) + glm::dvec3(topo.positions[topo.corners[3 * f + 1]]) +
-            glm::dvec3(topo.positions[topo.corners[3 * f + 2]])) / 3.0;
+    return (glm::dvec3(topo.positions[topo.corners[3 * f]]) +
+            glm::dvec3(topo.positions[topo.corners[3 * f + 1]]) +
+            glm::dvec3(topo.positions[topo.corners[3 * f + 2]])) /
+           3.0;
   };
   auto face_cost = [&](std::uint32_t f, std::int32_t chart) {
     const float deviation = 1.0f - glm::dot(topo.face_normals[f], growth[chart].mean_normal);
@@ -266,7 +268,8 @@ void segment_charts(const Mesh& mesh, const ChartOptions& options, Topology& top
       if (!topo.degenerate[f]) growth[c].add(topo.face_normals[f], topo.face_areas[f], face_centroid(f));
       for (int k = 0; k < 3; ++k) {
         const std::int32_t n = neighbour[3 * f + k];
-        if (n >= 0 && chart_of[n] < 0) heap.push({face_cost(static_cast<std::uint32_t>(n), c), static_cast<std::uint32_t>(n)});
+        if (n >= 0 && chart_of[n] < 0)
+          heap.push({face_cost(static_cast<std::uint32_t>(n), c), static_cast<std::uint32_t>(n)});
       }
     };
     if (topo.degenerate[seed]) growth[c].mean_normal = topo.face_normals[seed];
@@ -288,17 +291,19 @@ void segment_charts(const Mesh& mesh, const ChartOptions& options, Topology& top
   // Merge small charts into the neighbour they share the longest border with.
   std::vector<std::vector<std::uint32_t>> members(growth.size());
   for (std::size_t t = 0; t < tri_count; ++t) members[chart_of[t]].push_back(static_cast<std::uint32_t>(t));
-  const float merge_cos =
-      std::cos(glm::radians(std::min(options.max_normal_deviation_deg * options.merge_deviation_slack, 179.0f)));
+  const float merge_cos = std::cos(
+      glm::radians(std::min(options.max_normal_deviation_deg * options.merge_deviation_slack, 179.0f)));
   for (std::size_t c = 0; c < members.size(); ++c) {
-    if (members[c].empty() || members[c].size() >= static_cast<std::size_t>(std::max(options.min_chart_faces, 1)))
+    if (members[c].empty() ||
+        members[c].size() >= static_cast<std::size_t>(std::max(options.min_chart_faces, 1)))
       continue;
     std::vector<std::pair<std::int32_t, float>> shared;  // (chart, border length), few entries
     for (std::uint32_t f : members[c]) {
       for (int k = 0; k < 3; ++k) {
         const std::int32_t n = neighbour[3 * f + k];
         if (n < 0 || chart_of[n] == static_cast<std::int32_t>(c)) continue;
-        auto it = std::find_if(shared.begin(), shared.end(), [&](const auto& s) { return s.first == chart_of[n]; });
+        auto it =
+            std::find_if(shared.begin(), shared.end(), [&](const auto& s) { return s.first == chart_of[n]; });
         if (it == shared.end()) {
           shared.emplace_back(chart_of[n], edge_length[3 * f + k]);
         } else {
@@ -306,8 +311,9 @@ void segment_charts(const Mesh& mesh, const ChartOptions& options, Topology& top
         }
       }
     }
-    std::sort(shared.begin(), shared.end(),
-              [](const auto& a, const auto& b) { return a.second != b.second ? a.second > b.second : a.first < b.first; });
+    std::sort(shared.begin(), shared.end(), [](const auto& a, const auto& b) {
+      return a.second != b.second ? a.second > b.second : a.first < b.first;
+    });
     for (const auto& [target, length] : shared) {
       Growth merged = growth[target];
       for (std::uint32_t f : members[c])

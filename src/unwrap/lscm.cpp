@@ -6,15 +6,15 @@
 // equations solved with Eigen's sparse LDLT. A chart whose result folds
 // (flipped or collapsed triangles, or overlapping parts) is cut in two along
 // its longest axis and parameterized again.
-#include <algorithm>
-#include <cmath>
-#include <limits>
-#include <numeric>
+#include <tbb/parallel_for.h>
 
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
+#include <algorithm>
+#include <cmath>
 #include <glm/geometric.hpp>
-#include <tbb/parallel_for.h>
+#include <limits>
+#include <numeric>
 
 #include "unwrap/unwrap_internal.hpp"
 
@@ -42,7 +42,8 @@ LocalChart make_local(const Topology& topo, const std::vector<std::uint32_t>& fa
   local.corner_local.resize(faces.size() * 3);
   for (std::size_t i = 0; i < faces.size(); ++i)
     for (int k = 0; k < 3; ++k) {
-      const auto it = std::lower_bound(local.vertices.begin(), local.vertices.end(), topo.corners[3 * faces[i] + k]);
+      const auto it =
+          std::lower_bound(local.vertices.begin(), local.vertices.end(), topo.corners[3 * faces[i] + k]);
       local.corner_local[3 * i + k] = static_cast<std::uint32_t>(it - local.vertices.begin());
     }
   return local;
@@ -110,7 +111,7 @@ bool solve_lscm(const Topology& topo, const std::vector<std::uint32_t>& faces, c
   for (std::size_t i = 0; i < faces.size(); ++i) {
     const std::uint32_t* c = &local.corner_local[3 * i];
     double q[6][6] = {};
-    auto add_row = [&](const double (&coef)[6]) {
+    auto add_row = [&](const double(&coef)[6]) {
       for (int a = 0; a < 6; ++a)
         for (int b = 0; b < 6; ++b) q[a][b] += coef[a] * coef[b];
     };
@@ -118,7 +119,8 @@ bool solve_lscm(const Topology& topo, const std::vector<std::uint32_t>& faces, c
       double row_u[6] = {}, row_v[6] = {};
       row_u[k] = row_v[3 + k] = 1.0;
       row_u[(k + 1) % 3] = row_v[3 + (k + 1) % 3] = -1.0;
-      for (int a = 0; a < 6; ++a) row_u[a] *= std::sqrt(kRegularization), row_v[a] *= std::sqrt(kRegularization);
+      for (int a = 0; a < 6; ++a)
+        row_u[a] *= std::sqrt(kRegularization), row_v[a] *= std::sqrt(kRegularization);
       add_row(row_u);
       add_row(row_v);
     }
@@ -141,7 +143,7 @@ bool solve_lscm(const Topology& topo, const std::vector<std::uint32_t>& faces, c
         }
         const double w = std::sqrt(0.5 * twice_area);
         add_row({w * gx[0], w * gx[1], w * gx[2], -w * gy[0], -w * gy[1], -w * gy[2]});  // u_x - v_y
-        add_row({w * gy[0], w * gy[1], w * gy[2], w * gx[0], w * gx[1], w * gx[2]});    // u_y + v_x
+        add_row({w * gy[0], w * gy[1], w * gy[2], w * gx[0], w * gx[1], w * gx[2]});     // u_y + v_x
       }
     }
     int vars[6];
@@ -183,9 +185,8 @@ double signed_area(const glm::dvec2& a, const glm::dvec2& b, const glm::dvec2& c
 
 // Andrew's monotone chain; returns the hull counter-clockwise.
 std::vector<glm::dvec2> convex_hull(std::vector<glm::dvec2> points) {
-  std::sort(points.begin(), points.end(), [](const glm::dvec2& a, const glm::dvec2& b) {
-    return a.x != b.x ? a.x < b.x : a.y < b.y;
-  });
+  std::sort(points.begin(), points.end(),
+            [](const glm::dvec2& a, const glm::dvec2& b) { return a.x != b.x ? a.x < b.x : a.y < b.y; });
   if (points.size() < 3) return points;
   std::vector<glm::dvec2> hull(2 * points.size());
   std::size_t k = 0;
@@ -257,7 +258,8 @@ std::vector<Work> split(const Topology& topo, const Work& work, int max_depth) {
     for (std::size_t i = 0; i < faces.size(); ++i) {
       centroid[i] = (glm::dvec3(topo.positions[topo.corners[3 * faces[i]]]) +
                      glm::dvec3(topo.positions[topo.corners[3 * faces[i] + 1]]) +
-                     glm::dvec3(topo.positions[topo.corners[3 * faces[i] + 2]])) / 3.0;
+                     glm::dvec3(topo.positions[topo.corners[3 * faces[i] + 2]])) /
+                    3.0;
       lo = glm::min(lo, centroid[i]);
       hi = glm::max(hi, centroid[i]);
     }
@@ -288,8 +290,9 @@ std::vector<Work> split(const Topology& topo, const Work& work, int max_depth) {
         const std::uint64_t a = topo.corners[3 * faces[i] + k], b = topo.corners[3 * faces[i] + (k + 1) % 3];
         edges.push_back({std::min(a, b) << 32 | std::max(a, b), static_cast<std::uint32_t>(i)});
       }
-    std::sort(edges.begin(), edges.end(),
-              [](const EdgeUse& a, const EdgeUse& b) { return a.key != b.key ? a.key < b.key : a.face < b.face; });
+    std::sort(edges.begin(), edges.end(), [](const EdgeUse& a, const EdgeUse& b) {
+      return a.key != b.key ? a.key < b.key : a.face < b.face;
+    });
     std::vector<std::uint32_t> parent(faces.size());
     std::iota(parent.begin(), parent.end(), 0u);
     auto find = [&](std::uint32_t x) {
@@ -348,7 +351,8 @@ Outcome parameterize_one(const Topology& topo, const Work& work, const Parameter
   if (!folded && faces.size() > 1) {
     glm::dvec2 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
     for (const glm::dvec2& p : corner_uv) lo = glm::min(lo, p), hi = glm::max(hi, p);
-    const std::vector<std::uint8_t> overlap = find_overlaps(corner_uv, 1e-7 * std::max(hi.x - lo.x, hi.y - lo.y));
+    const std::vector<std::uint8_t> overlap =
+        find_overlaps(corner_uv, 1e-7 * std::max(hi.x - lo.x, hi.y - lo.y));
     folded = std::find(overlap.begin(), overlap.end(), 1) != overlap.end();
   }
   if (folded && faces.size() > 1) {
@@ -368,7 +372,8 @@ Outcome parameterize_one(const Topology& topo, const Work& work, const Parameter
 }  // namespace
 
 void parameterize_charts(const Topology& topo, const std::vector<std::vector<std::uint32_t>>& charts,
-                         const ParameterizeOptions& options, std::vector<Chart>& out, ParameterizeStats& stats) {
+                         const ParameterizeOptions& options, std::vector<Chart>& out,
+                         ParameterizeStats& stats) {
   out.clear();
   std::vector<Work> pending(charts.size());
   for (std::size_t i = 0; i < charts.size(); ++i) pending[i].faces = charts[i];

@@ -10,11 +10,10 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <limits>
-#include <unordered_map>
-
 #include <glm/geometric.hpp>
+#include <limits>
 #include <nlohmann/json.hpp>
+#include <unordered_map>
 
 #include "unwrap/unwrap_internal.hpp"
 
@@ -53,7 +52,8 @@ std::vector<std::uint8_t> find_overlaps(const std::vector<glm::dvec2>& uv, doubl
   std::vector<std::uint8_t> flag(n, 0);
   if (n < 2) return flag;
   std::vector<glm::dvec2> lo(n), hi(n);
-  glm::dvec2 all_lo(std::numeric_limits<double>::infinity()), all_hi(-std::numeric_limits<double>::infinity());
+  glm::dvec2 all_lo(std::numeric_limits<double>::infinity()),
+      all_hi(-std::numeric_limits<double>::infinity());
   double extent_sum = 0.0;
   for (std::size_t t = 0; t < n; ++t) {
     lo[t] = glm::min(glm::min(uv[3 * t], uv[3 * t + 1]), uv[3 * t + 2]);
@@ -86,7 +86,8 @@ std::vector<std::uint8_t> find_overlaps(const std::vector<glm::dvec2>& uv, doubl
   for (std::size_t c = 1; c < start.size(); ++c) start[c] += start[c - 1];
   std::vector<std::uint32_t> entries(start.back());
   std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
-  for (std::size_t t = 0; t < n; ++t) for_cells(t, [&](std::size_t c) { entries[fill[c]++] = static_cast<std::uint32_t>(t); });
+  for (std::size_t t = 0; t < n; ++t)
+    for_cells(t, [&](std::size_t c) { entries[fill[c]++] = static_cast<std::uint32_t>(t); });
 
   for (std::size_t c = 0; c + 1 < start.size(); ++c) {
     for (std::uint32_t i = start[c]; i < start[c + 1]; ++i) {
@@ -178,9 +179,11 @@ Status unwrap_mesh(const Mesh& in, const UnwrapOptions& o, Mesh& out, UnwrapRepo
   r = UnwrapReport{};
   const PackOptions& pack = o.pack;
   if (pack.resolution < 8 || pack.resolution > 32768)
-    return Status::bad_input("unwrap: atlas size " + std::to_string(pack.resolution) + " is out of range (8 to 32768)");
+    return Status::bad_input("unwrap: atlas size " + std::to_string(pack.resolution) +
+                             " is out of range (8 to 32768)");
   if (pack.gutter < 0 || pack.gutter > pack.resolution / 4)
-    return Status::bad_input("unwrap: gutter " + std::to_string(pack.gutter) + " is out of range (0 to size / 4)");
+    return Status::bad_input("unwrap: gutter " + std::to_string(pack.gutter) +
+                             " is out of range (0 to size / 4)");
   if (!(o.chart.max_normal_deviation_deg > 0.0f && o.chart.max_normal_deviation_deg < 180.0f))
     return Status::bad_input("unwrap: the normal deviation limit must be in (0, 180) degrees");
   NMBAKE_TRY(validate_mesh(in, "unwrap input"));
@@ -277,16 +280,22 @@ std::string UnwrapReport::to_json() const {
   j["input_vertices"] = input_vertices;
   j["output_vertices"] = output_vertices;
   j["charts"] = chart_count;
-  j["atlas"] = {{"size", resolution}, {"gutter", gutter}, {"texels_per_unit", texels_per_unit},
-                {"utilization", utilization}, {"pack_attempts", pack_attempts}};
+  j["atlas"] = {{"size", resolution},
+                {"gutter", gutter},
+                {"texels_per_unit", texels_per_unit},
+                {"utilization", utilization},
+                {"pack_attempts", pack_attempts}};
   j["stretch"] = {{"l2", stretch_l2}, {"linf", stretch_linf}};
   j["quality"] = {{"flipped_triangles", flipped_triangles},
                   {"overlapping_triangles", overlapping_triangles},
                   {"collapsed_triangles", collapsed_triangles}};
-  j["fallbacks"] = {{"boundary_edges_kept", boundary_edges_kept}, {"nonmanifold_faces", nonmanifold_faces},
-                    {"zero_area_triangles", zero_area_triangles}, {"charts_split", charts_split},
-                    {"lscm_fallbacks", lscm_fallbacks}, {"small_charts_merged", small_charts_merged}};
-  j["seconds"] = {{"charts", seconds_charts}, {"parameterize", seconds_parameterize}, {"pack", seconds_pack},
+  j["fallbacks"] = {
+      {"boundary_edges_kept", boundary_edges_kept}, {"nonmanifold_faces", nonmanifold_faces},
+      {"zero_area_triangles", zero_area_triangles}, {"charts_split", charts_split},
+      {"lscm_fallbacks", lscm_fallbacks},           {"small_charts_merged", small_charts_merged}};
+  j["seconds"] = {{"charts", seconds_charts},
+                  {"parameterize", seconds_parameterize},
+                  {"pack", seconds_pack},
                   {"total", seconds_total}};
   return j.dump(2) + "\n";
 }
@@ -294,10 +303,12 @@ std::string UnwrapReport::to_json() const {
 std::string UnwrapReport::summary_line() const {
   char line[384];
   std::snprintf(line, sizeof line,
-                "unwrapped %llu triangles: %llu charts, %dx%d gutter %d, utilization %.1f%%, stretch L2 %.3f Linf %.3f, "
+                "unwrapped %llu triangles: %llu charts, %dx%d gutter %d, utilization %.1f%%, stretch L2 %.3f "
+                "Linf %.3f, "
                 "%llu flipped, %llu overlapping, %.2f s",
-                static_cast<unsigned long long>(input_triangles), static_cast<unsigned long long>(chart_count),
-                resolution, resolution, gutter, 100.0 * utilization, stretch_l2, stretch_linf,
+                static_cast<unsigned long long>(input_triangles),
+                static_cast<unsigned long long>(chart_count), resolution, resolution, gutter,
+                100.0 * utilization, stretch_l2, stretch_linf,
                 static_cast<unsigned long long>(flipped_triangles),
                 static_cast<unsigned long long>(overlapping_triangles), seconds_total);
   return line;

@@ -3,11 +3,10 @@
 #pragma once
 
 #include <cstdint>
-#include <vector>
-
 #include <glm/ext/vector_double2.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <vector>
 
 #include "nmbake/unwrap.hpp"
 
@@ -15,8 +14,8 @@ namespace nmbake::unwrap_detail {
 
 // The low mesh welded by position (bitwise equal, -0 == +0), as topology.
 struct Topology {
-  std::vector<glm::vec3> positions;    // per welded vertex
-  std::vector<std::uint32_t> corners;  // 3 per triangle: welded vertex
+  std::vector<glm::vec3> positions;     // per welded vertex
+  std::vector<std::uint32_t> corners;   // 3 per triangle: welded vertex
   std::vector<glm::vec3> face_normals;  // unit, (0, 0, 1) for zero-area faces
   std::vector<double> face_areas;
   std::vector<std::uint8_t> degenerate;  // 1: zero area (no LSCM weight)
@@ -24,7 +23,8 @@ struct Topology {
 };
 
 struct SegmentStats {
-  std::uint64_t boundary_edges_kept = 0, nonmanifold_faces = 0, zero_area_triangles = 0, small_charts_merged = 0;
+  std::uint64_t boundary_edges_kept = 0, nonmanifold_faces = 0, zero_area_triangles = 0,
+                small_charts_merged = 0;
 };
 
 // Builds the topology and grows charts. Each chart is a list of triangle
@@ -47,7 +47,8 @@ struct ParameterizeStats {
 
 // LSCM on every chart, splitting the ones that fold until none does.
 void parameterize_charts(const Topology& topology, const std::vector<std::vector<std::uint32_t>>& charts,
-                         const ParameterizeOptions& options, std::vector<Chart>& out, ParameterizeStats& stats);
+                         const ParameterizeOptions& options, std::vector<Chart>& out,
+                         ParameterizeStats& stats);
 
 // Where a chart went in the atlas: UV = (offset + R(turns) * uv * scale) / resolution,
 // R turning counter-clockwise by 90 degrees per turn (a rotation: never a mirror,

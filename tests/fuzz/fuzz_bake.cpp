@@ -21,11 +21,16 @@ struct Bytes {
 
 float coordinate(std::uint8_t b) {
   switch (b) {
-    case 255: return 5e29f;
-    case 254: return 1e8f;
-    case 253: return 1e-40f;
-    case 252: return 0.0f;
-    default: return (static_cast<float>(b) - 126.0f) / 32.0f;
+    case 255:
+      return 5e29f;
+    case 254:
+      return 1e8f;
+    case 253:
+      return 1e-40f;
+    case 252:
+      return 0.0f;
+    default:
+      return (static_cast<float>(b) - 126.0f) / 32.0f;
   }
 }
 
@@ -35,7 +40,8 @@ std::string obj(Bytes& in, int vertices, int triangles, bool uvs) {
     text += "v";
     for (int k = 0; k < 3; ++k) text += " " + std::to_string(coordinate(in.take()));
     text += "\n";
-    if (uvs) text += "vt " + std::to_string(in.take() / 255.0f) + " " + std::to_string(in.take() / 255.0f) + "\n";
+    if (uvs)
+      text += "vt " + std::to_string(in.take() / 255.0f) + " " + std::to_string(in.take() / 255.0f) + "\n";
   }
   for (int t = 0; t < triangles; ++t) {
     text += "f";
@@ -59,9 +65,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const int high_vertices = 3 + in.take() % 10, high_triangles = 1 + in.take() % 12;
   const std::string low_text = obj(in, low_vertices, low_triangles, (flags & 1) != 0);
   const std::string high_text = obj(in, high_vertices, high_triangles, false);
-  const nmbake::fuzz::InputFile low(reinterpret_cast<const std::uint8_t*>(low_text.data()), low_text.size(), "low.obj");
-  const nmbake::fuzz::InputFile high(reinterpret_cast<const std::uint8_t*>(high_text.data()), high_text.size(),
-                                     "high.obj");
+  const nmbake::fuzz::InputFile low(reinterpret_cast<const std::uint8_t*>(low_text.data()), low_text.size(),
+                                    "low.obj");
+  const nmbake::fuzz::InputFile high(reinterpret_cast<const std::uint8_t*>(high_text.data()),
+                                     high_text.size(), "high.obj");
   nmbake::BakeOptions o;
   o.low_path = low.path();
   o.high_path = high.path();

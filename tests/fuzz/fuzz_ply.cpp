@@ -1,4 +1,5 @@
-// PLY (ascii, binary little and big endian) through load_mesh() (fuzz_util.hpp: both parsers, which must agree).
+// PLY (ascii, binary little and big endian) through load_mesh() (fuzz_util.hpp: both parsers, which must
+// agree).
 #include "fuzz_util.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {

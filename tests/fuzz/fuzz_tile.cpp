@@ -50,7 +50,8 @@ T load(const std::uint8_t* data, std::size_t offset) {
 // The header's fields in file order (task.cpp's format 3), as far as the
 // bytes go; `texels_at` is where the texel arrays start (0 when the header
 // is cut short) and `channels` the map set's channel count.
-std::vector<Field> header_fields(const std::uint8_t* data, std::size_t size, std::size_t& texels_at, int& channels) {
+std::vector<Field> header_fields(const std::uint8_t* data, std::size_t size, std::size_t& texels_at,
+                                 int& channels) {
   std::vector<Field> fields;
   texels_at = 0;
   channels = 0;
@@ -75,11 +76,12 @@ std::vector<Field> header_fields(const std::uint8_t* data, std::size_t size, std
   for (std::int32_t i = 0; i < maps; ++i) {
     if (!add(FieldKind::u8, 1)) return fields;
     const auto kind = static_cast<nmbake::MapKind>(data[at - 1]);
-    if (data[at - 1] <= static_cast<std::uint8_t>(nmbake::MapKind::miss)) channels += nmbake::map_traits(kind).channels;
+    if (data[at - 1] <= static_cast<std::uint8_t>(nmbake::MapKind::miss))
+      channels += nmbake::map_traits(kind).channels;
   }
-  for (const FieldKind k : {FieldKind::f32, FieldKind::f32, FieldKind::i32, FieldKind::f32, FieldKind::i32,
-                            FieldKind::f32, FieldKind::f32, FieldKind::f32, FieldKind::f32, FieldKind::f32,
-                            FieldKind::f32, FieldKind::f32}) {
+  for (const FieldKind k :
+       {FieldKind::f32, FieldKind::f32, FieldKind::i32, FieldKind::f32, FieldKind::i32, FieldKind::f32,
+        FieldKind::f32, FieldKind::f32, FieldKind::f32, FieldKind::f32, FieldKind::f32, FieldKind::f32}) {
     if (!add(k, 4)) return fields;
   }
   for (int i = 0; i < 13; ++i) {
@@ -113,7 +115,7 @@ void mutate_field(std::uint8_t* data, const Field& f, std::minstd_rand& rng) {
     case FieldKind::i32: {
       const auto old = load<std::int32_t>(data, f.offset);
       const std::int64_t v = pick(0, 1, -1, 2, 32, 4096, 4097, 65536, 65537, INT32_MAX, INT32_MIN,
-                              std::int64_t{old} + 1, std::int64_t{old} - 1);
+                                  std::int64_t{old} + 1, std::int64_t{old} - 1);
       store(data, f.offset, static_cast<std::int32_t>(v));
       break;
     }
@@ -124,12 +126,22 @@ void mutate_field(std::uint8_t* data, const Field& f, std::minstd_rand& rng) {
       break;
     }
     case FieldKind::u8:
-      data[f.offset] = static_cast<std::uint8_t>(pick(0, 1, 2, 5, 10, 11, 12, 64, 65, 255, data[f.offset] + 1));
+      data[f.offset] =
+          static_cast<std::uint8_t>(pick(0, 1, 2, 5, 10, 11, 12, 64, 65, 255, data[f.offset] + 1));
       break;
     case FieldKind::f32: {
-      const float values[] = {0.0f, -0.0f, 1.0f, -1.0f, 1e-39f, 1.5e-39f, 1e30f, 3.4e38f,
-                              std::numeric_limits<float>::infinity(), std::numeric_limits<float>::quiet_NaN(),
-                              std::numeric_limits<float>::denorm_min(), 1e12f};
+      const float values[] = {0.0f,
+                              -0.0f,
+                              1.0f,
+                              -1.0f,
+                              1e-39f,
+                              1.5e-39f,
+                              1e30f,
+                              3.4e38f,
+                              std::numeric_limits<float>::infinity(),
+                              std::numeric_limits<float>::quiet_NaN(),
+                              std::numeric_limits<float>::denorm_min(),
+                              1e12f};
       store(data, f.offset, values[rng() % std::size(values)]);
       break;
     }
@@ -137,8 +149,15 @@ void mutate_field(std::uint8_t* data, const Field& f, std::minstd_rand& rng) {
       store(data, f.offset, static_cast<std::uint64_t>(pick(0, 1, INT64_MAX, -1, 1ll << 53)));
       break;
     case FieldKind::f64: {
-      const double values[] = {0.0, 1.0, -1.0, 0.5, 0x1p53, 0x1p53 + 2, 1e300,
-                               std::numeric_limits<double>::infinity(), std::numeric_limits<double>::quiet_NaN()};
+      const double values[] = {0.0,
+                               1.0,
+                               -1.0,
+                               0.5,
+                               0x1p53,
+                               0x1p53 + 2,
+                               1e300,
+                               std::numeric_limits<double>::infinity(),
+                               std::numeric_limits<double>::quiet_NaN()};
       store(data, f.offset, values[rng() % std::size(values)]);
       break;
     }

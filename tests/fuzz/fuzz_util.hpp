@@ -19,8 +19,9 @@ namespace nmbake::fuzz {
 inline const std::filesystem::path& scratch_folder() {
   static const std::filesystem::path folder = [] {
     std::error_code ec;
-    const std::filesystem::path base =
-        std::filesystem::is_directory("/dev/shm", ec) ? std::filesystem::path("/dev/shm") : std::filesystem::temp_directory_path();
+    const std::filesystem::path base = std::filesystem::is_directory("/dev/shm", ec)
+                                           ? std::filesystem::path("/dev/shm")
+                                           : std::filesystem::temp_directory_path();
     std::filesystem::path f = base / ("nmbake-fuzz-" + std::to_string(::getpid()));
     std::filesystem::create_directories(f, ec);
     return f;

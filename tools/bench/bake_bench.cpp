@@ -21,6 +21,10 @@
 //                          (trace_occlusion_raw: only rtcOccluded16 timed) and
 //                          the line gives AO rays/s of the bake's occlusion
 //                          stage against it.
+#include <tbb/global_control.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -29,10 +33,6 @@
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <CLI/CLI.hpp>
-#include <tbb/global_control.h>
-#include <unistd.h>
 
 #include "nmbake/bake.hpp"
 #include "nmbake/job.hpp"
@@ -62,7 +62,8 @@ int main(int argc, char** argv) {
   int compare_pairs = 0;
   CLI::App app{"nmbake-bench: a whole bake beside raw Embree on the same rays"};
   app.add_option("--map", maps_text, "maps to bake (comma list)")->capture_default_str();
-  app.add_option("--versus", versus_text, "a second map set baked alternately: the ratio of whole-bake times");
+  app.add_option("--versus", versus_text,
+                 "a second map set baked alternately: the ratio of whole-bake times");
   app.add_option("--ao-rays", ao_rays, "AO rays per sample")->capture_default_str();
   app.add_option("--low", low)->required();
   app.add_option("--high", high)->required();
@@ -75,9 +76,10 @@ int main(int argc, char** argv) {
   app.add_option("--repeat", repeat)->capture_default_str()->check(CLI::Range(1, 50));
   app.add_option("--band-samples", band_samples, "samples per band of rows (0: the library's default, 1M)")
       ->capture_default_str();
-  app.add_option("--compare-old-rule", compare_pairs,
-                 "then N passes over the map's bands, each band traced with the defaults and with the old ray rule "
-                 "(averaged cage, no retry) in turn: the median of the passes' trace-time ratios")
+  app.add_option(
+         "--compare-old-rule", compare_pairs,
+         "then N passes over the map's bands, each band traced with the defaults and with the old ray rule "
+         "(averaged cage, no retry) in turn: the median of the passes' trace-time ratios")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   if (label.empty()) label = std::filesystem::path(high).stem().string();
@@ -223,8 +225,9 @@ int main(int argc, char** argv) {
       occlusion_ratio.push_back((static_cast<double>(occlusion_rays) / occlusion.back()) /
                                 (static_cast<double>(raw_occlusion_rays) / occlusion_seconds));
       if (std::getenv("NMBAKE_BENCH_PAIRS")) {
-        std::fprintf(stderr, "pair %zu: occlusion %.3f s raw %.3f s (%llu / %llu rays)\n", raw_occlusion.size(),
-                     occlusion.back(), occlusion_seconds, static_cast<unsigned long long>(occlusion_rays),
+        std::fprintf(stderr, "pair %zu: occlusion %.3f s raw %.3f s (%llu / %llu rays)\n",
+                     raw_occlusion.size(), occlusion.back(), occlusion_seconds,
+                     static_cast<unsigned long long>(occlusion_rays),
                      static_cast<unsigned long long>(raw_occlusion_rays));
       }
     }
@@ -256,7 +259,8 @@ int main(int argc, char** argv) {
     nmbake::Mesh low_mesh, high_mesh;
     nmbake::LoadStats ls;
     nmbake::MeshStats ms;
-    if (!nmbake::load_mesh(low, {}, low_mesh, ls) || !nmbake::load_mesh(high, {false, true}, high_mesh, ls)) return 2;
+    if (!nmbake::load_mesh(low, {}, low_mesh, ls) || !nmbake::load_mesh(high, {false, true}, high_mesh, ls))
+      return 2;
     nmbake::prepare_low_normals(low_mesh, ms);
     nmbake::pad_for_embree(high_mesh);
     nmbake::SurfaceStats ss;
@@ -292,8 +296,8 @@ int main(int argc, char** argv) {
       rule_old.push_back(seconds[1]);
       rule_ratio.push_back(seconds[0] / seconds[1]);
       if (std::getenv("NMBAKE_BENCH_PAIRS")) {
-        std::fprintf(stderr, "rule pass %d: trace %.4f s (banded, retry) vs %.4f s (averaged, no retry)\n", pass + 1,
-                     seconds[0], seconds[1]);
+        std::fprintf(stderr, "rule pass %d: trace %.4f s (banded, retry) vs %.4f s (averaged, no retry)\n",
+                     pass + 1, seconds[0], seconds[1]);
       }
     }
   }
@@ -302,36 +306,41 @@ int main(int argc, char** argv) {
   const double bake_rays_per_s = static_cast<double>(report.trace.rays) / median(trace);
   const double raw_rays_per_s = static_cast<double>(raw_rays) / median(raw);
   std::printf(
-      "bench %-12s tris %9llu  map %5d x%-2d threads %d bvh %-7s %-6s | load %6.3f build %6.3f raster %6.3f trace %6.3f "
-      "encode %6.3f write %6.3f rest %6.3f total %6.3f s | bake %6.2f Mrays/s raw %6.2f Mrays/s ratio %.2f | peak %6.0f MiB "
+      "bench %-12s tris %9llu  map %5d x%-2d threads %d bvh %-7s %-6s | load %6.3f build %6.3f raster %6.3f "
+      "trace %6.3f "
+      "encode %6.3f write %6.3f rest %6.3f total %6.3f s | bake %6.2f Mrays/s raw %6.2f Mrays/s ratio %.2f | "
+      "peak %6.0f MiB "
       "(%.0f B/tri)\n",
       label.c_str(), static_cast<unsigned long long>(report.high_triangles), size, samples, report.threads,
-      report.compact_bvh ? "compact" : "fast", quality.c_str(),
-      median(load), median(build), median(raster), median(trace), median(encode), median(write), median(rest), median(total),
-      1e-6 * bake_rays_per_s, 1e-6 * raw_rays_per_s, median(ratio),
-      static_cast<double>(bake_peak) / (1024.0 * 1024.0),
-      static_cast<double>(bake_peak) / static_cast<double>(std::max<std::uint64_t>(1, report.high_triangles)));
+      report.compact_bvh ? "compact" : "fast", quality.c_str(), median(load), median(build), median(raster),
+      median(trace), median(encode), median(write), median(rest), median(total), 1e-6 * bake_rays_per_s,
+      1e-6 * raw_rays_per_s, median(ratio), static_cast<double>(bake_peak) / (1024.0 * 1024.0),
+      static_cast<double>(bake_peak) /
+          static_cast<double>(std::max<std::uint64_t>(1, report.high_triangles)));
   if (!versus_text.empty()) {
-    std::printf("bench %-12s maps %s: total %.3f s; versus %s: total %.3f s; ratio %.3f (median of %zu pairs)\n",
-                label.c_str(), maps_text.c_str(), median(total), versus_text.c_str(), median(versus_total),
-                median(versus_ratio), versus_ratio.size());
+    std::printf(
+        "bench %-12s maps %s: total %.3f s; versus %s: total %.3f s; ratio %.3f (median of %zu pairs)\n",
+        label.c_str(), maps_text.c_str(), median(total), versus_text.c_str(), median(versus_total),
+        median(versus_ratio), versus_ratio.size());
   }
   if (with_ao) {
     std::printf(
-        "bench %-12s ao %d rays/sample: occlusion %.3f s, %.2f Mrays/s; raw rtcOccluded16 %.3f s, %.2f Mrays/s; "
+        "bench %-12s ao %d rays/sample: occlusion %.3f s, %.2f Mrays/s; raw rtcOccluded16 %.3f s, %.2f "
+        "Mrays/s; "
         "ratio %.2f (median of %zu pairs); %llu AO rays; whole bake %.3f s\n",
-        label.c_str(), ao_rays, median(occlusion), 1e-6 * static_cast<double>(occlusion_rays) / median(occlusion),
-        median(raw_occlusion), 1e-6 * static_cast<double>(raw_occlusion_rays) / median(raw_occlusion),
-        median(occlusion_ratio), occlusion_ratio.size(), static_cast<unsigned long long>(occlusion_rays),
-        median(total));
+        label.c_str(), ao_rays, median(occlusion),
+        1e-6 * static_cast<double>(occlusion_rays) / median(occlusion), median(raw_occlusion),
+        1e-6 * static_cast<double>(raw_occlusion_rays) / median(raw_occlusion), median(occlusion_ratio),
+        occlusion_ratio.size(), static_cast<unsigned long long>(occlusion_rays), median(total));
   }
   if (compare_pairs > 0) {
-    std::printf("rule  %-12s map %5d x%-2d | trace %6.4f s (banded cage, retry: %llu retried) vs %6.4f s (averaged, "
-                "no retry) | ratio %.3f (median of %d passes; min %.3f max %.3f)\n",
-                label.c_str(), size, samples, median(rule_new), static_cast<unsigned long long>(rule_retried),
-                median(rule_old), median(rule_ratio), compare_pairs,
-                *std::min_element(rule_ratio.begin(), rule_ratio.end()),
-                *std::max_element(rule_ratio.begin(), rule_ratio.end()));
+    std::printf(
+        "rule  %-12s map %5d x%-2d | trace %6.4f s (banded cage, retry: %llu retried) vs %6.4f s (averaged, "
+        "no retry) | ratio %.3f (median of %d passes; min %.3f max %.3f)\n",
+        label.c_str(), size, samples, median(rule_new), static_cast<unsigned long long>(rule_retried),
+        median(rule_old), median(rule_ratio), compare_pairs,
+        *std::min_element(rule_ratio.begin(), rule_ratio.end()),
+        *std::max_element(rule_ratio.begin(), rule_ratio.end()));
   }
   return 0;
 }

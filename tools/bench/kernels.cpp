@@ -36,7 +36,9 @@ const LowSurface& moon_surface() {
 }
 
 std::string temp_file(const std::string& name) {
-  return (std::filesystem::temp_directory_path() / ("nmbake_kernels_" + std::to_string(::getpid()) + "_" + name)).string();
+  return (std::filesystem::temp_directory_path() /
+          ("nmbake_kernels_" + std::to_string(::getpid()) + "_" + name))
+      .string();
 }
 
 void BM_Raster(benchmark::State& state) {
@@ -153,9 +155,11 @@ void BM_Write(benchmark::State& state, PixelFormat format, const char* extension
   Image image{size, size, 3, std::vector<float>(static_cast<std::size_t>(size) * size * 3)};
   for (int y = 0; y < size; ++y) {
     for (int x = 0; x < size; ++x) {
-      const float u = 6.2831853f * static_cast<float>(x) / 97.0f, v = 6.2831853f * static_cast<float>(y) / 131.0f;
-      const glm::vec3 n = glm::normalize(glm::vec3(-0.3f * std::cos(u) * std::sin(0.7f * v),
-                                                   -0.2f * std::sin(u) * std::cos(0.7f * v) - 0.1f * std::cos(3.1f * v), 1.0f));
+      const float u = 6.2831853f * static_cast<float>(x) / 97.0f,
+                  v = 6.2831853f * static_cast<float>(y) / 131.0f;
+      const glm::vec3 n = glm::normalize(
+          glm::vec3(-0.3f * std::cos(u) * std::sin(0.7f * v),
+                    -0.2f * std::sin(u) * std::cos(0.7f * v) - 0.1f * std::cos(3.1f * v), 1.0f));
       float* p = &image.pixels[(static_cast<std::size_t>(y) * size + x) * 3];
       for (int c = 0; c < 3; ++c) {
         const std::uint32_t h = (static_cast<std::uint32_t>(y * size + x) * 3u + c) * 2654435761u;
@@ -170,7 +174,9 @@ void BM_Write(benchmark::State& state, PixelFormat format, const char* extension
   std::filesystem::remove(path);
 }
 BENCHMARK_CAPTURE(BM_Write, png16, PixelFormat::png16, ".png")->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(BM_Write, exr_float, PixelFormat::exr_float, ".exr")->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Write, exr_float, PixelFormat::exr_float, ".exr")
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 // A curvature map as a bake writes it: one channel, 8 bits, dithered (the
 // default for 8-bit maps), values around 0.5 with smooth swells and a

@@ -3,15 +3,15 @@
 // angular error statistics.
 #include "eval.hpp"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
-
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
 #include <nlohmann/json.hpp>
-#include <tbb/parallel_for.h>
 
 #include "hard_scenes.hpp"
 #include "nmbake/raster.hpp"
@@ -221,7 +221,8 @@ bool intersect_true_surface(const TrueSurface& s, const glm::dvec3& o, const glm
         const double f = s.field(patch, o + t * d);
         if (f > 0.0 && down_f <= 0.0) {
           const double r = refine(s, patch, o, d, t, down_t);
-          if (s.in_patch(patch, o + r * d) && (found < 0.0 || std::fabs(r - t_target) < std::fabs(found - t_target)))
+          if (s.in_patch(patch, o + r * d) &&
+              (found < 0.0 || std::fabs(r - t_target) < std::fabs(found - t_target)))
             found = r;
         }
         down_t = t;
@@ -292,14 +293,14 @@ Expected compute_expected(const TrueSurface& truth, const Mesh& low, const Mesh*
         bool fallback = false;
         const Ray ray = make_ray(surface, tri, b, rays, fallback);
         glm::dvec3 hit, n;
-        if (!intersect_true_surface(truth, glm::dvec3(ray.origin), glm::dvec3(ray.direction), ray.tfar, ray.t_surface,
-                                    hit, n)) {
+        if (!intersect_true_surface(truth, glm::dvec3(ray.origin), glm::dvec3(ray.direction), ray.tfar,
+                                    ray.t_surface, hit, n)) {
           // The bake retries a miss along the same line, out and in up to
           // retry_reach from the low surface point: so does the truth.
           const double reach = rays.retry_reach;
-          if (!(reach > 0.0) ||
-              !intersect_true_surface(truth, glm::dvec3(ray.surface_point) - reach * glm::dvec3(ray.direction),
-                                      glm::dvec3(ray.direction), 2.0 * reach, reach, hit, n))
+          if (!(reach > 0.0) || !intersect_true_surface(
+                                    truth, glm::dvec3(ray.surface_point) - reach * glm::dvec3(ray.direction),
+                                    glm::dvec3(ray.direction), 2.0 * reach, reach, hit, n))
             continue;
         }
         any_truth = true;
@@ -321,7 +322,8 @@ Expected compute_expected(const TrueSurface& truth, const Mesh& low, const Mesh*
 }
 
 EvalResult evaluate(const Expected& e, const Image& map, const EvalOptions& options) {
-  NMBAKE_CHECK(map.width == e.width && map.height == e.height && map.channels >= 3, "map size differs from the expected");
+  NMBAKE_CHECK(map.width == e.width && map.height == e.height && map.channels >= 3,
+               "map size differs from the expected");
   EvalResult r;
   r.texels = static_cast<std::size_t>(e.width) * e.height;
   r.covered = e.covered;
@@ -342,7 +344,8 @@ EvalResult evaluate(const Expected& e, const Image& map, const EvalOptions& opti
       }
       if (tangent) {
         const glm::vec3 baked = tangent_to_world(v, e.frame_t[texel], e.frame_n[texel], e.frame_sign[texel]);
-        const glm::vec3 want = tangent_to_world(e.value[texel], e.frame_t[texel], e.frame_n[texel], e.frame_sign[texel]);
+        const glm::vec3 want =
+            tangent_to_world(e.value[texel], e.frame_t[texel], e.frame_n[texel], e.frame_sign[texel]);
         rows[y].push_back(angle_degrees(baked, want));
       } else {
         rows[y].push_back(angle_degrees(v, e.value[texel]));

@@ -19,16 +19,15 @@
 // object space directly. The expected texel is the analytic normal encoded
 // with the exact inverse through each sample's frame, averaged over the
 // texel's samples like the baker averages, so a perfect bake scores 0 up to
-// float rounding when truth_samples equals the bake's; expected_image() gives that perfect map, for validating
-// the evaluator and measuring the quantisation floors.
+// float rounding when truth_samples equals the bake's; expected_image() gives that perfect map, for
+// validating the evaluator and measuring the quantisation floors.
 #pragma once
 
 #include <cstddef>
+#include <glm/ext/vector_double3.hpp>
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <glm/ext/vector_double3.hpp>
 
 #include "lab_scenes.hpp"
 #include "nmbake/encode.hpp"
@@ -71,10 +70,10 @@ struct EvalOptions {
 };
 
 struct EvalResult {
-  std::size_t texels = 0;           // all texels of the map
-  std::size_t covered = 0;          // texels the low UVs cover
-  std::size_t without_truth = 0;    // covered, but no sample's ray meets the analytic surface
-  AngularError error;               // over the scored texels (covered - without_truth)
+  std::size_t texels = 0;         // all texels of the map
+  std::size_t covered = 0;        // texels the low UVs cover
+  std::size_t without_truth = 0;  // covered, but no sample's ray meets the analytic surface
+  AngularError error;             // over the scored texels (covered - without_truth)
   std::string to_text() const;
   std::string to_json() const;
 };
@@ -82,16 +81,16 @@ struct EvalResult {
 // Per covered texel: the expected stored vector and the frame it is compared in.
 struct Expected {
   int width = 0, height = 0;
-  std::vector<std::uint8_t> scored;  // per texel
-  std::vector<glm::vec3> value;      // expected unit vector in the stored space
+  std::vector<std::uint8_t> scored;         // per texel
+  std::vector<glm::vec3> value;             // expected unit vector in the stored space
   std::vector<glm::vec3> frame_t, frame_n;  // MikkTSpace frame of the texel's first sample
   std::vector<float> frame_sign;
   std::size_t covered = 0;
 };
 
 // `low` as baked (unit normals, UVs); `cage` the explicit cage or null.
-Expected compute_expected(const TrueSurface& surface, const Mesh& low, const Mesh* cage, int width, int height,
-                          const EvalOptions& options);
+Expected compute_expected(const TrueSurface& surface, const Mesh& low, const Mesh* cage, int width,
+                          int height, const EvalOptions& options);
 // Binary cache of an Expected, keyed by a string (scene, size, options,
 // mesh files): the lab scores many bakes against one truth.
 bool save_expected(const std::string& path, const std::string& key, const Expected& expected);

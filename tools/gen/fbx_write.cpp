@@ -157,44 +157,50 @@ Status write_fbx_binary(const std::string& path, const Mesh& mesh, const FbxMode
           w.node("PolygonVertexIndex", [&] { w.i32_array(corners); });
           w.node("GeometryVersion", [&] { w.i32(124); });
           if (mesh.has_normals()) {
-            w.node("LayerElementNormal", [&] { w.i32(0); }, [&] {
-              w.node("Version", [&] { w.i32(101); });
-              w.node("Name", [&] { w.str(""); });
-              w.node("MappingInformationType", [&] { w.str("ByVertice"); });
-              w.node("ReferenceInformationType", [&] { w.str("Direct"); });
-              std::vector<double> normals;
-              normals.reserve(mesh.vertex_count() * 3);
-              for (const glm::vec3& n : mesh.normals) normals.insert(normals.end(), {n.x, n.y, n.z});
-              w.node("Normals", [&] { w.f64_array(normals); });
-            });
+            w.node(
+                "LayerElementNormal", [&] { w.i32(0); },
+                [&] {
+                  w.node("Version", [&] { w.i32(101); });
+                  w.node("Name", [&] { w.str(""); });
+                  w.node("MappingInformationType", [&] { w.str("ByVertice"); });
+                  w.node("ReferenceInformationType", [&] { w.str("Direct"); });
+                  std::vector<double> normals;
+                  normals.reserve(mesh.vertex_count() * 3);
+                  for (const glm::vec3& n : mesh.normals) normals.insert(normals.end(), {n.x, n.y, n.z});
+                  w.node("Normals", [&] { w.f64_array(normals); });
+                });
           }
           if (mesh.has_uvs()) {
-            w.node("LayerElementUV", [&] { w.i32(0); }, [&] {
-              w.node("Version", [&] { w.i32(101); });
-              w.node("Name", [&] { w.str("UVMap"); });
-              w.node("MappingInformationType", [&] { w.str("ByVertice"); });
-              w.node("ReferenceInformationType", [&] { w.str("Direct"); });
-              std::vector<double> uvs;
-              uvs.reserve(mesh.vertex_count() * 2);
-              for (const glm::vec2& uv : mesh.uvs) uvs.insert(uvs.end(), {uv.x, uv.y});
-              w.node("UV", [&] { w.f64_array(uvs); });
-            });
+            w.node(
+                "LayerElementUV", [&] { w.i32(0); },
+                [&] {
+                  w.node("Version", [&] { w.i32(101); });
+                  w.node("Name", [&] { w.str("UVMap"); });
+                  w.node("MappingInformationType", [&] { w.str("ByVertice"); });
+                  w.node("ReferenceInformationType", [&] { w.str("Direct"); });
+                  std::vector<double> uvs;
+                  uvs.reserve(mesh.vertex_count() * 2);
+                  for (const glm::vec2& uv : mesh.uvs) uvs.insert(uvs.end(), {uv.x, uv.y});
+                  w.node("UV", [&] { w.f64_array(uvs); });
+                });
           }
-          w.node("Layer", [&] { w.i32(0); }, [&] {
-            w.node("Version", [&] { w.i32(100); });
-            if (mesh.has_normals()) {
-              w.node("LayerElement", {}, [&] {
-                w.node("Type", [&] { w.str("LayerElementNormal"); });
-                w.node("TypedIndex", [&] { w.i32(0); });
+          w.node(
+              "Layer", [&] { w.i32(0); },
+              [&] {
+                w.node("Version", [&] { w.i32(100); });
+                if (mesh.has_normals()) {
+                  w.node("LayerElement", {}, [&] {
+                    w.node("Type", [&] { w.str("LayerElementNormal"); });
+                    w.node("TypedIndex", [&] { w.i32(0); });
+                  });
+                }
+                if (mesh.has_uvs()) {
+                  w.node("LayerElement", {}, [&] {
+                    w.node("Type", [&] { w.str("LayerElementUV"); });
+                    w.node("TypedIndex", [&] { w.i32(0); });
+                  });
+                }
               });
-            }
-            if (mesh.has_uvs()) {
-              w.node("LayerElement", {}, [&] {
-                w.node("Type", [&] { w.str("LayerElementUV"); });
-                w.node("TypedIndex", [&] { w.i32(0); });
-              });
-            }
-          });
         });
     w.node(
         "Model",

@@ -9,10 +9,9 @@
 #pragma once
 
 #include <cstdint>
+#include <glm/vec3.hpp>
 #include <string>
 #include <vector>
-
-#include <glm/vec3.hpp>
 
 #include "nmbake/common.hpp"
 #include "nmbake/mesh.hpp"

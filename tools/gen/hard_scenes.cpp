@@ -10,9 +10,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numbers>
-
 #include <glm/geometric.hpp>
+#include <numbers>
 
 #include "lab_scenes.hpp"
 
@@ -75,7 +74,8 @@ void unmirror(Mesh& m, const Chart& chart, std::size_t first_index) {
     const double area = cross2(ub - ua, uc - ua);
     if (area == 0.0) continue;
     if (area < 0.0) {
-      for (std::uint32_t v = chart.first; v < chart.end; ++v) m.uvs[v].x = static_cast<float>(chart.width) - m.uvs[v].x;
+      for (std::uint32_t v = chart.first; v < chart.end; ++v)
+        m.uvs[v].x = static_cast<float>(chart.width) - m.uvs[v].x;
     }
     return;
   }
@@ -137,7 +137,8 @@ glm::dvec2 RevolveProfile::Element::normal_at(double s) const {
 }
 
 RevolveProfile::RevolveProfile(const std::vector<ProfileCorner>& c) {
-  NMBAKE_CHECK(c.size() >= 3 && c.front().rho == 0.0 && c.back().rho == 0.0, "a profile from the axis to the axis");
+  NMBAKE_CHECK(c.size() >= 3 && c.front().rho == 0.0 && c.back().rho == 0.0,
+               "a profile from the axis to the axis");
   const double orient = orientation(c);
   const auto segment = [&](const glm::dvec2& a, const glm::dvec2& b) {
     Element e;
@@ -219,7 +220,8 @@ double RevolveProfile::signed_distance(const glm::dvec2& q, glm::dvec2* normal) 
   // The pseudo-normal: at an end shared with a neighbour, both normals.
   glm::dvec2 n = elements_[best_k].normal_at(best_s);
   if (best_s <= 0.0 && best_k > 0) n = glm::normalize(n + elements_[best_k - 1].normal_at(1.0));
-  if (best_s >= 1.0 && best_k + 1 < elements_.size()) n = glm::normalize(n + elements_[best_k + 1].normal_at(0.0));
+  if (best_s >= 1.0 && best_k + 1 < elements_.size())
+    n = glm::normalize(n + elements_[best_k + 1].normal_at(0.0));
   if (normal != nullptr) *normal = n;
   return glm::dot(q - best_point, n) >= 0.0 ? best : -best;
 }
@@ -239,11 +241,10 @@ glm::dvec3 revolve_normal(const RevolveProfile& profile, const glm::dvec3& x) {
 RevolveParams bowl_params() {
   RevolveParams p;
   p.profile = {
-      {0.0, -0.5},
-      {0.45, -0.5, 0.12},  // floor to inner wall: concave
-      {0.8, 0.0, 0.05},    // inner wall to rim
-      {0.95, 0.0, 0.05},   // rim to outer wall
-      {0.6, -0.62, 0.08},  // outer wall to foot
+      {0.0, -0.5},        {0.45, -0.5, 0.12},  // floor to inner wall: concave
+      {0.8, 0.0, 0.05},                        // inner wall to rim
+      {0.95, 0.0, 0.05},                       // rim to outer wall
+      {0.6, -0.62, 0.08},                      // outer wall to foot
       {0.0, -0.62},
   };
   return p;
@@ -273,7 +274,8 @@ glm::vec3 revolved(const glm::dvec2& p, double c, double s) {
 }  // namespace
 
 ScenePair make_revolved(const RevolveParams& p) {
-  NMBAKE_CHECK(p.low_segments >= 8 && p.low_segments % 4 == 0 && p.high_segments >= 8, "segments around the axis");
+  NMBAKE_CHECK(p.low_segments >= 8 && p.low_segments % 4 == 0 && p.high_segments >= 8,
+               "segments around the axis");
   ScenePair pair;
   {  // High: the rounded profile, welded around, split at sharp profile corners.
     const RevolveProfile profile(p.profile);
@@ -281,8 +283,10 @@ ScenePair make_revolved(const RevolveParams& p) {
     for (std::size_t k = 0; k < profile.elements().size(); ++k) {
       const RevolveProfile::Element& e = profile.elements()[k];
       int count = std::max(1, static_cast<int>(std::ceil(e.length / p.high_step)));
-      if (e.arc) count = std::max(count, static_cast<int>(std::ceil(std::fabs(e.sweep) / (2.0 * kPi / 180.0))));
-      const bool smooth = k > 0 && glm::dot(profile.elements()[k - 1].normal_at(1.0), e.normal_at(0.0)) > 1.0 - 1e-12;
+      if (e.arc)
+        count = std::max(count, static_cast<int>(std::ceil(std::fabs(e.sweep) / (2.0 * kPi / 180.0))));
+      const bool smooth =
+          k > 0 && glm::dot(profile.elements()[k - 1].normal_at(1.0), e.normal_at(0.0)) > 1.0 - 1e-12;
       if (!smooth) strips.emplace_back();
       for (int j = smooth ? 1 : 0; j <= count; ++j) {
         const double s = static_cast<double>(j) / count;
@@ -303,13 +307,15 @@ ScenePair make_revolved(const RevolveParams& p) {
         const int ring = strip[i].p.x > 0.0 ? n : 1;  // a point on the axis is one pole vertex
         for (int j = 0; j < ring; ++j) {
           m.positions.push_back(revolved(strip[i].p, cs[j], sn[j]));
-          m.normals.push_back(glm::vec3(glm::normalize(glm::dvec3(strip[i].n.x * cs[j], strip[i].n.y, strip[i].n.x * sn[j]))));
+          m.normals.push_back(glm::vec3(
+              glm::normalize(glm::dvec3(strip[i].n.x * cs[j], strip[i].n.y, strip[i].n.x * sn[j]))));
         }
       }
       for (std::size_t i = 0; i + 1 < strip.size(); ++i) {
         const bool pole_a = strip[i].p.x <= 0.0, pole_b = strip[i + 1].p.x <= 0.0;
         for (int j = 0; j < n; ++j) {
-          const std::uint32_t j1 = static_cast<std::uint32_t>((j + 1) % n), j0 = static_cast<std::uint32_t>(j);
+          const std::uint32_t j1 = static_cast<std::uint32_t>((j + 1) % n),
+                              j0 = static_cast<std::uint32_t>(j);
           const std::uint32_t a0 = first[i] + (pole_a ? 0 : j0), a1 = first[i] + (pole_a ? 0 : j1);
           const std::uint32_t b0 = first[i + 1] + (pole_b ? 0 : j0), b1 = first[i + 1] + (pole_b ? 0 : j1);
           if (!pole_a && !pole_b) {
@@ -348,7 +354,8 @@ ScenePair make_revolved(const RevolveParams& p) {
     }
     const auto vertex = [&](const glm::dvec2& q, const glm::dvec2& normal, int j, glm::dvec2 uv) {
       m.positions.push_back(revolved(q, cs[j], sn[j]));
-      m.normals.push_back(glm::vec3(glm::normalize(glm::dvec3(normal.x * cs[j], normal.y, normal.x * sn[j]))));
+      m.normals.push_back(
+          glm::vec3(glm::normalize(glm::dvec3(normal.x * cs[j], normal.y, normal.x * sn[j]))));
       m.uvs.push_back(glm::vec2(uv));
       return static_cast<std::uint32_t>(m.positions.size() - 1);
     };
@@ -365,7 +372,8 @@ ScenePair make_revolved(const RevolveParams& p) {
         const std::size_t first_index = m.indices.size();
         const std::uint32_t centre = vertex(pole, n_pole, 0, {rim.x, rim.x});
         std::vector<std::uint32_t> ring(n);
-        for (int j = 0; j < n; ++j) ring[j] = vertex(rim, n_rim, j, {rim.x + rim.x * cs[j], rim.x + rim.x * sn[j]});
+        for (int j = 0; j < n; ++j)
+          ring[j] = vertex(rim, n_rim, j, {rim.x + rim.x * cs[j], rim.x + rim.x * sn[j]});
         for (int j = 0; j < n; ++j) add_triangle(m, centre, ring[j], ring[(j + 1) % n]);
         chart.end = static_cast<std::uint32_t>(m.positions.size());
         unmirror(m, chart, first_index);
@@ -405,9 +413,9 @@ ScenePair make_revolved(const RevolveParams& p) {
 PanelParams panel_params() {
   PanelParams p;
   p.pockets = {
-      {-0.35, -0.3, 0.4, 0.25, 0.08, 0.05, 0.05},   // a rounded rectangle
-      {0.86, 0.15, 0.05, 0.45, 0.05, 0.05, 0.04},   // a slot 0.09 from the +x edge
-      {0.3, 0.45, 0.2, 0.2, 0.2, 0.05, 0.06},       // a round pocket
+      {-0.35, -0.3, 0.4, 0.25, 0.08, 0.05, 0.05},  // a rounded rectangle
+      {0.86, 0.15, 0.05, 0.45, 0.05, 0.05, 0.04},  // a slot 0.09 from the +x edge
+      {0.3, 0.45, 0.2, 0.2, 0.2, 0.05, 0.06},      // a round pocket
       // The dimple: a wall wider than its radius never levels off, so it is a
       // steep cone (65 degrees at the tip) 0.148 * smoothstep(2/3) = 0.11 deep.
       {-0.55, 0.5, 0.06, 0.06, 0.06, 0.148, 0.09},
@@ -420,7 +428,8 @@ double panel_depth(const PanelParams& p, double x, double z, double* ddx, double
   double depth = 0.0, gx = 0.0, gz = 0.0;
   for (const PanelPocket& k : p.pockets) {
     const double sx = x >= k.x ? 1.0 : -1.0, sz = z >= k.z ? 1.0 : -1.0;
-    const double dx = std::fabs(x - k.x) - (k.half_x - k.radius), dz = std::fabs(z - k.z) - (k.half_z - k.radius);
+    const double dx = std::fabs(x - k.x) - (k.half_x - k.radius),
+                 dz = std::fabs(z - k.z) - (k.half_z - k.radius);
     const double ox = std::max(dx, 0.0), oz = std::max(dz, 0.0);
     const double outside = std::sqrt(ox * ox + oz * oz);
     const double s = outside + std::min(std::max(dx, dz), 0.0) - k.radius;
@@ -450,7 +459,8 @@ namespace {
 
 // The slab as a box: exact signed distance and its gradient.
 double slab_distance(const PanelParams& p, const glm::dvec3& x, glm::dvec3* gradient) {
-  const glm::dvec3 centre(0.0, 0.5 * (p.top + p.bottom), 0.0), extent(p.half, 0.5 * (p.top - p.bottom), p.half);
+  const glm::dvec3 centre(0.0, 0.5 * (p.top + p.bottom), 0.0),
+      extent(p.half, 0.5 * (p.top - p.bottom), p.half);
   const glm::dvec3 d = x - centre;
   const glm::dvec3 q = glm::abs(d) - extent;
   const glm::dvec3 o = glm::max(q, 0.0);
@@ -481,7 +491,8 @@ glm::dvec3 panel_normal(const PanelParams& p, const glm::dvec3& x) {
   const double box = slab_distance(p, x, &slab);
   double gx = 0.0, gz = 0.0;
   const double carved = x.y - (p.top - panel_depth(p, x.x, x.z, &gx, &gz));
-  if (carved >= box && std::fabs(x.x) <= p.half && std::fabs(x.z) <= p.half) return glm::normalize(glm::dvec3(gx, 1.0, gz));
+  if (carved >= box && std::fabs(x.x) <= p.half && std::fabs(x.z) <= p.half)
+    return glm::normalize(glm::dvec3(gx, 1.0, gz));
   return slab;
 }
 
@@ -532,15 +543,16 @@ std::vector<Chart> add_slab(Mesh& m, const PanelParams& p, int cells, int cells_
     if (with_uvs) unmirror(m, chart, first_index);
     charts.push_back(chart);
   };
-  face([&](int i, int j) { return glm::dvec3(c(i), top_y(c(i), c(j)), c(j)); }, top_normal, cells, cells, side, side);
+  face([&](int i, int j) { return glm::dvec3(c(i), top_y(c(i), c(j)), c(j)); }, top_normal, cells, cells,
+       side, side);
   face([&](int i, int j) { return glm::dvec3(c(i), p.bottom, c(j)); },
        [](const glm::dvec3&) { return glm::dvec3(0, -1, 0); }, cells, cells, side, side);
-  face([&](int i, int j) { return glm::dvec3(h, y(j), c(i)); }, [](const glm::dvec3&) { return glm::dvec3(1, 0, 0); },
-       cells, cells_y, side, height);
+  face([&](int i, int j) { return glm::dvec3(h, y(j), c(i)); },
+       [](const glm::dvec3&) { return glm::dvec3(1, 0, 0); }, cells, cells_y, side, height);
   face([&](int i, int j) { return glm::dvec3(-h, y(j), c(i)); },
        [](const glm::dvec3&) { return glm::dvec3(-1, 0, 0); }, cells, cells_y, side, height);
-  face([&](int i, int j) { return glm::dvec3(c(i), y(j), h); }, [](const glm::dvec3&) { return glm::dvec3(0, 0, 1); },
-       cells, cells_y, side, height);
+  face([&](int i, int j) { return glm::dvec3(c(i), y(j), h); },
+       [](const glm::dvec3&) { return glm::dvec3(0, 0, 1); }, cells, cells_y, side, height);
   face([&](int i, int j) { return glm::dvec3(c(i), y(j), -h); },
        [](const glm::dvec3&) { return glm::dvec3(0, 0, -1); }, cells, cells_y, side, height);
   return charts;
@@ -551,8 +563,10 @@ std::vector<Chart> add_slab(Mesh& m, const PanelParams& p, int cells, int cells_
 ScenePair make_panel(const PanelParams& p) {
   NMBAKE_CHECK(p.half > 0.0 && p.top > p.bottom && p.low_cells >= 1 && p.high_cells >= 1, "panel sizes");
   for (const PanelPocket& k : p.pockets) {
-    NMBAKE_CHECK(std::fabs(k.x) + k.half_x < p.half && std::fabs(k.z) + k.half_z < p.half, "pockets inside the top");
-    NMBAKE_CHECK(k.radius <= std::min(k.half_x, k.half_z) && k.wall > 0.0 && k.depth < p.top - p.bottom, "pocket shape");
+    NMBAKE_CHECK(std::fabs(k.x) + k.half_x < p.half && std::fabs(k.z) + k.half_z < p.half,
+                 "pockets inside the top");
+    NMBAKE_CHECK(k.radius <= std::min(k.half_x, k.half_z) && k.wall > 0.0 && k.depth < p.top - p.bottom,
+                 "pocket shape");
   }
   ScenePair pair;
   const std::vector<Chart> charts = add_slab(
@@ -560,7 +574,8 @@ ScenePair make_panel(const PanelParams& p) {
       [](const glm::dvec3&) { return glm::dvec3(0, 1, 0); }, true);
   pack_charts(pair.low, charts, 0.01);
   add_slab(
-      pair.high, p, p.high_cells, 16, [&](double x, double z) { return p.top - panel_depth(p, x, z, nullptr, nullptr); },
+      pair.high, p, p.high_cells, 16,
+      [&](double x, double z) { return p.top - panel_depth(p, x, z, nullptr, nullptr); },
       [&](const glm::dvec3& x) {
         double gx = 0.0, gz = 0.0;
         panel_depth(p, x.x, x.z, &gx, &gz);
@@ -581,7 +596,8 @@ double lab_box_bevel(const std::string& scene) {
 }
 
 const std::vector<std::string>& hard_scene_names() {
-  static const std::vector<std::string> names = {"box_r0.05", "box_r0.1", "box_r0.4", "bowl", "cylinder", "panel"};
+  static const std::vector<std::string> names = {"box_r0.05", "box_r0.1", "box_r0.4",
+                                                 "bowl",      "cylinder", "panel"};
   return names;
 }
 

@@ -19,11 +19,10 @@
 // The bevelled boxes of several radii are lab_scenes.hpp's box.
 #pragma once
 
-#include <string>
-#include <vector>
-
 #include <glm/ext/vector_double2.hpp>
 #include <glm/ext/vector_double3.hpp>
+#include <string>
+#include <vector>
 
 #include "scenes.hpp"
 
@@ -60,11 +59,11 @@ class RevolveProfile {
   double signed_distance(const glm::dvec2& q, glm::dvec2* normal) const;
   struct Element {
     bool arc = false;
-    glm::dvec2 a{0.0}, b{0.0};      // ends
+    glm::dvec2 a{0.0}, b{0.0};  // ends
     glm::dvec2 centre{0.0};
     double radius = 0.0, angle0 = 0.0, sweep = 0.0;  // arc: centre + radius (cos, sin)(angle0 + s sweep)
-    double outward = 1.0;           // arc: +1 the normal points away from the centre, -1 towards it
-    glm::dvec2 normal{0.0};         // segment: outward unit normal
+    double outward = 1.0;    // arc: +1 the normal points away from the centre, -1 towards it
+    glm::dvec2 normal{0.0};  // segment: outward unit normal
     double length = 0.0;
     glm::dvec2 point(double s) const;
     glm::dvec2 normal_at(double s) const;

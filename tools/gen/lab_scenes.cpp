@@ -10,10 +10,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <glm/geometric.hpp>
 #include <numbers>
 #include <vector>
-
-#include <glm/geometric.hpp>
 
 #include "noise.hpp"
 
@@ -64,8 +63,8 @@ void torus_function(double phi, double theta, double& f, double& f_phi, double& 
   f_phi = kTorusWave * 5.0 * std::cos(5.0 * phi) * std::cos(3.0 * theta);
   f_theta = -kTorusWave * 3.0 * std::sin(5.0 * phi) * std::sin(3.0 * theta);
   for (const TorusLobe& l : kTorusLobes) {
-    const double v =
-        l.height * std::exp(l.kappa_phi * (std::cos(phi - l.phi) - 1.0) + l.kappa_theta * (std::cos(theta - l.theta) - 1.0));
+    const double v = l.height * std::exp(l.kappa_phi * (std::cos(phi - l.phi) - 1.0) +
+                                         l.kappa_theta * (std::cos(theta - l.theta) - 1.0));
     f += v;
     f_phi -= v * l.kappa_phi * std::sin(phi - l.phi);
     f_theta -= v * l.kappa_theta * std::sin(theta - l.theta);
@@ -131,11 +130,13 @@ ScenePair make_torus(const TorusParams& p) {
         // Seam vertices take the angles of index 0, so both copies are bitwise equal.
         const double phi = kTwoPi * (i % nu) / nu, theta = kTwoPi * (j % nv) / nv;
         m.positions.emplace_back(torus_point(p, phi, theta, false));
-        m.normals.emplace_back(std::cos(theta) * std::cos(phi), std::cos(theta) * std::sin(phi), std::sin(theta));
+        m.normals.emplace_back(std::cos(theta) * std::cos(phi), std::cos(theta) * std::sin(phi),
+                               std::sin(theta));
         m.uvs.emplace_back(static_cast<float>(coord(i, nu, 1.0)), static_cast<float>(coord(j, nv, 1.0)));
       }
     }
-    append_cells(nu, nv, [&](int i, int j) { return static_cast<std::uint32_t>(j * (nu + 1) + i); }, m.indices);
+    append_cells(
+        nu, nv, [&](int i, int j) { return static_cast<std::uint32_t>(j * (nu + 1) + i); }, m.indices);
   }
   {  // high: welded
     Mesh& m = pair.high;
@@ -150,8 +151,9 @@ ScenePair make_torus(const TorusParams& p) {
         m.normals[k] = glm::vec3(torus_normal(p, x));
       }
     }
-    append_cells(nu, nv, [&](int i, int j) { return static_cast<std::uint32_t>((j % nv) * nu + (i % nu)); },
-                 m.indices);
+    append_cells(
+        nu, nv, [&](int i, int j) { return static_cast<std::uint32_t>((j % nv) * nu + (i % nu)); },
+        m.indices);
   }
   return pair;
 }
@@ -160,7 +162,7 @@ ScenePair make_torus(const TorusParams& p) {
 
 namespace {
 
-constexpr double kCraterReach = 2.0;  // ejecta end, in crater radii
+constexpr double kCraterReach = 2.0;                    // ejecta end, in crater radii
 constexpr double kCraterMin = 0.08, kCraterMax = 0.35;  // angular radii
 constexpr double kCraterDepth = 0.15;                   // depth / angular radius
 constexpr double kCraterRim = 0.3;                      // rim / depth
@@ -255,11 +257,13 @@ ScenePair make_craters(const CraterParams& p) {
   const CraterSurface surface(p);
   const float radius = p.radius;
   ScenePair pair;
-  pair.low = make_cube_sphere(p.low_cells, [radius](const glm::vec3&) { return radius; }, true, sphere_uv_gutter);
+  pair.low = make_cube_sphere(
+      p.low_cells, [radius](const glm::vec3&) { return radius; }, true, sphere_uv_gutter);
   pair.high = make_cube_sphere(
       p.high_cells,
       [&](const glm::vec3& d) {
-        return static_cast<float>(p.radius * (1.0 + surface.relative_height(glm::normalize(glm::dvec3(d)), nullptr)));
+        return static_cast<float>(p.radius *
+                                  (1.0 + surface.relative_height(glm::normalize(glm::dvec3(d)), nullptr)));
       },
       false, 0.0f);
   pair.high.normals.resize(pair.high.positions.size());
@@ -290,13 +294,16 @@ glm::dvec3 box_normal(const BoxParams& p, const glm::dvec3& x) {
 }
 
 ScenePair make_box(const BoxParams& p) {
-  NMBAKE_CHECK(p.half_extent > 0.0f && p.bevel >= 0.0f && p.bevel < p.half_extent, "box parameters out of range");
+  NMBAKE_CHECK(p.half_extent > 0.0f && p.bevel >= 0.0f && p.bevel < p.half_extent,
+               "box parameters out of range");
   ScenePair pair;
   const float h = p.half_extent;
   pair.low = make_cube_sphere(
       p.low_cells,
-      [h](const glm::vec3& d) { return h / std::max(std::fabs(d.x), std::max(std::fabs(d.y), std::fabs(d.z))); }, true,
-      sphere_uv_gutter);
+      [h](const glm::vec3& d) {
+        return h / std::max(std::fabs(d.x), std::max(std::fabs(d.y), std::fabs(d.z)));
+      },
+      true, sphere_uv_gutter);
   Mesh& low = pair.low;
   // Snap to the exact faces, and give every vertex its face's normal: the
   // vertices are split per face (one UV chart each), so this is a hard edge.
@@ -375,18 +382,27 @@ double slot_field(const SlotParams& p, int patch, const glm::dvec3& x) {
   double ha, hb;
   const double half = 0.5 * p.width;
   switch (patch) {
-    case 0: return x.x - (-half + slot_height(p, 0, x.y, x.z, ha, hb));
-    case 1: return x.y - slot_height(p, 1, x.x, x.z, ha, hb);
-    default: return (half - slot_height(p, 2, x.y, x.z, ha, hb)) - x.x;
+    case 0:
+      return x.x - (-half + slot_height(p, 0, x.y, x.z, ha, hb));
+    case 1:
+      return x.y - slot_height(p, 1, x.x, x.z, ha, hb);
+    default:
+      return (half - slot_height(p, 2, x.y, x.z, ha, hb)) - x.x;
   }
 }
 
 glm::dvec3 slot_normal(const SlotParams& p, int patch, const glm::dvec3& x) {
   double ha, hb;
   switch (patch) {
-    case 0: slot_height(p, 0, x.y, x.z, ha, hb); return glm::normalize(glm::dvec3(1.0, -ha, -hb));
-    case 1: slot_height(p, 1, x.x, x.z, ha, hb); return glm::normalize(glm::dvec3(-ha, 1.0, -hb));
-    default: slot_height(p, 2, x.y, x.z, ha, hb); return glm::normalize(glm::dvec3(-1.0, -ha, -hb));
+    case 0:
+      slot_height(p, 0, x.y, x.z, ha, hb);
+      return glm::normalize(glm::dvec3(1.0, -ha, -hb));
+    case 1:
+      slot_height(p, 1, x.x, x.z, ha, hb);
+      return glm::normalize(glm::dvec3(-ha, 1.0, -hb));
+    default:
+      slot_height(p, 2, x.y, x.z, ha, hb);
+      return glm::normalize(glm::dvec3(-1.0, -ha, -hb));
   }
 }
 
@@ -432,9 +448,10 @@ ScenePair make_slot(const SlotParams& p) {
             if (high) x.x -= slot_height(p, 2, x.y, x.z, ha, hb);
           }
           m.positions.emplace_back(x);
-          const glm::dvec3 n = high ? slot_normal(p, patch, x)
-                                    : (patch == 0 ? glm::dvec3(1, 0, 0)
-                                                  : (patch == 1 ? glm::dvec3(0, 1, 0) : glm::dvec3(-1, 0, 0)));
+          const glm::dvec3 n = high
+                                   ? slot_normal(p, patch, x)
+                                   : (patch == 0 ? glm::dvec3(1, 0, 0)
+                                                 : (patch == 1 ? glm::dvec3(0, 1, 0) : glm::dvec3(-1, 0, 0)));
           m.normals.emplace_back(n);
           if (!high) {
             m.uvs.emplace_back(static_cast<float>(u0 + coord(i, na, across[patch]) * scale),
@@ -442,8 +459,9 @@ ScenePair make_slot(const SlotParams& p) {
           }
         }
       }
-      append_cells(na, nb, [&](int i, int j) { return base + static_cast<std::uint32_t>(j * (na + 1) + i); },
-                   m.indices);
+      append_cells(
+          na, nb, [&](int i, int j) { return base + static_cast<std::uint32_t>(j * (na + 1) + i); },
+          m.indices);
       u0 += across[patch] * scale + g;
     }
   }
@@ -457,7 +475,8 @@ Mesh make_offset_cage(const Mesh& low, float offset) {
   const std::vector<glm::vec3> averaged = averaged_normals(low, stats);
   Mesh cage;
   cage.positions.resize(low.positions.size());
-  for (std::size_t v = 0; v < low.positions.size(); ++v) cage.positions[v] = low.positions[v] + offset * averaged[v];
+  for (std::size_t v = 0; v < low.positions.size(); ++v)
+    cage.positions[v] = low.positions[v] + offset * averaged[v];
   cage.uvs = low.uvs;
   cage.indices = low.indices;
   return cage;

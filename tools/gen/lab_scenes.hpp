@@ -16,10 +16,9 @@
 #pragma once
 
 #include <cstdint>
+#include <glm/ext/vector_double3.hpp>
 #include <memory>
 #include <string>
-
-#include <glm/ext/vector_double3.hpp>
 
 #include "scenes.hpp"
 
@@ -65,7 +64,7 @@ class CraterSurface {
   // H(d) and, when `tangential_gradient` is not null, grad_s H (tangent to
   // the unit sphere at d). d must be a unit vector.
   double relative_height(const glm::dvec3& d, glm::dvec3* tangential_gradient) const;
-  double field(const glm::dvec3& point) const;    // |p| - R(p / |p|)
+  double field(const glm::dvec3& point) const;   // |p| - R(p / |p|)
   glm::dvec3 normal(const glm::dvec3& d) const;  // at direction d
   const CraterParams& params() const;
 

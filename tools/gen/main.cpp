@@ -28,11 +28,10 @@
 #include <cstdio>
 #include <exception>
 #include <filesystem>
-#include <memory>
-#include <string>
-
 #include <fstream>
+#include <memory>
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "convert.hpp"
 #include "eval.hpp"
@@ -42,8 +41,8 @@
 #include "nmbake/appearance.hpp"
 #include "nmbake/image.hpp"
 #include "nmbake/job.hpp"
-#include "nmbake/preview.hpp"
 #include "nmbake/load.hpp"
+#include "nmbake/preview.hpp"
 #include "scenes.hpp"
 #include "score.hpp"
 
@@ -108,7 +107,8 @@ int generate_and_write(const Options& options, const std::string& scene, const G
   const scenes::LabDistances distances = scenes::lab_distances(scene);
   if (distances.front > 0.0f) {
     const nmbake::Mesh cage = scenes::make_offset_cage(pair.low, distances.front);
-    if (const int code = write_mesh(options.out_dir, scene + "_cage.obj", cage, generate_seconds)) return code;
+    if (const int code = write_mesh(options.out_dir, scene + "_cage.obj", cage, generate_seconds))
+      return code;
   }
   return write_mesh(options.out_dir, scene + "_high" + high_extension, pair.high, generate_seconds);
 }
@@ -145,7 +145,8 @@ int run_eval(const std::string& scene, const std::string& map_path, const std::s
   if (space != "tangent" && space != "object") return fail_with("--space: expected tangent or object");
   o.space = space == "object" ? nmbake::NormalSpace::object : nmbake::NormalSpace::tangent;
   o.green = green == "down" ? nmbake::GreenChannel::down : nmbake::GreenChannel::up;
-  if (!nmbake::parse_word(cage_mode, o.rays.cage)) return fail_with("--cage-mode: expected banded, averaged or interpolated");
+  if (!nmbake::parse_word(cage_mode, o.rays.cage))
+    return fail_with("--cage-mode: expected banded, averaged or interpolated");
   o.rays.edge_band = edge_band;
   if (!report_path.empty()) {
     std::ifstream in(report_path);
@@ -155,26 +156,32 @@ int run_eval(const std::string& scene, const std::string& map_path, const std::s
       front = j.at("distances").at("front").get<float>();
       back = j.at("distances").at("back").get<float>();
       // Reports before the retry existed have none.
-      if (j.at("rays").contains("retry_reach")) o.rays.retry_reach = j.at("rays").at("retry_reach").get<float>();
+      if (j.at("rays").contains("retry_reach"))
+        o.rays.retry_reach = j.at("rays").at("retry_reach").get<float>();
     } catch (const std::exception& e) {
       return fail_with(report_path + ": not a bake report (" + e.what() + ")");
     }
   }
-  if (!(front >= 0.0f) || !(back >= 0.0f)) return fail_with("eval needs the bake's distances: --front F --back B or --report");
+  if (!(front >= 0.0f) || !(back >= 0.0f))
+    return fail_with("eval needs the bake's distances: --front F --back B or --report");
   if (retry_truth) o.rays.retry_reach = -1.0f;  // resolved once the low mesh is loaded
   o.rays.front = front;
   o.rays.back = back;
 
   nmbake::Mesh low, cage;
   nmbake::LoadStats load_stats;
-  if (const nmbake::Status st = nmbake::load_mesh(low_path, nmbake::LoadOptions{true, true}, low, load_stats); !st)
+  if (const nmbake::Status st = nmbake::load_mesh(low_path, nmbake::LoadOptions{true, true}, low, load_stats);
+      !st)
     return fail_with(st.message());
   nmbake::MeshStats mesh_stats;
   nmbake::prepare_low_normals(low, mesh_stats);
   if (!cage_path.empty()) {
-    if (const nmbake::Status st = nmbake::load_mesh(cage_path, nmbake::LoadOptions{false, false}, cage, load_stats); !st)
+    if (const nmbake::Status st =
+            nmbake::load_mesh(cage_path, nmbake::LoadOptions{false, false}, cage, load_stats);
+        !st)
       return fail_with(st.message());
-    if (const nmbake::Status st = nmbake::check_cage_topology(low, cage, cage_path); !st) return fail_with(st.message());
+    if (const nmbake::Status st = nmbake::check_cage_topology(low, cage, cage_path); !st)
+      return fail_with(st.message());
   }
   nmbake::Image map;
   if (!map_path.empty()) {
@@ -199,15 +206,16 @@ int run_eval(const std::string& scene, const std::string& map_path, const std::s
     return path + ":" + std::to_string(std::filesystem::file_size(path, ec)) + ":" +
            std::to_string(std::filesystem::last_write_time(path, ec).time_since_epoch().count());
   };
-  const std::string key = scene + " " + std::to_string(width) + "x" + std::to_string(height) + " s" +
-                          std::to_string(samples) + " " + space + " " + green + " " + ray_rule + " " +
-                          (cage_mode == "banded" && banded_differs ? std::to_string(edge_band) + " " : std::string()) +
-                          (o.rays.retry_reach > 0.0f ? "retry " + std::to_string(o.rays.retry_reach) + " " : std::string()) +
-                          std::to_string(front) + " " + std::to_string(back) + " " + stamp(low_path) + " " +
-                          stamp(cage_path);
+  const std::string key =
+      scene + " " + std::to_string(width) + "x" + std::to_string(height) + " s" + std::to_string(samples) +
+      " " + space + " " + green + " " + ray_rule + " " +
+      (cage_mode == "banded" && banded_differs ? std::to_string(edge_band) + " " : std::string()) +
+      (o.rays.retry_reach > 0.0f ? "retry " + std::to_string(o.rays.retry_reach) + " " : std::string()) +
+      std::to_string(front) + " " + std::to_string(back) + " " + stamp(low_path) + " " + stamp(cage_path);
   if (cache.empty() || !scenes::load_expected(cache, key, expected)) {
     expected = scenes::compute_expected(*truth, low, cage_path.empty() ? nullptr : &cage, width, height, o);
-    if (!cache.empty() && !scenes::save_expected(cache, key, expected)) return fail_with(cache + ": cannot write");
+    if (!cache.empty() && !scenes::save_expected(cache, key, expected))
+      return fail_with(cache + ": cannot write");
   }
   if (!truth_map.empty()) {
     // The perfect map as the evaluator sees it (float), for analyses of
@@ -228,7 +236,8 @@ int run_eval(const std::string& scene, const std::string& map_path, const std::s
     const nmbake::Image perfect = scenes::expected_image(expected, o);
     const std::pair<const char*, int> levels[] = {{"float", 0}, {"16bit", 65535}, {"8bit", 255}};
     for (const auto& [name, n] : levels) {
-      const scenes::EvalResult r = scenes::evaluate(expected, n == 0 ? perfect : scenes::quantize(perfect, n), o);
+      const scenes::EvalResult r =
+          scenes::evaluate(expected, n == 0 ? perfect : scenes::quantize(perfect, n), o);
       std::printf("floor %-6s %s\n", name, r.error.to_text().c_str());
       out["floors"][name] = nlohmann::json::parse(r.to_json());
     }
@@ -254,8 +263,10 @@ struct AppearanceFlags {
 int run_appearance(const AppearanceFlags& f) {
   if (f.space != "tangent" && f.space != "object") return fail_with("--space: expected tangent or object");
   if (f.green != "up" && f.green != "down") return fail_with("--green: expected up or down");
-  const nmbake::NormalSpace space = f.space == "object" ? nmbake::NormalSpace::object : nmbake::NormalSpace::tangent;
-  const nmbake::GreenChannel green = f.green == "down" ? nmbake::GreenChannel::down : nmbake::GreenChannel::up;
+  const nmbake::NormalSpace space =
+      f.space == "object" ? nmbake::NormalSpace::object : nmbake::NormalSpace::tangent;
+  const nmbake::GreenChannel green =
+      f.green == "down" ? nmbake::GreenChannel::down : nmbake::GreenChannel::up;
   nmbake::Mesh low, high;
   nmbake::LowSurface surface;
   if (const nmbake::Status st = nmbake::load_preview_meshes(f.low, f.high, low, surface, high); !st)
@@ -277,12 +288,14 @@ int run_appearance(const AppearanceFlags& f) {
   const nmbake::AppearanceError floor = nmbake::appearance_floor(samples);
   const nmbake::AppearanceError bare = nmbake::appearance_without_map(samples, surface);
   const double compared_share =
-      samples.low_hits ? static_cast<double>(samples.sample_count()) / static_cast<double>(samples.low_hits) : 0.0;
-  std::printf("appearance: %zu views, %zu samples compared (%.1f%% of the low mesh's; high missed %llu, depth "
-              "apart > %.4g %llu), rendered in %.2f s\n",
-              nmbake::appearance_views().size(), samples.sample_count(), 100.0 * compared_share,
-              static_cast<unsigned long long>(samples.high_missed), samples.depth_tolerance,
-              static_cast<unsigned long long>(samples.depth_rejected), render_seconds);
+      samples.low_hits ? static_cast<double>(samples.sample_count()) / static_cast<double>(samples.low_hits)
+                       : 0.0;
+  std::printf(
+      "appearance: %zu views, %zu samples compared (%.1f%% of the low mesh's; high missed %llu, depth "
+      "apart > %.4g %llu), rendered in %.2f s\n",
+      nmbake::appearance_views().size(), samples.sample_count(), 100.0 * compared_share,
+      static_cast<unsigned long long>(samples.high_missed), samples.depth_tolerance,
+      static_cast<unsigned long long>(samples.depth_rejected), render_seconds);
   std::printf("%-28s %s\n", "floor (consensus)", floor.to_text().c_str());
   std::printf("%-28s %s  (%.2fx floor)\n", "low mesh, no map", bare.to_text().c_str(),
               floor.mean > 0 ? bare.mean / floor.mean : 0.0);
@@ -374,7 +387,8 @@ int main(int argc, char** argv) {
 
   CLI::App* torus = app.add_subcommand("torus", "Torus with smooth bumps on the tube, analytic normals");
   add_common_options(*torus, options, options.torus.high_cells, options.torus.low_cells);
-  CLI::App* craters = app.add_subcommand("craters", "Cube-sphere moon with C1-smooth craters, analytic normals");
+  CLI::App* craters =
+      app.add_subcommand("craters", "Cube-sphere moon with C1-smooth craters, analytic normals");
   add_common_options(*craters, options, options.craters.high_cells, options.craters.low_cells);
   CLI::App* box = app.add_subcommand("box", "Hard-edged low cube over a bevelled (rounded) high cube");
   add_common_options(*box, options, options.box.high_cells, options.box.low_cells);
@@ -384,20 +398,29 @@ int main(int argc, char** argv) {
   // The hard-edged and concave scenes (hard_scenes.hpp), fixed parameters.
   std::vector<std::pair<std::string, CLI::App*>> hard;
   for (const std::string& name : scenes::hard_scene_names()) {
-    CLI::App* cmd = app.add_subcommand(name, name == "bowl"       ? "Dish turned around y: concave and convex hard edges, filleted high"
-                                             : name == "cylinder" ? "Cylinder, hard-edged caps in the low mesh, chamfered in the high"
-                                             : name == "panel"    ? "Hard-edged slab with pockets, a groove and a deep dimple carved in its top"
-                                                                  : "Hard-edged low cube over a rounded high cube of this bevel radius");
-    cmd->add_option("--out-dir", options.out_dir, "Folder to write <scene>_low.obj and <scene>_high.ply into")->required();
-    cmd->add_option("--threads", options.threads, "Worker threads, 0 = all cores")->check(CLI::Range(0, 1024));
+    CLI::App* cmd = app.add_subcommand(
+        name, name == "bowl"       ? "Dish turned around y: concave and convex hard edges, filleted high"
+              : name == "cylinder" ? "Cylinder, hard-edged caps in the low mesh, chamfered in the high"
+              : name == "panel" ? "Hard-edged slab with pockets, a groove and a deep dimple carved in its top"
+                                : "Hard-edged low cube over a rounded high cube of this bevel radius");
+    cmd->add_option("--out-dir", options.out_dir, "Folder to write <scene>_low.obj and <scene>_high.ply into")
+        ->required();
+    cmd->add_option("--threads", options.threads, "Worker threads, 0 = all cores")
+        ->check(CLI::Range(0, 1024));
     hard.emplace_back(name, cmd);
   }
 
-  CLI::App* parts = app.add_subcommand("parts", "Many heightfield plates, each a named part (p<i>_low / p<i>_high, high as OBJ)");
-  parts->add_option("--out-dir", options.out_dir, "Folder to write parts_low.obj and parts_high.obj into")->required();
-  parts->add_option("--count", options.parts.count, "Number of parts")->check(CLI::Range(1, 10000))->capture_default_str();
-  parts->add_option("--high-triangles", options.parts.high_triangles, "High triangles in all (about)")->capture_default_str();
-  parts->add_option("--threads", options.threads, "Worker threads, 0 = all cores")->check(CLI::Range(0, 1024));
+  CLI::App* parts = app.add_subcommand(
+      "parts", "Many heightfield plates, each a named part (p<i>_low / p<i>_high, high as OBJ)");
+  parts->add_option("--out-dir", options.out_dir, "Folder to write parts_low.obj and parts_high.obj into")
+      ->required();
+  parts->add_option("--count", options.parts.count, "Number of parts")
+      ->check(CLI::Range(1, 10000))
+      ->capture_default_str();
+  parts->add_option("--high-triangles", options.parts.high_triangles, "High triangles in all (about)")
+      ->capture_default_str();
+  parts->add_option("--threads", options.threads, "Worker threads, 0 = all cores")
+      ->check(CLI::Range(0, 1024));
 
   // The lab's evaluator (eval.hpp).
   struct EvalFlags {
@@ -409,33 +432,39 @@ int main(int argc, char** argv) {
     float front = -1.0f, back = -1.0f;
     bool floors = false, retry_truth = false;
   } ev;
-  CLI::App* eval_cmd = app.add_subcommand("eval", "Coverage and angular error of a baked map of an analytic scene");
+  CLI::App* eval_cmd =
+      app.add_subcommand("eval", "Coverage and angular error of a baked map of an analytic scene");
   eval_cmd->add_option("scene", ev.scene, "heightfield | sphere | torus | craters | box | slot")
       ->required()
       ->check(CLI::IsMember(scenes::lab_scene_names()));
   eval_cmd->add_option("--map", ev.map, "the baked map (EXR for the exact value)");
   eval_cmd->add_option("--low", ev.low, "the low mesh that was baked")->required();
   eval_cmd->add_option("--cage", ev.cage, "the explicit cage the bake used, if any");
-  eval_cmd->add_option("--truth-samples", ev.samples, "samples per texel of the truth (box filter): 1, 4, 16, 64")
+  eval_cmd
+      ->add_option("--truth-samples", ev.samples, "samples per texel of the truth (box filter): 1, 4, 16, 64")
       ->capture_default_str();
   eval_cmd->add_option("--cache", ev.cache,
                        "keep the computed truth in this file and reuse it when it matches");
   eval_cmd->add_option("--truth-map", ev.truth_map, "also write the perfect map (the truth, float EXR) here");
   eval_cmd->add_option("--space", ev.space, "tangent | object")->capture_default_str();
   eval_cmd->add_option("--green", ev.green, "up | down")->capture_default_str();
-  eval_cmd->add_option("--cage-mode", ev.cage_mode, "banded | averaged | interpolated (the bake's)")->capture_default_str();
-  eval_cmd->add_option("--edge-band", ev.edge_band, "the bake's --edge-band (banded cage)")->capture_default_str();
+  eval_cmd->add_option("--cage-mode", ev.cage_mode, "banded | averaged | interpolated (the bake's)")
+      ->capture_default_str();
+  eval_cmd->add_option("--edge-band", ev.edge_band, "the bake's --edge-band (banded cage)")
+      ->capture_default_str();
   eval_cmd->add_option("--front", ev.front, "the bake's front distance, scene units");
   eval_cmd->add_option("--back", ev.back, "the bake's back distance, scene units");
   eval_cmd->add_option("--report", ev.report, "read the resolved front/back from this bake report");
   eval_cmd->add_option("--json", ev.json, "also write the figures here");
   eval_cmd->add_option("--size", ev.size, "--floors without --map: map size")->capture_default_str();
-  eval_cmd->add_option("--threads", options.threads, "Worker threads, 0 = all cores")->check(CLI::Range(0, 1024));
+  eval_cmd->add_option("--threads", options.threads, "Worker threads, 0 = all cores")
+      ->check(CLI::Range(0, 1024));
   eval_cmd->add_flag(
       "--retry-truth", ev.retry_truth,
       "where the bake's ray meets no true surface, search its line out and in up to the distance probes' "
       "reach (as a retried bake does), whatever the bake did: a miss then counts as an error");
-  eval_cmd->add_flag("--floors", ev.floors, "score the perfect map as float, 16-bit and 8-bit (the evaluator's floors)");
+  eval_cmd->add_flag("--floors", ev.floors,
+                     "score the perfect map as float, 16-bit and 8-bit (the evaluator's floors)");
 
   AppearanceFlags ap;
   CLI::App* appearance_cmd = app.add_subcommand(
@@ -446,7 +475,8 @@ int main(int argc, char** argv) {
       ->required();
   appearance_cmd->add_option("--space", ap.space, "tangent | object")->capture_default_str();
   appearance_cmd->add_option("--green", ap.green, "up | down")->capture_default_str();
-  appearance_cmd->add_option("--size", ap.options.size, "pixels per side of each view")->capture_default_str();
+  appearance_cmd->add_option("--size", ap.options.size, "pixels per side of each view")
+      ->capture_default_str();
   appearance_cmd->add_option("--supersample", ap.options.supersample, "k x k samples per pixel")
       ->capture_default_str();
   appearance_cmd
@@ -454,9 +484,12 @@ int main(int argc, char** argv) {
                    "compare samples whose low and high hits are at most this share of the diagonal apart")
       ->capture_default_str();
   appearance_cmd->add_option("--json", ap.json, "also write the figures here");
-  appearance_cmd->add_option("--heat", ap.heat, "write where the error is (PNG): a row per view, the floor then each map");
-  appearance_cmd->add_option("--heat-max", ap.heat_max, "degrees at the red end of the heat ramp")->capture_default_str();
-  appearance_cmd->add_option("--threads", options.threads, "Worker threads, 0 = all cores")->check(CLI::Range(0, 1024));
+  appearance_cmd->add_option("--heat", ap.heat,
+                             "write where the error is (PNG): a row per view, the floor then each map");
+  appearance_cmd->add_option("--heat-max", ap.heat_max, "degrees at the red end of the heat ramp")
+      ->capture_default_str();
+  appearance_cmd->add_option("--threads", options.threads, "Worker threads, 0 = all cores")
+      ->check(CLI::Range(0, 1024));
 
   // Scoring a bake of an analytic scene against its true normals.
   struct ScoreOptions {
@@ -464,9 +497,13 @@ int main(int argc, char** argv) {
     int samples = 4;
     float front = 0.0f, back = 0.0f;
   } score;
-  CLI::App* score_cmd = app.add_subcommand("score", "Angular error of a baked map of the heightfield or sphere scene");
-  score_cmd->add_option("scene", score.scene, "heightfield | sphere")->required()->check(CLI::IsMember({"heightfield", "sphere"}));
-  score_cmd->add_option("--map", score.map, "the baked tangent-space map (EXR for the exact value)")->required();
+  CLI::App* score_cmd =
+      app.add_subcommand("score", "Angular error of a baked map of the heightfield or sphere scene");
+  score_cmd->add_option("scene", score.scene, "heightfield | sphere")
+      ->required()
+      ->check(CLI::IsMember({"heightfield", "sphere"}));
+  score_cmd->add_option("--map", score.map, "the baked tangent-space map (EXR for the exact value)")
+      ->required();
   score_cmd->add_option("--samples", score.samples, "samples per texel of the bake")->capture_default_str();
   score_cmd->add_option("--low", score.low, "sphere: the low mesh that was baked");
   score_cmd->add_option("--front", score.front, "sphere: the bake's front distance (from its report)");
@@ -477,13 +514,16 @@ int main(int argc, char** argv) {
 
   std::string convert_in, convert_out, load_file;
   bool load_low = false;
-  CLI::App* convert_cmd = app.add_subcommand("convert", "Convert a mesh: .obj .ply .glb .gltf(+.bin) .fbx (Assimp)");
+  CLI::App* convert_cmd =
+      app.add_subcommand("convert", "Convert a mesh: .obj .ply .glb .gltf(+.bin) .fbx (Assimp)");
   convert_cmd->add_option("in", convert_in, "input mesh")->required();
   convert_cmd->add_option("out", convert_out, "output mesh, format by extension")->required();
-  CLI::App* maplab = app.add_subcommand("maplab", "Bake every map of the map set on its analytic scenes, score it");
+  CLI::App* maplab =
+      app.add_subcommand("maplab", "Bake every map of the map set on its analytic scenes, score it");
   std::string maplab_out = "out/lab";
   int maplab_size = 128;
-  maplab->add_option("--out", maplab_out, "folder for maps_lab.csv, maps_lab.md and the bakes")->capture_default_str();
+  maplab->add_option("--out", maplab_out, "folder for maps_lab.csv, maps_lab.md and the bakes")
+      ->capture_default_str();
   maplab->add_option("--size", maplab_size, "map size")->capture_default_str()->check(CLI::Range(16, 4096));
   CLI::App* load_cmd = app.add_subcommand("load", "Load a mesh and print its counts and load time");
   load_cmd->add_option("file", load_file, "mesh file")->required();
@@ -539,8 +579,8 @@ int main(int argc, char** argv) {
     if (appearance_cmd->parsed()) return run_appearance(ap);
     if (eval_cmd->parsed())
       return run_eval(ev.scene, ev.map, ev.low, ev.cage, ev.report, ev.json, ev.space, ev.green, ev.cage_mode,
-                      ev.samples, ev.size, ev.front, ev.back, ev.edge_band, ev.floors, ev.cache, ev.retry_truth,
-                      ev.truth_map);
+                      ev.samples, ev.size, ev.front, ev.back, ev.edge_band, ev.floors, ev.cache,
+                      ev.retry_truth, ev.truth_map);
     for (const auto& [name, cmd] : hard) {
       if (!cmd->parsed()) continue;
       return generate_and_write(options, name, [&name = name] {
@@ -549,15 +589,19 @@ int main(int argc, char** argv) {
         return pair;
       });
     }
-    if (torus->parsed()) return generate_and_write(options, "torus", [&] { return scenes::make_torus(options.torus); });
+    if (torus->parsed())
+      return generate_and_write(options, "torus", [&] { return scenes::make_torus(options.torus); });
     if (craters->parsed()) {
       return generate_and_write(options, "craters", [&] { return scenes::make_craters(options.craters); });
     }
     if (parts->parsed()) {
-      return generate_and_write(options, "parts", [&] { return scenes::make_parts(options.parts); }, ".obj");
+      return generate_and_write(
+          options, "parts", [&] { return scenes::make_parts(options.parts); }, ".obj");
     }
-    if (box->parsed()) return generate_and_write(options, "box", [&] { return scenes::make_box(options.box); });
-    if (slot->parsed()) return generate_and_write(options, "slot", [&] { return scenes::make_slot(options.slot); });
+    if (box->parsed())
+      return generate_and_write(options, "box", [&] { return scenes::make_box(options.box); });
+    if (slot->parsed())
+      return generate_and_write(options, "slot", [&] { return scenes::make_slot(options.slot); });
     if (moon->parsed()) {
       return generate_and_write(options, "moon", [&] { return scenes::make_moon(options.moon); });
     }

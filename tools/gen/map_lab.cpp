@@ -1,13 +1,13 @@
 // The map set's analytic scenes and answers (map_lab.hpp).
 #include "map_lab.hpp"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <numbers>
-
 #include <glm/geometric.hpp>
-#include <tbb/parallel_for.h>
+#include <numbers>
 
 #include "eval.hpp"
 #include "lab_scenes.hpp"
@@ -99,7 +99,8 @@ class PlainTorus final : public TrueSurface {
   PlainTorus(double major, double minor) : major_(major), minor_(minor) {}
   glm::dvec3 tube(const glm::dvec3& x) const {
     const double rho = std::hypot(x.x, x.y);
-    const glm::dvec3 centre = rho > 0.0 ? glm::dvec3(x.x, x.y, 0.0) * (major_ / rho) : glm::dvec3(major_, 0.0, 0.0);
+    const glm::dvec3 centre =
+        rho > 0.0 ? glm::dvec3(x.x, x.y, 0.0) * (major_ / rho) : glm::dvec3(major_, 0.0, 0.0);
     return x - centre;
   }
   double field(int, const glm::dvec3& x) const override { return glm::length(tube(x)) - minor_; }
@@ -183,7 +184,7 @@ ScenePair make_groove_scene() {
   append_plane(s.low, {0, 0, 0}, {1, 0, 0}, {0, 1, 0}, 4, 4, true);
   append_plane(s.high, {0, -0.1, 0}, {1, 0, 0}, {0, 1.2, 0}, 8, 8, false);
   const double half = 30.0;
-  append_plane(s.high, {0, 0.5 - half, 0}, {0, 2.0 * half, 0}, {0, 0, 1}, 64, 4, false);  // x = 0, facing +x
+  append_plane(s.high, {0, 0.5 - half, 0}, {0, 2.0 * half, 0}, {0, 0, 1}, 64, 4, false);   // x = 0, facing +x
   append_plane(s.high, {1, 0.5 + half, 0}, {0, -2.0 * half, 0}, {0, 0, 1}, 64, 4, false);  // x = 1, facing -x
   return s;
 }
@@ -192,12 +193,12 @@ ScenePair make_slab_scene() {
   ScenePair s;
   append_plane(s.low, {0, 0, 0}, {1, 0, 0}, {0, 1, 0}, 4, 4, true);
   const double t = kSlabThickness;
-  append_plane(s.high, {0, 0, 0}, {1, 0, 0}, {0, 1, 0}, 8, 8, false);      // top, +z
-  append_plane(s.high, {0, 1, -t}, {1, 0, 0}, {0, -1, 0}, 8, 8, false);    // bottom, -z
-  append_plane(s.high, {0, 0, -t}, {1, 0, 0}, {0, 0, t}, 8, 1, false);     // y = 0, -y
-  append_plane(s.high, {1, 1, -t}, {-1, 0, 0}, {0, 0, t}, 8, 1, false);    // y = 1, +y
-  append_plane(s.high, {0, 1, -t}, {0, -1, 0}, {0, 0, t}, 8, 1, false);    // x = 0, -x
-  append_plane(s.high, {1, 0, -t}, {0, 1, 0}, {0, 0, t}, 8, 1, false);     // x = 1, +x
+  append_plane(s.high, {0, 0, 0}, {1, 0, 0}, {0, 1, 0}, 8, 8, false);    // top, +z
+  append_plane(s.high, {0, 1, -t}, {1, 0, 0}, {0, -1, 0}, 8, 8, false);  // bottom, -z
+  append_plane(s.high, {0, 0, -t}, {1, 0, 0}, {0, 0, t}, 8, 1, false);   // y = 0, -y
+  append_plane(s.high, {1, 1, -t}, {-1, 0, 0}, {0, 0, t}, 8, 1, false);  // y = 1, +y
+  append_plane(s.high, {0, 1, -t}, {0, -1, 0}, {0, 0, t}, 8, 1, false);  // x = 0, -x
+  append_plane(s.high, {1, 0, -t}, {0, 1, 0}, {0, 0, t}, 8, 1, false);   // x = 1, +x
   return s;
 }
 
@@ -252,8 +253,9 @@ ExpectedMap expected_height(const std::string& scene, const Mesh& low, int width
   });
 }
 
-ExpectedMap expected_at_true_hits(const std::string& scene, const Mesh& low, int width, int height, int samples,
-                                  const RayOptions& rays, const std::function<double(const glm::dvec3&)>& f) {
+ExpectedMap expected_at_true_hits(const std::string& scene, const Mesh& low, int width, int height,
+                                  int samples, const RayOptions& rays,
+                                  const std::function<double(const glm::dvec3&)>& f) {
   const TorusParams torus;
   std::unique_ptr<TrueSurface> truth;
   if (scene == "sphere-plain") {
@@ -288,8 +290,9 @@ ExpectedMap expected_curvature(const std::string& scene, const Mesh& low, int wi
 
 std::string MapError::to_text() const {
   char text[256];
-  std::snprintf(text, sizeof text, "%zu texels: mean |error| %.6f, bias %+.6f, p99 %.6f, max %.6f, non-finite %zu",
-                texels, mean_abs, mean_signed, p99, max, non_finite);
+  std::snprintf(text, sizeof text,
+                "%zu texels: mean |error| %.6f, bias %+.6f, p99 %.6f, max %.6f, non-finite %zu", texels,
+                mean_abs, mean_signed, p99, max, non_finite);
   return text;
 }
 

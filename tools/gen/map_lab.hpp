@@ -46,8 +46,8 @@
 
 namespace nmbake::scenes {
 
-inline constexpr float kWallDistance = 1.0f;     // the AO distance the wall's answer assumes
-inline constexpr float kBowlDistance = 2.5f;     // >= the bowl's diameter
+inline constexpr float kWallDistance = 1.0f;  // the AO distance the wall's answer assumes
+inline constexpr float kBowlDistance = 2.5f;  // >= the bowl's diameter
 inline constexpr float kGrooveDistance = 10.0f;
 inline constexpr float kSlabThickness = 0.1f;
 
@@ -65,7 +65,7 @@ double groove_visibility(double x);                 // x in [0, 1] across the fl
 // weight cos^2 b cos p db dp the mean is proportional to
 // ((sin^2 phi2 - sin^2 phi1) / 2, 0, (phi2 - phi1) / 2 + (sin 2 phi2 - sin 2 phi1) / 4).
 glm::dvec3 groove_bent_normal(double x);
-double sphere_thickness(double radius);             // the cone's mean projected depth
+double sphere_thickness(double radius);  // the cone's mean projected depth
 double torus_mean_curvature(double major, double minor, const glm::dvec3& point);
 
 // A texel-by-texel answer for a baked one-channel map (or one channel of a
@@ -89,8 +89,9 @@ ExpectedMap expected_height(const std::string& scene, const Mesh& low, int width
 
 // f(hit point) where the bake's ray meets the analytic surface ("heightfield",
 // "sphere" of eval.hpp; "sphere-plain", "torus-plain"), averaged per texel.
-ExpectedMap expected_at_true_hits(const std::string& scene, const Mesh& low, int width, int height, int samples,
-                                  const RayOptions& rays, const std::function<double(const glm::dvec3&)>& f);
+ExpectedMap expected_at_true_hits(const std::string& scene, const Mesh& low, int width, int height,
+                                  int samples, const RayOptions& rays,
+                                  const std::function<double(const glm::dvec3&)>& f);
 
 // The mean curvature where the bake's rays meet the plain "sphere" (1) or
 // "torus" (torus_mean_curvature), averaged per texel.

@@ -9,10 +9,9 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <glm/geometric.hpp>
 #include <string>
 #include <vector>
-
-#include <glm/geometric.hpp>
 
 #include "lab_scenes.hpp"
 #include "map_lab.hpp"
@@ -71,7 +70,8 @@ MapError angular_error(const Image& map, const std::vector<glm::dvec3>& want) {
     if (std::isnan(want[t].x)) continue;
     const float* p = map.pixels.data() + t * 3;
     const glm::dvec3 got = glm::normalize(glm::dvec3(2.0 * p[0] - 1.0, 2.0 * p[1] - 1.0, 2.0 * p[2] - 1.0));
-    angles.pixels[t] = static_cast<float>(std::acos(std::clamp(glm::dot(got, want[t]), -1.0, 1.0)) * 180.0 / M_PI);
+    angles.pixels[t] =
+        static_cast<float>(std::acos(std::clamp(glm::dot(got, want[t]), -1.0, 1.0)) * 180.0 / M_PI);
     zero.value[t] = 0.0;
   }
   return score_map(angles, 0, zero);
@@ -96,8 +96,13 @@ int run_map_lab(const std::string& out_dir, int size) {
     SphereParams sp;
     sp.high_cells = 256;
     for (const std::string scene : {"heightfield", "sphere"}) {
-      Case c{"height", scene, "4 spp", "scene units", scene == "sphere" ? make_displaced_sphere(sp) : make_heightfield(hp),
-             base(4), nullptr};
+      Case c{"height",
+             scene,
+             "4 spp",
+             "scene units",
+             scene == "sphere" ? make_displaced_sphere(sp) : make_heightfield(hp),
+             base(4),
+             nullptr};
       c.score = [scene, size](const Image& map, const BakeReport& r, const Mesh& low) {
         return score_map(map, 0, expected_height(scene, low, size, size, 4, rays_of(r)));
       };
@@ -115,14 +120,16 @@ int run_map_lab(const std::string& out_dir, int size) {
         {"wall", make_wall_scene, kWallDistance,
          [](const glm::dvec3& p) { return wall_visibility(p.x, kWallDistance); }},
         {"bowl", [] { return make_bowl_scene(); }, kBowlDistance, [](const glm::dvec3&) { return 0.5; }},
-        {"groove", make_groove_scene, kGrooveDistance, [](const glm::dvec3& p) { return groove_visibility(p.x); }},
+        {"groove", make_groove_scene, kGrooveDistance,
+         [](const glm::dvec3& p) { return groove_visibility(p.x); }},
     };
     for (const Ao& a : aos) {
       for (const int samples : {1, 4}) {
         for (const int rays : {16, 64, 256}) {
           if (samples == 4 && rays != 64) continue;
-          Case c{"ao", a.scene, std::to_string(rays) + " rays, " + std::to_string(samples) + " spp", "visibility",
-                 a.make(), base(samples), nullptr, rays};
+          Case c{"ao",         a.scene,  std::to_string(rays) + " rays, " + std::to_string(samples) + " spp",
+                 "visibility", a.make(), base(samples),
+                 nullptr,      rays};
           c.options.rays.front = c.options.rays.back = absolute(0.05f);
           c.options.ao_distance = absolute(a.distance);
           c.options.ao_rays = rays;
@@ -131,13 +138,14 @@ int run_map_lab(const std::string& out_dir, int size) {
           };
           cases.push_back(std::move(c));
           if (a.scene != "groove" || samples != 1) continue;
-          Case b{"bent-normal", a.scene, std::to_string(rays) + " rays, 1 spp", "degrees", a.make(), base(1), nullptr,
-                 rays};
+          Case b{"bent-normal", a.scene, std::to_string(rays) + " rays, 1 spp", "degrees", a.make(), base(1),
+                 nullptr,       rays};
           b.options.rays.front = b.options.rays.back = absolute(0.05f);
           b.options.ao_distance = absolute(a.distance);
           b.options.ao_rays = rays;
           b.score = [size](const Image& map, const BakeReport&, const Mesh& low) {
-            ExpectedMap xs = expected_from_low_points(low, size, size, 1, [](const glm::dvec3& p) { return p.x; });
+            ExpectedMap xs =
+                expected_from_low_points(low, size, size, 1, [](const glm::dvec3& p) { return p.x; });
             std::vector<glm::dvec3> want(xs.value.size(), glm::dvec3(std::nan("")));
             for (std::size_t t = 0; t < want.size(); ++t) {
               if (!std::isnan(xs.value[t])) want[t] = groove_bent_normal(xs.value[t]);
@@ -158,8 +166,13 @@ int run_map_lab(const std::string& out_dir, int size) {
       tp.amplitude = 0.0f;
       tp.high_cells = 128;
       for (const std::string scene : {"sphere", "torus"}) {
-        Case c{"curvature", scene, analytic ? "analytic normals" : "computed normals", "1/scene units",
-               scene == "sphere" ? make_displaced_sphere(sp) : make_torus(tp), base(4), nullptr};
+        Case c{"curvature",
+               scene,
+               analytic ? "analytic normals" : "computed normals",
+               "1/scene units",
+               scene == "sphere" ? make_displaced_sphere(sp) : make_torus(tp),
+               base(4),
+               nullptr};
         if (!analytic) c.pair.high.normals.clear();
         c.score = [scene, size](const Image& map, const BakeReport& r, const Mesh& low) {
           return score_map(map, 0, expected_curvature(scene, low, size, size, 4, rays_of(r)));
@@ -173,8 +186,13 @@ int run_map_lab(const std::string& out_dir, int size) {
     sp.amplitude = 0.0f;
     sp.high_cells = 128;
     for (const std::string scene : {"slab", "sphere"}) {
-      Case c{"thickness", scene, "16 rays, 4 spp", "scene units",
-             scene == "slab" ? make_slab_scene() : make_displaced_sphere(sp), base(4), nullptr};
+      Case c{"thickness",
+             scene,
+             "16 rays, 4 spp",
+             "scene units",
+             scene == "slab" ? make_slab_scene() : make_displaced_sphere(sp),
+             base(4),
+             nullptr};
       c.options.rays.front = c.options.rays.back = absolute(0.05f);
       c.options.thickness_distance = absolute(3.0f);
       c.score = [scene, size](const Image& map, const BakeReport&, const Mesh& low) {
@@ -190,7 +208,8 @@ int run_map_lab(const std::string& out_dir, int size) {
   {  // position: the analytic hit point in the high mesh's box
     SphereParams sp;
     sp.high_cells = 256;
-    Case c{"position", "sphere", "4 spp", "box fraction (worst axis)", make_displaced_sphere(sp), base(4), nullptr};
+    Case c{"position", "sphere", "4 spp", "box fraction (worst axis)", make_displaced_sphere(sp),
+           base(4),    nullptr};
     const Bounds box = compute_bounds(c.pair.high);
     c.score = [box, size](const Image& map, const BakeReport& r, const Mesh& low) {
       ExpectedMap want[3];
@@ -226,7 +245,8 @@ int run_map_lab(const std::string& out_dir, int size) {
     MapKind map = MapKind::normal;
     parse_word(c.map, map);
     o.maps = {map};
-    const std::string map_file = (dir / (c.map + "_" + std::to_string(c.rays) + "_" + std::to_string(o.samples) + ".exr")).string();
+    const std::string map_file =
+        (dir / (c.map + "_" + std::to_string(c.rays) + "_" + std::to_string(o.samples) + ".exr")).string();
     o.outputs = {{map_file, PixelFormat::exr_float}};
     BakeReport report;
     const auto begin = std::chrono::steady_clock::now();
@@ -243,8 +263,8 @@ int run_map_lab(const std::string& out_dir, int size) {
     if (!read_image(map_file, image) || !load_mesh(low_path, LoadOptions{true, true}, low, ls)) return 3;
     prepare_low_normals(low, ms);
     Row row{c.map, c.scene, c.method, seconds, c.score(image, report, low), c.unit, c.rays};
-    std::printf("%-12s %-12s %-20s %6.2f s  %s\n", row.map.c_str(), row.scene.c_str(), row.method.c_str(), seconds,
-                row.error.to_text().c_str());
+    std::printf("%-12s %-12s %-20s %6.2f s  %s\n", row.map.c_str(), row.scene.c_str(), row.method.c_str(),
+                seconds, row.error.to_text().c_str());
     std::fflush(stdout);
     rows.push_back(row);
   }
@@ -256,13 +276,13 @@ int run_map_lab(const std::string& out_dir, int size) {
         "|---|---|---|---:|---:|---:|---:|---:|---:|---|\n";
   char line[512];
   for (const Row& r : rows) {
-    std::snprintf(line, sizeof line, "%s,%s,\"%s\",%d,%.4f,%zu,%.3g,%.3g,%.3g,%.3g,\"%s\"\n", r.map.c_str(), r.scene.c_str(),
-                  r.method.c_str(), r.rays, r.seconds, r.error.texels, r.error.mean_abs, r.error.mean_signed,
-                  r.error.p99, r.error.max, r.unit.c_str());
+    std::snprintf(line, sizeof line, "%s,%s,\"%s\",%d,%.4f,%zu,%.3g,%.3g,%.3g,%.3g,\"%s\"\n", r.map.c_str(),
+                  r.scene.c_str(), r.method.c_str(), r.rays, r.seconds, r.error.texels, r.error.mean_abs,
+                  r.error.mean_signed, r.error.p99, r.error.max, r.unit.c_str());
     csv << line;
-    std::snprintf(line, sizeof line, "| %s | %s | %s | %.2f | %zu | %.2g | %+.1e | %.2g | %.2g | %s |\n", r.map.c_str(),
-                  r.scene.c_str(), r.method.c_str(), r.seconds, r.error.texels, r.error.mean_abs, r.error.mean_signed,
-                  r.error.p99, r.error.max, r.unit.c_str());
+    std::snprintf(line, sizeof line, "| %s | %s | %s | %.2f | %zu | %.2g | %+.1e | %.2g | %.2g | %s |\n",
+                  r.map.c_str(), r.scene.c_str(), r.method.c_str(), r.seconds, r.error.texels,
+                  r.error.mean_abs, r.error.mean_signed, r.error.p99, r.error.max, r.unit.c_str());
     md << line;
   }
   return csv && md ? 0 : 2;

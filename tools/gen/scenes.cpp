@@ -10,8 +10,6 @@
 // the meshes are bitwise reproducible and the analytic normals are accurate.
 #include "scenes.hpp"
 
-#include <string>
-
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -20,6 +18,7 @@
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <numbers>
+#include <string>
 #include <unordered_map>
 #include <vector>
 
@@ -163,14 +162,16 @@ ScenePair make_parts(const PartsParams& p) {
   HeightfieldParams plate;
   plate.size = 1.0f;
   plate.low_cells = p.low_cells;
-  plate.high_cells = std::max(1, static_cast<int>(std::sqrt(static_cast<double>(p.high_triangles) / (2.0 * p.count))));
+  plate.high_cells =
+      std::max(1, static_cast<int>(std::sqrt(static_cast<double>(p.high_triangles) / (2.0 * p.count))));
   const ScenePair one = make_heightfield(plate);
   ScenePair pair;
   const float cell = 1.0f / static_cast<float>(side);
   const float margin = 0.04f * cell;
   for (int i = 0; i < p.count; ++i) {
     const int cx = i % side, cy = i / side;
-    const glm::vec3 offset(static_cast<float>(cx) * (1.0f + p.gap), static_cast<float>(cy) * (1.0f + p.gap), 0.0f);
+    const glm::vec3 offset(static_cast<float>(cx) * (1.0f + p.gap), static_cast<float>(cy) * (1.0f + p.gap),
+                           0.0f);
     const auto append = [&](const Mesh& from, Mesh& to, const std::string& name, bool uvs) {
       const auto base = static_cast<std::uint32_t>(to.positions.size());
       to.parts.push_back({name, static_cast<std::uint32_t>(to.triangle_count()),

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
 
@@ -32,7 +31,8 @@ glm::vec3 decode(const Image& map, int x, int y) {
 }
 
 std::size_t count_non_finite(const Image& map) {
-  return static_cast<std::size_t>(std::count_if(map.pixels.begin(), map.pixels.end(), [](float v) { return !std::isfinite(v); }));
+  return static_cast<std::size_t>(
+      std::count_if(map.pixels.begin(), map.pixels.end(), [](float v) { return !std::isfinite(v); }));
 }
 
 template <class V>
@@ -45,7 +45,8 @@ V lerp(const std::vector<V>& c, std::size_t base, glm::vec2 b) {
 std::string AngularError::to_text() const {
   char line[256];
   std::snprintf(line, sizeof line,
-                "texels %zu  mean %.4f  median %.4f  p95 %.4f  p99 %.4f  max %.3f deg  >1deg %.3f%%  >5deg %.3f%%  nan %zu",
+                "texels %zu  mean %.4f  median %.4f  p95 %.4f  p99 %.4f  max %.3f deg  >1deg %.3f%%  >5deg "
+                "%.3f%%  nan %zu",
                 texels, mean, median, p95, p99, max, 100.0 * over_1deg, 100.0 * over_5deg, non_finite);
   return line;
 }
@@ -93,8 +94,8 @@ AngularError score_heightfield(const HeightfieldParams& params, const Image& map
   return summarize_errors(std::move(errors), count_non_finite(map));
 }
 
-AngularError score_sphere(const SphereParams& params, const Mesh& low, const Image& map, int samples, float front,
-                          float back) {
+AngularError score_sphere(const SphereParams& params, const Mesh& low, const Image& map, int samples,
+                          float front, float back) {
   SurfaceStats surface_stats;
   const LowSurface surface = build_low_surface(low, nullptr, surface_stats);
   TexelSamples raster;
@@ -123,7 +124,8 @@ AngularError score_sphere(const SphereParams& params, const Mesh& low, const Ima
         // Bisection on g(t) = |p| - r(p / |p|), positive outside.
         auto g = [&](double t) {
           const glm::vec3 p = ray.origin + static_cast<float>(t) * ray.direction;
-          return static_cast<double>(glm::length(p)) - static_cast<double>(sphere_radius(params, glm::normalize(p)));
+          return static_cast<double>(glm::length(p)) -
+                 static_cast<double>(sphere_radius(params, glm::normalize(p)));
         };
         double lo = 0.0, hi = ray.tfar;
         if (!(g(lo) > 0.0 && g(hi) < 0.0)) continue;  // the analytic surface is out of reach: not scored

@@ -35,7 +35,7 @@ AngularError score_heightfield(const HeightfieldParams& params, const Image& map
 // inverse through the sample's frame and averaged like the baker does; baked
 // and expected texels are decoded through the frame of the texel's first
 // sample and compared. `low` is the low mesh as baked (unit normals, UVs).
-AngularError score_sphere(const SphereParams& params, const Mesh& low, const Image& map, int samples, float front,
-                          float back);
+AngularError score_sphere(const SphereParams& params, const Mesh& low, const Image& map, int samples,
+                          float front, float back);
 
 }  // namespace nmbake::scenes
