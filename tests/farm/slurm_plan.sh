@@ -73,7 +73,8 @@ mkdir -p "$work/out"
 # array task's `bash -c` would run: the logs land where asked, nothing runs.
 plan="$work/plan dir #%x \"q\""
 "$nmbake" plan "$work/job.toml" --tiles 4 --tiles-min-size 300 --slurm "$plan" --cache "$work/cache"
-eval "$("$cluster" start "$slurm_dir")"
+started=$("$cluster" start "$slurm_dir") || { echo "FAIL: the one-node cluster did not start"; exit 1; }
+eval "$started"
 echo "cluster up: $SLURM_CONF"
 if ! timeout 300 "$plan/submit.sh" --wait | tee "$work/submit.log"; then
   echo "FAIL: submit.sh --wait failed"
