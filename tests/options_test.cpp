@@ -192,7 +192,8 @@ TEST(OptionTable, EveryWordTableNamesEveryValueOnce) {
                          PixelFormat::exr_float, PixelFormat::exr_float_piz, PixelFormat::tga8});
   expect_table_complete({MapKind::normal, MapKind::height, MapKind::ao, MapKind::bent_normal,
                          MapKind::curvature, MapKind::thickness, MapKind::position, MapKind::object_normal,
-                         MapKind::vertex_color, MapKind::id, MapKind::miss});
+                         MapKind::vertex_color, MapKind::id, MapKind::miss, MapKind::base_color,
+                         MapKind::roughness, MapKind::metallic, MapKind::emissive, MapKind::opacity});
   // The aliases still read: green's OpenGL and DirectX names.
   GreenChannel green = GreenChannel::up;
   EXPECT_TRUE(parse_word("directx", green));

@@ -78,6 +78,10 @@ struct WriteOptions {
   bool dither = false;
   float scale = 1.0f;
   float offset = 0.0f;
+  // Integer formats: the first three channels (one of a grey image) are
+  // linear colours, stored sRGB-encoded (after scale and offset); alpha and
+  // float formats stay linear.
+  bool srgb = false;
 };
 Status write_image(const Image& image, const std::string& path, PixelFormat format,
                    const WriteOptions& options = {});

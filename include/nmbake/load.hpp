@@ -111,6 +111,20 @@ struct LoadOptions {
   // white on meshes without one; vertices are welded only where their
   // colours agree too). A file with no colour at all gives none.
   bool keep_colors = false;
+  // Texture transfer (maps.hpp): every triangle corner's UV (uv_set) into
+  // Mesh::corner_uvs without splitting vertices, so the high mesh's
+  // triangles, vertices and normals are exactly those of a load without it;
+  // corners without a UV get (0, 0), counted. OBJ and glTF only (FBX,
+  // Collada: bad_input saying so).
+  bool corner_uvs = false;
+  // Material definitions into Mesh::material_defs: OBJ `mtllib` files
+  // (MTL: Kd, d, Ke, Pr, Pm, map_Kd, map_d, map_Ke, map_Pr, map_Pm,
+  // norm / map_Bump / bump with -bm, options -o -s -clamp -imfchan; Tr as
+  // 1 - d), glTF materials (pbrMetallicRoughness factors and textures,
+  // normalTexture + scale, emissiveTexture + factor, samplers' wrap modes,
+  // KHR_texture_transform). A library or image path is resolved against the
+  // mesh's folder; a missing MTL file is bad_input naming it.
+  bool material_defs = false;
   // Tuning of the parallel parsers, for tests and benchmarks; the loaded mesh
   // and every error are the same whatever they are set to.
   std::size_t block_bytes = 0;  // bytes read and decoded at a time; 0: 4 MiB
@@ -123,11 +137,12 @@ struct LoadOptions {
 };
 
 struct LoadStats {
-  std::uint64_t bytes = 0;             // file size (for glTF: the .gltf plus its external buffers)
-  double seconds = 0.0;                // wall time of load_mesh
-  std::uint64_t polygons = 0;          // faces in the file before triangulation
-  std::uint64_t triangles = 0;         // after triangulation
-  std::uint64_t degenerate_faces = 0;  // faces with fewer than 3 corners: skipped
+  std::uint64_t bytes = 0;                // file size (for glTF: the .gltf plus its external buffers)
+  double seconds = 0.0;                   // wall time of load_mesh
+  std::uint64_t polygons = 0;             // faces in the file before triangulation
+  std::uint64_t triangles = 0;            // after triangulation
+  std::uint64_t degenerate_faces = 0;     // faces with fewer than 3 corners: skipped
+  std::uint64_t corners_without_uvs = 0;  // LoadOptions::corner_uvs: corners the file gave no UV
   // Length of one file unit in metres when the file says (FBX UnitScaleFactor:
   // 0.01 for centimetres; glTF: 1); 0 when the format does not say (OBJ, PLY).
   // Positions are kept in file units; the report shows this note.

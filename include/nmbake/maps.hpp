@@ -24,6 +24,11 @@
 // | miss           | share of the texel's samples whose ray missed | the same | 1 |
 // | vertex-color   | the high mesh's vertex colour (RGB, sRGB-encoded) at the hit (PLY, OBJ "v x y z r g b", glTF COLOR_0, FBX/Collada colours: load.hpp) | the same | black |
 // | id             | the colour (part_color) of the hit's material or part (IdSource): the one most of the texel's samples hit | the same | black |
+// | base-color     | the hit material's base colour factor x its texture (textures.hpp), linear RGB | sRGB-encoded | black |
+// | roughness      | roughness factor x texture channel (glTF: G of metallicRoughness)  | the same | 0 |
+// | metallic       | metallic factor x texture channel (glTF: B of metallicRoughness)   | the same | 0 |
+// | emissive       | emissive factor x its texture, linear RGB                        | sRGB-encoded | black |
+// | opacity        | base colour alpha x the opacity texture (glTF: base colour alpha, with alphaMode BLEND or MASK; MTL d, map_d) | the same | 0 |
 // clang-format on
 //
 // Single-channel maps (height, ao, curvature, thickness, miss) are written
@@ -54,6 +59,7 @@
 #include "nmbake/parts.hpp"
 #include "nmbake/raster.hpp"
 #include "nmbake/surface.hpp"
+#include "nmbake/textures.hpp"
 #include "nmbake/trace.hpp"
 
 namespace nmbake {
@@ -69,7 +75,12 @@ enum class MapKind : std::uint8_t {
   object_normal,
   vertex_color,
   id,
-  miss
+  miss,
+  base_color,
+  roughness,
+  metallic,
+  emissive,
+  opacity
 };
 
 inline constexpr Word<MapKind> kMapKindWords[] = {
@@ -84,6 +95,11 @@ inline constexpr Word<MapKind> kMapKindWords[] = {
     {"vertex-color", MapKind::vertex_color, "the high mesh's vertex colour"},
     {"id", MapKind::id, "a colour per part or material"},
     {"miss", MapKind::miss, "white where a ray found no high surface"},
+    {"base-color", MapKind::base_color, "the high's base colour (its materials' textures and factors)"},
+    {"roughness", MapKind::roughness, "the high's roughness (textures and factors)"},
+    {"metallic", MapKind::metallic, "the high's metallic (textures and factors)"},
+    {"emissive", MapKind::emissive, "the high's emission (textures and factors)"},
+    {"opacity", MapKind::opacity, "the high's opacity (alpha; textures and factors)"},
 };
 NMBAKE_WORDS(MapKind, kMapKindWords)
 // Appends the maps of "normal,height" (any number of names, commas, spaces)
@@ -101,8 +117,27 @@ struct MapTraits {
   bool occlusion_rays = false;                  // needs trace_occlusion()
   bool thickness_rays = false;                  // needs trace_thickness()
   bool implemented = true;  // false: refused by validate_options() (every map is implemented)
+  bool srgb = false;        // a colour: integer files store its sRGB encoding, float files the linear value
+  bool surface = false;     // reads the high's materials and textures (texture transfer)
 };
 MapTraits map_traits(MapKind map);
+
+// Which of the high's material attributes the maps read.
+TextureNeeds texture_needs(const std::vector<MapKind>& maps);
+
+// What the texture transfer maps read, in the scene's triangle order (after
+// groups): per triangle its material (an index into `materials`, whose last
+// entry is the default for triangles without a definition), the corners'
+// high UVs, and how much UV one scene unit covers (sqrt(UV area / area), 0
+// for a degenerate triangle: the finest mip level); the textures read.
+struct SurfaceTransfer {
+  std::vector<Material> materials;
+  std::vector<MaterialTextures> material_textures;  // parallel to materials
+  std::vector<std::uint32_t> triangle_material;
+  std::vector<glm::vec2> corner_uv;
+  std::vector<float> uv_density;
+  TextureSet textures;
+};
 
 // What the id map colours: the high mesh's parts (OBJ o/g, glTF nodes, FBX
 // models) or its materials (OBJ usemtl, glTF primitive materials, FBX and
@@ -145,6 +180,10 @@ struct MapSettings {
   IdSource id_source = IdSource::part;
   const std::vector<std::uint32_t>* triangle_id = nullptr;
   const std::vector<glm::vec3>* id_colors = nullptr;
+  // The texture transfer maps: the high's surface data, and the whole map's
+  // height (a texel's footprint, textures.hpp).
+  const SurfaceTransfer* transfer = nullptr;
+  int map_height = 0;
 
   bool has(MapKind map) const;
 };
@@ -177,7 +216,9 @@ std::vector<float> vertex_mean_curvature(const Mesh& high, const std::vector<glm
 // What the map set reads from the whole high mesh, once per bake: its
 // bounds (position), vertex curvature (curvature), and each triangle's part
 // or material with their names and colours (id), for the maps in `maps`
-// only.
+// only. The transfer maps' per-triangle data (materials, corner UVs) need
+// high.corner_uvs and material_defs; its textures are read before
+// (load_material_textures() into transfer.textures, kept).
 struct MapMeshData {
   Bounds position_bounds;
   std::vector<float> vertex_curvature;
@@ -186,6 +227,7 @@ struct MapMeshData {
   std::vector<std::uint32_t> triangle_id;  // in the scene's triangle order (after groups)
   std::vector<glm::vec3> id_colors;
   std::vector<std::pair<std::string, glm::vec3>> ids;  // name, colour; in order of first triangle
+  SurfaceTransfer transfer;  // textures: load_material_textures() before prepare_map_mesh()
   // Points `settings` at this data (which must outlive it).
   void apply(MapSettings& settings) const;
 };

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "nmbake/common.hpp"
+#include "nmbake/material.hpp"
 
 namespace nmbake {
 
@@ -57,6 +58,15 @@ struct Mesh {
   // them (bake groups clear both on the high mesh after the id map took its
   // per-triangle colours).
   std::vector<MeshPart> materials;
+  // The texture coordinates of every triangle corner (three per triangle,
+  // v = 0 at the image bottom), without splitting vertices: the high mesh of
+  // a texture bake (LoadOptions::corner_uvs). Empty otherwise. A corner the
+  // file gave no UV has (0, 0) (counted in LoadStats::corners_without_uvs).
+  std::vector<glm::vec2> corner_uvs;
+  // What the file says of its materials (LoadOptions::material_defs): at
+  // most one per name in `materials`, in order of first use; a range whose
+  // name has none here has no definition (factors as Material{}).
+  std::vector<Material> material_defs;
 
   std::size_t vertex_count() const { return positions.size(); }
   std::size_t triangle_count() const { return indices.size() / 3; }
@@ -64,6 +74,9 @@ struct Mesh {
   bool has_uvs() const { return !uvs.empty(); }
   bool has_tangents() const { return !tangents.empty(); }
   bool has_colors() const { return !colors.empty(); }
+  bool has_corner_uvs() const { return !corner_uvs.empty(); }
+  // The definition of material `name`, or null.
+  const Material* material_def(const std::string& name) const;
   // Some triangle has a material with a name (the id map's auto source).
   bool has_named_materials() const;
 };

@@ -191,6 +191,9 @@ Status load_inputs(const BakeOptions& o, BakeReport& r, StageTimer& timer, Meshe
   NMBAKE_TRY(load_mesh(o.low_path, detail::low_load_options(o), m.low, r.low_load));
   LoadOptions high_options{false, o.encode.high_normals == HighNormals::smooth};
   high_options.keep_colors = std::find(o.maps.begin(), o.maps.end(), MapKind::vertex_color) != o.maps.end();
+  // The transfer maps read the high's corner UVs and materials; the mesh
+  // itself (vertices, triangles, normals) is the same as without them.
+  high_options.corner_uvs = high_options.material_defs = texture_needs(o.maps).any();
   NMBAKE_TRY(load_mesh(o.high_path, high_options, m.high, r.high_load));
   NMBAKE_TRY(check_high_for_maps(o, m.high, high_options.keep_colors));
   m.has_cage = !o.cage_path.empty();
@@ -293,6 +296,9 @@ Status prepare_high_scene(const BakeOptions& o, BakeReport& r, StageTimer& timer
   timer.start("prepare");
   prepare_low_normals(m.low, r.low_mesh);
   if (o.encode.high_normals == HighNormals::smooth) prepare_high_normals(m.high, r.high_mesh);
+  if (const TextureNeeds needs = texture_needs(o.maps); needs.any()) {
+    NMBAKE_TRY(load_material_textures(m.high, o.high_path, needs, s.map_mesh.transfer.textures));
+  }
   prepare_map_mesh(m.high, o.maps, o.id_source, m.groups, s.map_mesh);
   detail::report_map_mesh(s.map_mesh, r);
   if (m.groups.grouped()) group_high_mesh(o, m.groups, m.high, s.groups);
@@ -342,6 +348,7 @@ MapSettings map_settings(const BakeOptions& o, float low_diagonal, const MapMesh
   settings.occlusion.bent = settings.has(MapKind::bent_normal);
   settings.thickness.rays = o.thickness_rays;
   settings.thickness.distance = resolve_distance(o.thickness_distance, low_diagonal, auto_map_distance);
+  settings.map_height = o.height;
   map_mesh.apply(settings);
   return settings;
 }

@@ -21,6 +21,7 @@ Status write_map_files(MapSet& maps, const std::vector<MapOutput>& files, bool d
     WriteOptions options;
     options.dither = dither;
     maps.integer_mapping(out.map, options.scale, options.offset);
+    options.srgb = map_traits(out.map).srgb;
     written[i] = write_image(maps.image(out.map), out.path, out.format, options);
   });
   for (const Status& s : written) NMBAKE_TRY(s);

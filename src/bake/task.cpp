@@ -256,7 +256,7 @@ namespace {
 // the header; "3": every map of a map set, its settings and counts.
 constexpr char kMagic[8] = {'N', 'M', 'B', 'T', 'I', 'L', 'E', '3'};
 constexpr std::size_t kMaxTileOutputs = 64, kMaxPathBytes = 65536, kMaxFigures = 64, kMaxFigureName = 64;
-constexpr std::size_t kMapKindCount = static_cast<std::size_t>(MapKind::miss) + 1;
+constexpr std::size_t kMapKindCount = std::size(kMapKindWords);
 
 template <typename T>
 void put(std::string& out, const T& value) {

@@ -452,6 +452,25 @@ Image mapped_copy(const Image& image, float scale, float offset) {
   return out;
 }
 
+// The sRGB encoding of v * scale + offset for the colour channels (the
+// first three, or the first of one or two), alpha as it is.
+Image srgb_copy(const Image& image, float scale, float offset) {
+  Image out = mapped_copy(image, scale, offset);
+  const int c = image.channels;
+  const int colour = c >= 3 ? 3 : 1;
+  for (std::size_t i = 0; i < out.pixels.size(); ++i) {
+    if (static_cast<int>(i % c) >= colour) continue;
+    float v = std::clamp(out.pixels[i], 0.0f, 1.0f);
+    out.pixels[i] = v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
+  }
+  return out;
+}
+
+bool is_float_format(PixelFormat format) {
+  return format == PixelFormat::exr_half || format == PixelFormat::exr_float ||
+         format == PixelFormat::exr_float_piz;
+}
+
 }  // namespace
 
 Status write_image(const Image& image, const std::string& path, PixelFormat format,
@@ -498,6 +517,13 @@ Status write_image(const Image& image, const std::string& path, PixelFormat form
     return Status::io("cannot write '" + path + "': folder '" + folder.string() + "' does not exist");
   }
 
+  if (options.srgb && !is_float_format(format)) {
+    WriteOptions encoded = options;
+    encoded.srgb = false;
+    encoded.scale = 1.0f;
+    encoded.offset = 0.0f;
+    return write_image(srgb_copy(image, options.scale, options.offset), path, format, encoded);
+  }
   NMBAKE_TRY(check_output_target(path));
   const fs::path temp = temp_path_for(target.parent_path().empty() ? fs::path(".") / target : target);
   const TempFileGuard guard(temp.string());  // removed if a signal ends the process meanwhile

@@ -371,6 +371,21 @@ std::string list_uv_sets(const tinygltf::Primitive& primitive) {
 }
 
 // Reads everything of the file the bake needs, node by node.
+std::string decode_uri(const std::string& uri);
+
+// Empty when an image's decoded uri may be read: a relative path that stays
+// under the glTF's folder (the rule of buffers, README "Mesh formats");
+// whether the file is there is found when a bake reads it.
+std::string image_uri_problem(const std::string& relative) {
+  if (relative.empty()) return "the uri is empty";
+  if (relative.find('\0') != std::string::npos) return "the uri holds a NUL byte";
+  if (relative.front() == '/')
+    return "the uri is an absolute path (images are read only from under the glTF's folder)";
+  const std::filesystem::path normal = std::filesystem::path(relative).lexically_normal();
+  if (!normal.empty() && *normal.begin() == "..") return "the uri leaves the glTF's folder";
+  return {};
+}
+
 class GltfReader {
  public:
   GltfReader(const std::string& path, const tinygltf::Model& model, const LoadOptions& options, Mesh& out,
@@ -403,6 +418,7 @@ class GltfReader {
     // Vertex colours: white where a primitive has no COLOR_0 (the
     // specification's default), none at all when no primitive has them.
     if (!any_colors_) out_.colors.clear();
+    if (options_.material_defs) read_material_defs();
     stats_.triangles = out_.triangle_count();
     stats_.polygons = stats_.triangles;
     return Status::ok();
@@ -576,6 +592,135 @@ class GltfReader {
     }
     name = model_.materials[m].name.empty() ? "material " + std::to_string(m) : model_.materials[m].name;
     return Status::ok();
+  }
+
+  // ------------------------------------------------------------ materials
+
+  // The texture of a textureInfo: its image's file (under the glTF's folder,
+  // as buffers), sampler wrap modes and KHR_texture_transform.
+  TextureRef texture_ref(int texture_index, int tex_coord, const tinygltf::ExtensionMap& extensions) const {
+    TextureRef ref;
+    ref.texcoord = tex_coord;
+    if (texture_index < 0 || static_cast<std::size_t>(texture_index) >= model_.textures.size()) {
+      ref.problem = "texture " + std::to_string(texture_index) + " does not exist";
+      return ref;
+    }
+    const tinygltf::Texture& texture = model_.textures[static_cast<std::size_t>(texture_index)];
+    if (texture.sampler >= 0 && static_cast<std::size_t>(texture.sampler) < model_.samplers.size()) {
+      const tinygltf::Sampler& sampler = model_.samplers[static_cast<std::size_t>(texture.sampler)];
+      const auto wrap = [](int mode) {
+        return mode == TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE     ? TextureWrap::clamp
+               : mode == TINYGLTF_TEXTURE_WRAP_MIRRORED_REPEAT ? TextureWrap::mirror
+                                                               : TextureWrap::repeat;
+      };
+      ref.wrap_u = wrap(sampler.wrapS);
+      ref.wrap_v = wrap(sampler.wrapT);
+    }
+    if (const auto it = extensions.find("KHR_texture_transform"); it != extensions.end()) {
+      const tinygltf::Value& t = it->second;
+      const auto number = [&](const tinygltf::Value& v, double fallback) {
+        return v.IsNumber() ? v.GetNumberAsDouble() : fallback;
+      };
+      if (t.Has("offset") && t.Get("offset").IsArray() && t.Get("offset").ArrayLen() == 2) {
+        ref.offset = glm::vec2(static_cast<float>(number(t.Get("offset").Get(0), 0.0)),
+                               static_cast<float>(number(t.Get("offset").Get(1), 0.0)));
+      }
+      if (t.Has("scale") && t.Get("scale").IsArray() && t.Get("scale").ArrayLen() == 2) {
+        ref.scale = glm::vec2(static_cast<float>(number(t.Get("scale").Get(0), 1.0)),
+                              static_cast<float>(number(t.Get("scale").Get(1), 1.0)));
+      }
+      if (t.Has("rotation")) ref.rotation = static_cast<float>(number(t.Get("rotation"), 0.0));
+      if (t.Has("texCoord")) ref.texcoord = static_cast<int>(number(t.Get("texCoord"), tex_coord));
+      if (!std::isfinite(ref.offset.x) || !std::isfinite(ref.offset.y) || !std::isfinite(ref.scale.x) ||
+          !std::isfinite(ref.scale.y) || !std::isfinite(ref.rotation)) {
+        ref.problem = "KHR_texture_transform holds a number that is not finite";
+        return ref;
+      }
+    }
+    const int source = texture.source;
+    if (source < 0 || static_cast<std::size_t>(source) >= model_.images.size()) {
+      ref.problem = "texture " + std::to_string(texture_index) + " has no image";
+      return ref;
+    }
+    const tinygltf::Image& image = model_.images[static_cast<std::size_t>(source)];
+    if (image.bufferView >= 0 || image.uri.rfind("data:", 0) == 0) {
+      ref.problem = "image " + std::to_string(source) +
+                    " is embedded in the file (a buffer view or data: URI); only image files beside the "
+                    "glTF are read";
+      return ref;
+    }
+    const std::string relative = decode_uri(image.uri);
+    if (std::string problem = image_uri_problem(relative); !problem.empty()) {
+      ref.problem =
+          "image " + std::to_string(source) + " (uri '" + printable_text(image.uri) + "'): " + problem;
+      return ref;
+    }
+    ref.path =
+        (std::filesystem::path(path_).parent_path() / std::filesystem::path(relative).lexically_normal())
+            .string();
+    return ref;
+  }
+
+  // Mesh::material_defs for every material a primitive used.
+  void read_material_defs() {
+    for (std::size_t m = 0; m < model_.materials.size(); ++m) {
+      const tinygltf::Material& source = model_.materials[m];
+      Material def;
+      def.name = source.name.empty() ? "material " + std::to_string(m) : source.name;
+      const bool used = std::any_of(out_.materials.begin(), out_.materials.end(),
+                                    [&](const MeshPart& range) { return range.name == def.name; });
+      if (!used || out_.material_def(def.name) != nullptr) continue;
+      const tinygltf::PbrMetallicRoughness& pbr = source.pbrMetallicRoughness;
+      if (pbr.baseColorFactor.size() == 4) {
+        def.base_color = glm::vec4(pbr.baseColorFactor[0], pbr.baseColorFactor[1], pbr.baseColorFactor[2],
+                                   pbr.baseColorFactor[3]);
+        def.has_color = true;
+      }
+      if (source.alphaMode == "OPAQUE" || source.alphaMode.empty()) def.base_color.a = 1.0f;
+      def.roughness = static_cast<float>(pbr.roughnessFactor);
+      def.metallic = static_cast<float>(pbr.metallicFactor);
+      if (pbr.baseColorTexture.index >= 0) {
+        def.base_color_texture = texture_ref(pbr.baseColorTexture.index, pbr.baseColorTexture.texCoord,
+                                             pbr.baseColorTexture.extensions);
+        if (source.alphaMode == "BLEND" || source.alphaMode == "MASK") {
+          def.opacity_texture = def.base_color_texture;
+          def.opacity_texture.channel = 3;
+        }
+      }
+      if (pbr.metallicRoughnessTexture.index >= 0) {
+        def.roughness_texture =
+            texture_ref(pbr.metallicRoughnessTexture.index, pbr.metallicRoughnessTexture.texCoord,
+                        pbr.metallicRoughnessTexture.extensions);
+        def.roughness_texture.channel = 1;  // G
+        def.metallic_texture = def.roughness_texture;
+        def.metallic_texture.channel = 2;  // B
+      }
+      if (source.emissiveFactor.size() == 3) {
+        def.emissive =
+            glm::vec3(source.emissiveFactor[0], source.emissiveFactor[1], source.emissiveFactor[2]);
+      }
+      if (source.emissiveTexture.index >= 0) {
+        def.emissive_texture = texture_ref(source.emissiveTexture.index, source.emissiveTexture.texCoord,
+                                           source.emissiveTexture.extensions);
+      }
+      if (source.normalTexture.index >= 0) {
+        def.normal_texture = texture_ref(source.normalTexture.index, source.normalTexture.texCoord,
+                                         source.normalTexture.extensions);
+        def.normal_scale = static_cast<float>(source.normalTexture.scale);
+      }
+      if (!std::isfinite(def.base_color.r) || !std::isfinite(def.base_color.g) ||
+          !std::isfinite(def.base_color.b) || !std::isfinite(def.base_color.a) ||
+          !std::isfinite(def.roughness) || !std::isfinite(def.metallic) || !std::isfinite(def.normal_scale) ||
+          !std::isfinite(def.emissive.r) || !std::isfinite(def.emissive.g) ||
+          !std::isfinite(def.emissive.b)) {
+        def.base_color = glm::vec4(1.0f);
+        def.roughness = 1.0f;
+        def.metallic = 0.0f;
+        def.emissive = glm::vec3(0.0f);
+        def.normal_scale = 1.0f;
+      }
+      out_.material_defs.push_back(std::move(def));
+    }
   }
 
   Status read_primitive(const std::string& part, const tinygltf::Primitive& primitive, std::size_t index,
@@ -790,6 +935,22 @@ class GltfReader {
       }
     }
 
+    // Corner UVs (LoadOptions::corner_uvs): the primitive's UV set, v
+    // flipped as above; (0, 0) and counted when it has none.
+    std::vector<glm::vec2> corner_source;
+    if (options_.corner_uvs) {
+      const int accessor = attribute(uv_key);
+      if (accessor >= 0) {
+        if (std::string e = check_count(accessor, uv_key); !e.empty()) return error(part, where + e);
+        corner_source.resize(vertex_count);
+        if (std::string e = read_accessor(
+                model_, accessor, 2, false, count,
+                [&](std::size_t v, const float* uv) { corner_source[v] = glm::vec2(uv[0], 1.0f - uv[1]); });
+            !e.empty()) {
+          return error(part, where + uv_key + ": " + e);
+        }
+      }
+    }
     const auto emit = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
       // A mirroring matrix turns counter-clockwise into clockwise: swap two
       // corners so the front stays the front.
@@ -797,6 +958,12 @@ class GltfReader {
       out_.indices.push_back(base + a);
       out_.indices.push_back(base + b);
       out_.indices.push_back(base + c);
+      if (options_.corner_uvs) {
+        for (const std::uint32_t v : {a, b, c}) {
+          if (corner_source.empty()) ++stats_.corners_without_uvs;
+          out_.corner_uvs.push_back(corner_source.empty() ? glm::vec2(0.0f) : corner_source[v]);
+        }
+      }
     };
     const std::size_t n = indices.size();
     if (mode == TINYGLTF_MODE_TRIANGLES) {

@@ -58,6 +58,7 @@ struct Corner {
   std::uint32_t v = kNone;
   std::uint32_t vt = kNone;  // kNone when absent or not kept
   std::uint32_t vn = kNone;  // kNone when absent or not kept
+  std::uint32_t uv = kNone;  // the vt for Mesh::corner_uvs (LoadOptions::corner_uvs); kNone when absent
   std::uint32_t vertex = kNone;
 };
 
@@ -71,7 +72,8 @@ struct RawCorner {
 
 // An `o`, `g` or `usemtl` statement: where a named part or material begins
 // (mesh.hpp MeshPart).
-enum class NameKind : std::uint8_t { object, group, material };
+// `mtllib` is recorded the same way (its files are read after the mesh).
+enum class NameKind : std::uint8_t { object, group, material, library };
 struct NameStatement {
   NameKind kind = NameKind::object;
   std::string name;                // the rest of the line, blanks trimmed
@@ -94,6 +96,8 @@ bool name_kind(std::string_view keyword, NameKind& kind) {
     kind = NameKind::group;
   } else if (keyword == "usemtl") {
     kind = NameKind::material;
+  } else if (keyword == "mtllib") {
+    kind = NameKind::library;
   } else {
     return false;
   }
@@ -250,11 +254,30 @@ class ObjParser {
     }
     finish();
     finish_names();
+    if (options_.material_defs) NMBAKE_TRY(read_material_libraries());
     return Status::ok();
   }
 
  private:
   Status error(const std::string& reason) const { return text_error(path_, line_number_, reason); }
+
+  // vt statements are read for the low mesh's vertices or for corner UVs.
+  bool read_vt() const { return options_.keep_uvs || options_.corner_uvs; }
+
+  // The `mtllib` files, in order, each definition of a material a `usemtl`
+  // names (the first definition of a name wins, as in Blender's importer).
+  Status read_material_libraries() {
+    std::vector<std::string> used;
+    for (const MeshPart& m : out_.materials) {
+      if (!m.name.empty() && std::find(used.begin(), used.end(), m.name) == used.end())
+        used.push_back(m.name);
+    }
+    for (const NameStatement& n : names_) {
+      if (n.kind != NameKind::library || n.name.empty()) continue;
+      NMBAKE_TRY(read_mtl_library(path_, n.name, used, out_.material_defs));
+    }
+    return Status::ok();
+  }
 
   Status parse_line(std::string_view line) {
     std::string_view keyword;
@@ -350,7 +373,7 @@ class ObjParser {
 
   Status parse_texcoord(const char* p, const char* end) {
     ++texcoord_count_;
-    if (!options_.keep_uvs) return Status::ok();  // counted for relative indices only
+    if (!read_vt()) return Status::ok();  // counted for relative indices only
     glm::vec2 uv{0.0f};
     NMBAKE_TRY(parse_reals(p, end, &uv.x, 1, 2));
     texcoords_.push_back(uv);
@@ -399,8 +422,9 @@ class ObjParser {
       while (vt_last < token_end && *vt_last != '/') ++vt_last;
       if (vt_last > vt_first) {
         has_vt = true;
-        if (options_.keep_uvs) {
-          NMBAKE_TRY(resolve_index(vt_first, vt_last, texcoord_count_, "texture coordinate", corner.vt));
+        if (read_vt()) {
+          NMBAKE_TRY(resolve_index(vt_first, vt_last, texcoord_count_, "texture coordinate", corner.uv));
+          if (options_.keep_uvs) corner.vt = corner.uv;
         }
       }
       if (vt_last < token_end) {
@@ -469,6 +493,13 @@ class ObjParser {
       out_.indices.push_back(corners_[0].vertex);
       out_.indices.push_back(corners_[i].vertex);
       out_.indices.push_back(corners_[i + 1].vertex);
+      if (options_.corner_uvs) {
+        for (const std::size_t c : {std::size_t{0}, i, i + 1}) {
+          const std::uint32_t uv = corners_[c].uv;
+          if (uv == kNone) ++stats_.corners_without_uvs;
+          out_.corner_uvs.push_back(uv == kNone ? glm::vec2(0.0f) : texcoords_[uv]);
+        }
+      }
     }
     return Status::ok();
   }
@@ -567,7 +598,7 @@ class ObjParser {
       }
       slice.positions.push_back(position);
     } else if (keyword == "vt") {
-      if (options_.keep_uvs) {
+      if (read_vt()) {
         glm::vec2 uv{0.0f};
         if (!read_reals(keyword_end, end, &uv.x, 1, 2)) return false;
         slice.texcoords.push_back(uv);
@@ -615,7 +646,7 @@ class ObjParser {
     const char* vt_first = slash + 1;
     const char* vt_last = vt_first;
     while (vt_last < token_end && *vt_last != '/') ++vt_last;
-    if (vt_last > vt_first && options_.keep_uvs && !read_index(vt_first, vt_last, corner.vt)) return false;
+    if (vt_last > vt_first && read_vt() && !read_index(vt_first, vt_last, corner.vt)) return false;
     if (vt_last < token_end) {
       if (vt_last + 1 == token_end) return false;
       if (options_.keep_normals && !read_index(vt_last + 1, token_end, corner.vn)) return false;
@@ -674,9 +705,10 @@ class ObjParser {
         const RawCorner& raw = slice.corners[face.first_corner + c];
         Corner corner;
         resolved = resolve_raw(raw.v, v_count, corner.v) &&
-                   (raw.vt == 0 || resolve_raw(raw.vt, vt_count, corner.vt)) &&
+                   (raw.vt == 0 || resolve_raw(raw.vt, vt_count, corner.uv)) &&
                    (raw.vn == 0 || resolve_raw(raw.vn, vn_count, corner.vn));
-        const bool kept_vt = raw.vt != 0;
+        const bool kept_vt = raw.vt != 0 && options_.keep_uvs;
+        if (kept_vt) corner.vt = corner.uv;
         const bool kept_vn = raw.vn != 0;
         if (!layout_known_) {
           layout_known_ = true;
@@ -698,7 +730,7 @@ class ObjParser {
         any_color_ = any_color || (slice.first_color != kNoColor && slice.first_color < face.v_before);
         texcoord_count_ = vt_count;
         normal_count_ = vn_count;
-        if (options_.keep_uvs) texcoords_.resize(vt_count);
+        if (read_vt()) texcoords_.resize(vt_count);
         if (options_.keep_normals) normals_.resize(vn_count);
         if (split_) first_vertex_.resize(positions_.size());
         return parse_lines_serially(face.line_begin, slice.end, first_line + face.line);

@@ -158,6 +158,12 @@ void append_range(std::vector<MeshPart>& ranges, const std::string& name, std::u
 // not call validate_mesh() or drop_unreferenced_vertices(): load_mesh does.
 Status load_obj(const std::string& path, FileReader& reader, const LoadOptions& options, Mesh& out,
                 LoadStats& stats);
+// The materials of an OBJ's `mtllib` statement (its arguments as written)
+// that `used` names, appended to `defs` (a name already there is kept):
+// mtl.cpp. bad_input naming the OBJ and the library when it cannot be read,
+// or the MTL's line.
+Status read_mtl_library(const std::string& obj_path, const std::string& statement,
+                        const std::vector<std::string>& used, std::vector<Material>& defs);
 Status load_ply(const std::string& path, FileReader& reader, const LoadOptions& options, Mesh& out,
                 LoadStats& stats);
 

@@ -3,7 +3,9 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
+#include <glm/geometric.hpp>
 
 #include "base/huge_pages.hpp"
 #include "maps/modules.hpp"
@@ -84,8 +86,33 @@ MapTraits map_traits(MapKind map) {
       t.png_format = PixelFormat::png8;
       t.dilate = DilateMode::nearest;
       break;
+    case MapKind::base_color:
+    case MapKind::emissive:
+      t.png_format = PixelFormat::png8;
+      t.srgb = true;
+      t.surface = true;
+      break;
+    case MapKind::roughness:
+    case MapKind::metallic:
+    case MapKind::opacity:
+      t.channels = 1;
+      t.png_format = PixelFormat::png8;
+      t.surface = true;
+      break;
   }
   return t;
+}
+
+TextureNeeds texture_needs(const std::vector<MapKind>& maps) {
+  TextureNeeds needs;
+  for (const MapKind m : maps) {
+    needs.base_color = needs.base_color || m == MapKind::base_color;
+    needs.roughness = needs.roughness || m == MapKind::roughness;
+    needs.metallic = needs.metallic || m == MapKind::metallic;
+    needs.emissive = needs.emissive || m == MapKind::emissive;
+    needs.opacity = needs.opacity || m == MapKind::opacity;
+  }
+  return needs;
 }
 
 bool has_map_token(const std::string& path) { return path.find(kMapToken) != std::string::npos; }
@@ -146,12 +173,62 @@ void MapMeshData::apply(MapSettings& settings) const {
   settings.id_source = id_source;
   settings.triangle_id = id_colors.empty() ? nullptr : &triangle_id;
   settings.id_colors = id_colors.empty() ? nullptr : &id_colors;
+  settings.transfer = transfer.triangle_material.empty() ? nullptr : &transfer;
 }
+
+namespace {
+
+// SurfaceTransfer's per-triangle data, in the scene's order.
+void prepare_transfer(const Mesh& high, const BakeGroups& groups, SurfaceTransfer& out) {
+  NMBAKE_CHECK(high.has_corner_uvs(), "corner UVs loaded for a transfer map");
+  out.materials = high.material_defs;
+  out.material_textures = out.textures.by_material;
+  out.material_textures.resize(out.materials.size());
+  out.materials.emplace_back();  // the default
+  out.material_textures.emplace_back();
+  const auto fallback = static_cast<std::uint32_t>(out.materials.size() - 1);
+  std::vector<std::uint32_t> material(high.triangle_count(), fallback);
+  for (const MeshPart& range : high.materials) {
+    std::uint32_t index = fallback;
+    for (std::size_t i = 0; i + 1 < out.materials.size(); ++i) {
+      if (out.materials[i].name == range.name) index = static_cast<std::uint32_t>(i);
+    }
+    std::fill_n(material.begin() + range.first_triangle, range.triangle_count, index);
+  }
+  const auto density = [&](std::size_t t) {
+    const std::uint32_t* c = &high.indices[3 * t];
+    const glm::vec3 e1 = high.positions[c[1]] - high.positions[c[0]];
+    const glm::vec3 e2 = high.positions[c[2]] - high.positions[c[0]];
+    const glm::vec2 u1 = high.corner_uvs[3 * t + 1] - high.corner_uvs[3 * t];
+    const glm::vec2 u2 = high.corner_uvs[3 * t + 2] - high.corner_uvs[3 * t];
+    const float area = glm::length(glm::cross(e1, e2));
+    const float uv_area = std::abs(u1.x * u2.y - u1.y * u2.x);
+    const float d = area > 0.0f ? std::sqrt(uv_area / area) : 0.0f;
+    return std::isfinite(d) ? d : 0.0f;
+  };
+  const auto add = [&](std::size_t t) {
+    out.triangle_material.push_back(material[t]);
+    for (int k = 0; k < 3; ++k) out.corner_uv.push_back(high.corner_uvs[3 * t + static_cast<std::size_t>(k)]);
+    out.uv_density.push_back(density(t));
+  };
+  if (groups.grouped()) {
+    for (const auto& triangles : groups.high_triangles) {
+      for (const std::uint32_t t : triangles) add(t);
+    }
+  } else {
+    for (std::size_t t = 0; t < high.triangle_count(); ++t) add(t);
+  }
+}
+
+}  // namespace
 
 void prepare_map_mesh(const Mesh& high, const std::vector<MapKind>& maps, IdSource id_source,
                       const BakeGroups& groups, MapMeshData& out) {
   const auto wants = [&](MapKind map) { return std::find(maps.begin(), maps.end(), map) != maps.end(); };
+  TextureSet textures = std::move(out.transfer.textures);
   out = MapMeshData{};
+  out.transfer.textures = std::move(textures);
+  if (texture_needs(maps).any()) prepare_transfer(high, groups, out.transfer);
   if (wants(MapKind::position)) out.position_bounds = compute_bounds(high);
   if (wants(MapKind::curvature)) {
     if (high.has_normals()) {

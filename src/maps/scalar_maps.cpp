@@ -473,10 +473,12 @@ std::unique_ptr<MapSet::Module> make_value_module(MapKind map, const MapSettings
 }
 
 std::unique_ptr<MapSet::Module> make_direction_module(MapKind map);
+std::unique_ptr<MapSet::Module> make_transfer_module(MapKind map);
 
 std::unique_ptr<MapSet::Module> make_map_module(MapKind map, const MapSettings& settings) {
   if (auto m = make_direction_module(map)) return m;
   if (auto m = make_value_module(map, settings)) return m;
+  if (auto m = make_transfer_module(map)) return m;
   NMBAKE_CHECK(false, "a module for every implemented map");
   return nullptr;
 }

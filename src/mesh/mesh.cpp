@@ -252,8 +252,28 @@ Status validate_mesh(const Mesh& mesh, const std::string& name) {
     return Status::bad_input(name + ": vertex " + std::to_string(i) + " has a non-finite tangent " +
                              vec_text(&mesh.tangents[i].x, 4));
   }
+  if (!mesh.corner_uvs.empty() && mesh.corner_uvs.size() != mesh.indices.size()) {
+    return Status::bad_input(name + ": " + std::to_string(mesh.corner_uvs.size()) + " corner UVs for " +
+                             std::to_string(mesh.indices.size()) + " corners");
+  }
+  if (const std::size_t i = first_failing(mesh.corner_uvs.size(),
+                                          [&](std::size_t k) {
+                                            return !std::isfinite(mesh.corner_uvs[k].x) ||
+                                                   !std::isfinite(mesh.corner_uvs[k].y);
+                                          });
+      i < mesh.corner_uvs.size()) {
+    return Status::bad_input(name + ": triangle " + std::to_string(i / 3) + " has a non-finite UV " +
+                             vec_text(&mesh.corner_uvs[i].x, 2));
+  }
   NMBAKE_TRY(check_ranges(mesh.parts, mesh.triangle_count(), name, "part"));
   return check_ranges(mesh.materials, mesh.triangle_count(), name, "material");
+}
+
+const Material* Mesh::material_def(const std::string& name) const {
+  for (const Material& m : material_defs) {
+    if (m.name == name) return &m;
+  }
+  return nullptr;
 }
 
 bool Mesh::has_named_materials() const {

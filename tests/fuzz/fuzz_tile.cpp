@@ -76,7 +76,7 @@ std::vector<Field> header_fields(const std::uint8_t* data, std::size_t size, std
   for (std::int32_t i = 0; i < maps; ++i) {
     if (!add(FieldKind::u8, 1)) return fields;
     const auto kind = static_cast<nmbake::MapKind>(data[at - 1]);
-    if (data[at - 1] <= static_cast<std::uint8_t>(nmbake::MapKind::miss))
+    if (data[at - 1] <= static_cast<std::uint8_t>(std::size(nmbake::kMapKindWords) - 1))
       channels += nmbake::map_traits(kind).channels;
   }
   for (const FieldKind k :

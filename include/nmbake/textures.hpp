@@ -1,0 +1,101 @@
+// The high mesh's textures for the texture transfer maps (maps.hpp:
+// base-color, roughness, metallic, emissive, opacity): read once per bake,
+// decoded to linear light, mip-mapped, and sampled with a filter the size of
+// the texel's footprint on the texture.
+//
+// Sampling (sample_texture): trilinear. The footprint of a low texel on the
+// high's texture is estimated per sample from two area ratios, both exact
+// for a triangle mapped affinely: a low texel covers
+//   l = sqrt(low world area / (low UV area * W * H))
+// scene units (the low triangle the sample lies in), and on the hit high
+// triangle one scene unit covers d = sqrt(high UV area / high world area) of
+// its UV square, so the texel's side on the texture is l * d * texture side
+// texels. A texel of S samples gives each sample 1 / sqrt(S) of that side,
+// and the texel is the mean of its samples as every map's is (maps.hpp), so
+// the filter's width follows the texel's footprint however many samples it
+// has. The mip level is log2 of that width; between levels and between texels
+// of a level the weights are linear. Bound of the error on a texture that is
+// a smooth function f of UV: the box filter of the footprint's width w (in
+// UV) plus bilinear reconstruction: |error| <= (w^2 + texel^2) * max|f''| / 8
+// per axis (tests/transfer_test.cpp states it for its scene).
+//
+// Colour textures (base colour, emission) are sRGB-decoded when read and
+// filtered in linear light; data textures (roughness, metallic, opacity,
+// normal) stay as stored. Textures are shared between the materials (and
+// attributes) that name the same file.
+#pragma once
+
+#include <cstdint>
+#include <glm/vec2.hpp>
+#include <glm/vec4.hpp>
+#include <map>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "nmbake/common.hpp"
+#include "nmbake/image.hpp"
+#include "nmbake/material.hpp"
+#include "nmbake/mesh.hpp"
+
+namespace nmbake {
+
+// One image, mip-mapped: levels[0] as read (linear, colour decoded), each
+// next level half the size (rounded down, at least 1) by a 2x2 box filter.
+struct MipTexture {
+  std::vector<Image> levels;
+};
+
+// A texture file in memory; a <UDIM> path holds one image per tile found
+// (tile number -> image), read from the files that exist.
+struct LoadedTexture {
+  std::string path;
+  bool color = false;               // sRGB-decoded
+  std::map<int, MipTexture> tiles;  // a plain path: one entry, tile 0
+  bool udim() const { return tiles.empty() || tiles.begin()->first != 0; }
+};
+
+// Builds the mip chain of `image` (level 0 moved in).
+MipTexture make_mip_texture(Image image);
+
+// The value at `uv` (nmbake's convention: v = 0 at the bottom) of `ref`'s
+// texture: the transform and wrap modes of `ref` applied, `footprint` the
+// filter width in UV units of the texture (see above). RGBA: a grey image
+// gives (g, g, g, 1), grey + alpha (g, g, g, a), RGB (r, g, b, 1). A UDIM
+// tile the texture lacks gives `missing` and sets `tile_missing`.
+glm::vec4 sample_texture(const LoadedTexture& texture, const TextureRef& ref, glm::vec2 uv, float footprint,
+                         bool& tile_missing);
+
+// The channel `ref.channel` of an RGBA value: 0..3, or the Rec. 709
+// luminance of RGB for -1 (and for the alpha of an image without one, which
+// sample_texture gives as 1: opacity maps read alpha only where it exists).
+float texture_channel(const glm::vec4& value, int channel, bool has_alpha);
+
+// The sRGB transfer functions (IEC 61966-2-1), on [0, 1] (clamped).
+float srgb_to_linear(float v);
+float linear_to_srgb(float v);
+
+// Which attributes a bake reads (the transfer maps it bakes).
+struct TextureNeeds {
+  bool base_color = false, roughness = false, metallic = false, emissive = false, opacity = false;
+  bool any() const { return base_color || roughness || metallic || emissive || opacity; }
+};
+
+// Every texture the materials of `high` name for an attribute `needs` asks
+// for, read once each (`textures`), and per material definition the index
+// of each attribute's texture there (-1: none). A texture that is missing
+// or unreadable, or that the loader could not point at (TextureRef::problem),
+// is bad_input naming `high_path`, the material, the attribute and the path.
+struct MaterialTextures {
+  int base_color = -1, roughness = -1, metallic = -1, emissive = -1, opacity = -1;
+};
+struct TextureSet {
+  std::vector<LoadedTexture> textures;
+  std::vector<MaterialTextures> by_material;  // parallel to Mesh::material_defs
+  std::uint64_t bytes = 0;                    // of all levels
+  double seconds = 0.0;
+};
+Status load_material_textures(const Mesh& high, const std::string& high_path, const TextureNeeds& needs,
+                              TextureSet& out);
+
+}  // namespace nmbake

@@ -1,0 +1,258 @@
+// The high mesh's textures (textures.hpp): read, decoded, mip-mapped, sampled.
+#include "nmbake/textures.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <glm/common.hpp>
+#include <string>
+#include <vector>
+
+#include "nmbake/udim.hpp"
+
+namespace nmbake {
+namespace {
+
+namespace fs = std::filesystem;
+
+// 2x2 box filter; an odd last row or column folds into the one before it
+// (its weight shared), so every texel of the finer level counts.
+Image half_level(const Image& fine) {
+  Image coarse;
+  coarse.width = std::max(1, fine.width / 2);
+  coarse.height = std::max(1, fine.height / 2);
+  coarse.channels = fine.channels;
+  coarse.pixels.assign(static_cast<std::size_t>(coarse.width) * coarse.height * coarse.channels, 0.0f);
+  const int c = fine.channels;
+  tbb::parallel_for(tbb::blocked_range<int>(0, coarse.height), [&](const tbb::blocked_range<int>& rows) {
+    for (int y = rows.begin(); y != rows.end(); ++y) {
+      const int y0 = std::min(2 * y, fine.height - 1);
+      const int y1 = (y == coarse.height - 1) ? fine.height - 1 : std::min(2 * y + 1, fine.height - 1);
+      for (int x = 0; x < coarse.width; ++x) {
+        const int x0 = std::min(2 * x, fine.width - 1);
+        const int x1 = (x == coarse.width - 1) ? fine.width - 1 : std::min(2 * x + 1, fine.width - 1);
+        float* out = coarse.at(x, y);
+        // The texels [x0, x1] x [y0, y1] (2x2, or 3 wide at an odd edge).
+        int count = 0;
+        for (int yy = y0; yy <= y1; ++yy) {
+          for (int xx = x0; xx <= x1; ++xx) {
+            const float* in = fine.at(xx, yy);
+            for (int k = 0; k < c; ++k) out[k] += in[k];
+            ++count;
+          }
+        }
+        for (int k = 0; k < c; ++k) out[k] /= static_cast<float>(count);
+      }
+    }
+  });
+  return coarse;
+}
+
+int wrap_index(int i, int n, TextureWrap wrap) {
+  switch (wrap) {
+    case TextureWrap::clamp:
+      return std::clamp(i, 0, n - 1);
+    case TextureWrap::mirror: {
+      const int period = 2 * n;
+      int m = i % period;
+      if (m < 0) m += period;
+      return m < n ? m : period - 1 - m;
+    }
+    case TextureWrap::repeat:
+    default: {
+      int m = i % n;
+      return m < 0 ? m + n : m;
+    }
+  }
+}
+
+// Bilinear at (x, y) in the level's texel units (texel centres at + 0.5),
+// y from the top.
+glm::vec4 bilinear(const Image& level, float x, float y, const TextureRef& ref) {
+  x -= 0.5f;
+  y -= 0.5f;
+  const float fx = std::floor(x), fy = std::floor(y);
+  const float ax = x - fx, ay = y - fy;
+  const int ix = static_cast<int>(fx), iy = static_cast<int>(fy);
+  const int x0 = wrap_index(ix, level.width, ref.wrap_u), x1 = wrap_index(ix + 1, level.width, ref.wrap_u);
+  const int y0 = wrap_index(iy, level.height, ref.wrap_v), y1 = wrap_index(iy + 1, level.height, ref.wrap_v);
+  const int c = level.channels;
+  const auto texel = [&](int tx, int ty) {
+    const float* p = level.at(tx, ty);
+    switch (c) {
+      case 1:
+        return glm::vec4(p[0], p[0], p[0], 1.0f);
+      case 2:
+        return glm::vec4(p[0], p[0], p[0], p[1]);
+      case 3:
+        return glm::vec4(p[0], p[1], p[2], 1.0f);
+      default:
+        return glm::vec4(p[0], p[1], p[2], p[3]);
+    }
+  };
+  const glm::vec4 top = texel(x0, y0) * (1.0f - ax) + texel(x1, y0) * ax;
+  const glm::vec4 bottom = texel(x0, y1) * (1.0f - ax) + texel(x1, y1) * ax;
+  return top * (1.0f - ay) + bottom * ay;
+}
+
+// The tiles of a <UDIM> path that exist: every file in its folder whose name
+// is the pattern's with a tile number 1001..1999 in place of the token.
+std::vector<std::pair<int, std::string>> udim_files(const std::string& pattern) {
+  std::vector<std::pair<int, std::string>> out;
+  for (int tile = 1001; tile <= 1999; ++tile) {
+    const std::string path = udim_path(pattern, tile);
+    std::error_code ec;
+    if (fs::exists(path, ec)) out.emplace_back(tile, path);
+  }
+  return out;
+}
+
+Status read_texture_image(const std::string& path, bool color, Image& image) {
+  NMBAKE_TRY(read_image(path, image));
+  if (color) {
+    const int c = image.channels;
+    const int color_channels = c >= 3 ? 3 : (c == 2 ? 1 : c);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, image.pixels.size() / c),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                          for (int k = 0; k < color_channels; ++k) {
+                            float& v = image.pixels[i * c + k];
+                            v = srgb_to_linear(v);
+                          }
+                        }
+                      });
+  }
+  return Status::ok();
+}
+
+}  // namespace
+
+float srgb_to_linear(float v) {
+  v = std::clamp(v, 0.0f, 1.0f);
+  return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
+}
+
+float linear_to_srgb(float v) {
+  v = std::clamp(v, 0.0f, 1.0f);
+  return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
+}
+
+MipTexture make_mip_texture(Image image) {
+  MipTexture mip;
+  mip.levels.push_back(std::move(image));
+  while (mip.levels.back().width > 1 || mip.levels.back().height > 1) {
+    mip.levels.push_back(half_level(mip.levels.back()));
+  }
+  return mip;
+}
+
+glm::vec4 sample_texture(const LoadedTexture& texture, const TextureRef& ref, glm::vec2 uv, float footprint,
+                         bool& tile_missing) {
+  // To the image's top-left convention, then the texture's transform
+  // (KHR_texture_transform: offset + rotation * (scale * uv)).
+  glm::vec2 t(uv.x, 1.0f - uv.y);
+  if (ref.scale != glm::vec2(1.0f) || ref.rotation != 0.0f || ref.offset != glm::vec2(0.0f)) {
+    const float c = std::cos(ref.rotation), s = std::sin(ref.rotation);
+    const glm::vec2 scaled = t * ref.scale;
+    t = glm::vec2(c * scaled.x + s * scaled.y, -s * scaled.x + c * scaled.y) + ref.offset;
+  }
+  // Far outside any UV range a float has no fraction left; keep indices in int.
+  t = glm::clamp(t, glm::vec2(-1e6f), glm::vec2(1e6f));
+  const MipTexture* mip = nullptr;
+  if (texture.udim()) {
+    const float u_floor = std::floor(t.x), v_floor = std::floor(1.0f - t.y);
+    const int tile = 1001 + static_cast<int>(u_floor) + 10 * static_cast<int>(v_floor);
+    const auto it = texture.tiles.find(tile);
+    if (u_floor < 0.0f || u_floor > 9.0f || v_floor < 0.0f || it == texture.tiles.end()) {
+      tile_missing = true;
+      return glm::vec4(0.0f);
+    }
+    mip = &it->second;
+    t = glm::vec2(t.x - u_floor, 1.0f - ((1.0f - t.y) - v_floor));
+  } else {
+    mip = &texture.tiles.begin()->second;
+  }
+  const Image& base = mip->levels.front();
+  const float scale = std::max(std::abs(ref.scale.x), std::abs(ref.scale.y));
+  const float width = footprint * scale * static_cast<float>(std::max(base.width, base.height));
+  const float last = static_cast<float>(mip->levels.size() - 1);
+  const float lod = std::clamp(width > 1.0f ? std::log2(width) : 0.0f, 0.0f, last);
+  const int l0 = static_cast<int>(lod);
+  const float a = lod - static_cast<float>(l0);
+  const auto at_level = [&](int l) {
+    const Image& level = mip->levels[static_cast<std::size_t>(l)];
+    return bilinear(level, t.x * static_cast<float>(level.width), t.y * static_cast<float>(level.height), ref);
+  };
+  const glm::vec4 fine = at_level(l0);
+  if (a <= 0.0f || l0 + 1 >= static_cast<int>(mip->levels.size())) return fine;
+  return fine * (1.0f - a) + at_level(l0 + 1) * a;
+}
+
+float texture_channel(const glm::vec4& value, int channel, bool has_alpha) {
+  if (channel >= 0 && channel <= 2) return value[channel];
+  if (channel == 3 && has_alpha) return value.a;
+  return 0.2126f * value.r + 0.7152f * value.g + 0.0722f * value.b;
+}
+
+Status load_material_textures(const Mesh& high, const std::string& high_path, const TextureNeeds& needs,
+                              TextureSet& out) {
+  const auto begin = std::chrono::steady_clock::now();
+  out = TextureSet{};
+  out.by_material.resize(high.material_defs.size());
+  // One read per file and colour space.
+  const auto load = [&](const Material& m, const char* attribute, const TextureRef& ref, bool color,
+                        int& index) -> Status {
+    if (ref.empty()) return Status::ok();
+    const std::string where = high_path + ": material '" + printable_text(m.name) + "', " + attribute + " texture";
+    if (!ref.problem.empty()) return Status::bad_input(where + ": " + ref.problem);
+    for (std::size_t i = 0; i < out.textures.size(); ++i) {
+      if (out.textures[i].path == ref.path && out.textures[i].color == color) {
+        index = static_cast<int>(i);
+        return Status::ok();
+      }
+    }
+    LoadedTexture texture;
+    texture.path = ref.path;
+    texture.color = color;
+    std::vector<std::pair<int, std::string>> files;
+    if (has_udim_token(ref.path)) {
+      files = udim_files(ref.path);
+      if (files.empty()) {
+        return Status::bad_input(where + " '" + printable_text(ref.path) +
+                                 "': no file for any UDIM tile (1001 to 1999) was found");
+      }
+    } else {
+      files.emplace_back(0, ref.path);
+    }
+    for (const auto& [tile, path] : files) {
+      Image image;
+      if (Status s = read_texture_image(path, color, image); !s.is_ok()) {
+        return Status::bad_input(where + " '" + printable_text(path) + "': " + s.message());
+      }
+      MipTexture mip = make_mip_texture(std::move(image));
+      for (const Image& level : mip.levels) out.bytes += level.pixels.size() * sizeof(float);
+      texture.tiles.emplace(tile, std::move(mip));
+    }
+    index = static_cast<int>(out.textures.size());
+    out.textures.push_back(std::move(texture));
+    return Status::ok();
+  };
+  for (std::size_t i = 0; i < high.material_defs.size(); ++i) {
+    const Material& m = high.material_defs[i];
+    MaterialTextures& t = out.by_material[i];
+    if (needs.base_color) NMBAKE_TRY(load(m, "base colour", m.base_color_texture, true, t.base_color));
+    if (needs.roughness) NMBAKE_TRY(load(m, "roughness", m.roughness_texture, false, t.roughness));
+    if (needs.metallic) NMBAKE_TRY(load(m, "metallic", m.metallic_texture, false, t.metallic));
+    if (needs.emissive) NMBAKE_TRY(load(m, "emission", m.emissive_texture, true, t.emissive));
+    // Opacity reads the base colour's alpha in glTF (the same file, linear alpha).
+    if (needs.opacity) NMBAKE_TRY(load(m, "opacity", m.opacity_texture, false, t.opacity));
+  }
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
+  return Status::ok();
+}
+
+}  // namespace nmbake

@@ -1,0 +1,296 @@
+// Texture transfer (maps.hpp: base-color, roughness, metallic, emissive,
+// opacity; textures.hpp): the high's textures carried onto the low's UVs,
+// against analytic answers.
+//
+// The scene: a bumpy high heightfield whose UVs are its (x, y) scaled to
+// [0, 1]^2, textured with known smooth functions g(s, t) (written by the test
+// as 8- and 16-bit PNGs, sRGB-encoded), under a flat low of four charts laid
+// out differently (straight, rotated 90 degrees, mirrored, rotated 180
+// degrees). The rays run along z, so a low point (x, y) hits the high at the
+// same (x, y): the expected texel is the mean of g over its samples' points.
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <cmath>
+#include <fstream>
+#include <iterator>
+#include <numbers>
+#include <string>
+
+#include "map_lab.hpp"
+#include "nmbake/bake.hpp"
+#include "nmbake/image.hpp"
+#include "nmbake/load.hpp"
+#include "nmbake/textures.hpp"
+#include "scenes.hpp"
+#include "test_util.hpp"
+
+namespace nmbake {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+// The texture's linear values at UV (s, t), t up.
+double red(double s, double t) { return 0.5 + 0.35 * std::sin(2 * kPi * s) * std::cos(2 * kPi * t); }
+double green(double s, double t) { return 0.45 + 0.3 * std::cos(2 * kPi * (s + 0.5 * t)); }
+double blue(double, double) { return 0.25; }
+// Their largest second derivative along s or t.
+constexpr double kMaxSecond = 0.35 * 4 * kPi * kPi;
+
+std::string read_bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// An n x n texture of g, stored sRGB-encoded (a colour texture) or linear.
+Image texture_image(int n, bool srgb) {
+  Image image;
+  image.width = image.height = n;
+  image.channels = 3;
+  image.pixels.resize(static_cast<std::size_t>(n) * n * 3);
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const double s = (i + 0.5) / n, t = 1.0 - (j + 0.5) / n;  // row 0 is the top
+      const double v[3] = {red(s, t), green(s, t), blue(s, t)};
+      for (int c = 0; c < 3; ++c) {
+        const auto f = static_cast<float>(v[c]);
+        image.at(i, j)[c] = srgb ? linear_to_srgb(f) : f;
+      }
+    }
+  }
+  return image;
+}
+
+struct TransferScene {
+  Mesh low, high;
+  float min_x = 0, min_y = 0, side = 1;
+  glm::dvec2 uv_of(const glm::dvec3& p) const { return {(p.x - min_x) / side, (p.y - min_y) / side}; }
+};
+
+// The high heightfield with UVs from (x, y); a flat low at z = 0 in four
+// charts, one per quadrant of the square, each laid out its own way.
+TransferScene make_scene() {
+  scenes::HeightfieldParams params;
+  params.high_cells = 96;
+  params.amplitude = 0.01f;
+  scenes::ScenePair pair = scenes::make_heightfield(params);
+  TransferScene scene;
+  scene.high = std::move(pair.high);
+  const Bounds b = compute_bounds(scene.high);
+  scene.min_x = b.min.x;
+  scene.min_y = b.min.y;
+  scene.side = b.max.x - b.min.x;
+  for (const glm::vec3& p : scene.high.positions) {
+    scene.high.uvs.emplace_back((p.x - scene.min_x) / scene.side, (p.y - scene.min_y) / scene.side);
+  }
+  scene.high.materials = {{"scan", 0, static_cast<std::uint32_t>(scene.high.triangle_count())}};
+
+  // Inset from the high's edge, so that every ray (border samples too) hits.
+  Mesh& low = scene.low;
+  const float inset = 0.05f * scene.side;
+  const float h = (scene.side - 2 * inset) / 2;
+  for (int q = 0; q < 4; ++q) {
+    const float x0 = scene.min_x + inset + h * static_cast<float>(q % 2);
+    const float y0 = scene.min_y + inset + h * static_cast<float>(q / 2);
+    const auto base = static_cast<std::uint32_t>(low.positions.size());
+    for (int k = 0; k < 4; ++k) {
+      const float a = static_cast<float>(k == 1 || k == 2), c = static_cast<float>(k >= 2);  // corner (a, c)
+      low.positions.emplace_back(x0 + h * a, y0 + h * c, 0.0f);
+      low.normals.emplace_back(0.0f, 0.0f, 1.0f);
+      // The chart's corner in its own square of the atlas (0.05 + 0.4 * ...).
+      float u = a, v = c;
+      if (q == 1) {  // rotated 90 degrees
+        u = 1 - c;
+        v = a;
+      } else if (q == 2) {  // mirrored
+        u = 1 - a;
+      } else if (q == 3) {  // rotated 180 degrees
+        u = 1 - a;
+        v = 1 - c;
+      }
+      const float cu = 0.5f * static_cast<float>(q % 2), cv = 0.5f * static_cast<float>(q / 2);
+      low.uvs.emplace_back(cu + 0.05f + 0.4f * u, cv + 0.05f + 0.4f * v);
+    }
+    for (const std::uint32_t i : {0u, 1u, 2u, 0u, 2u, 3u}) low.indices.push_back(base + i);
+  }
+  return scene;
+}
+
+void write_scene(const test::TempDir& dir, const TransferScene& scene, const std::string& texture) {
+  ASSERT_TRUE(save_mesh(dir.file("low.obj"), scene.low).is_ok());
+  ASSERT_TRUE(save_mesh(dir.file("high.obj"), scene.high).is_ok());
+  test::write_text(dir.file("high.obj"), "mtllib high.mtl\n" + read_bytes(dir.file("high.obj")));
+  test::write_text(dir.file("high.mtl"), "newmtl scan\nKd 0.8 0.8 0.8\nPr 0.6\nmap_Kd " + texture + "\n");
+}
+
+BakeOptions transfer_bake(const test::TempDir& dir, int size) {
+  BakeOptions o;
+  o.low_path = dir.file("low.obj");
+  o.high_path = dir.file("high.obj");
+  o.width = o.height = size;
+  o.samples = 4;
+  o.padding = 0;
+  o.maps = {MapKind::base_color, MapKind::roughness};
+  o.outputs = {{dir.file("m_<MAP>.exr"), PixelFormat::exr_float}};
+  return o;
+}
+
+// The largest and mean |baked - expected| of channel c over the covered texels.
+scenes::MapError score(const test::TempDir& dir, const TransferScene& scene, int size, int c) {
+  Image map;
+  EXPECT_TRUE(read_image(dir.file("m_base-color.exr"), map).is_ok());
+  const auto g = [&](const glm::dvec3& p) {
+    const glm::dvec2 uv = scene.uv_of(p);
+    return c == 0 ? red(uv.x, uv.y) : c == 1 ? green(uv.x, uv.y) : blue(uv.x, uv.y);
+  };
+  return scenes::score_map(map, c, scenes::expected_from_low_points(scene.low, size, size, 4, g));
+}
+
+// The bound of textures.hpp for this scene: a filter no wider than twice the
+// larger of the sample's footprint w and the texture's texel T (trilinear
+// blends toward the next level), per axis (w'^2 + T'^2) max|g''| / 8, two
+// axes; plus the storage's rounding: half a step of the stored sRGB value,
+// times the largest slope of the sRGB decoding, 2.4 / 1.055 (at 1).
+double filter_bound(int map_size, int texture_size, int bits) {
+  const double w = (0.45 / (0.4 * map_size)) / 2.0;  // UV per sample: a chart is 0.45 wide over 0.4 of the map
+  const double t = 1.0 / texture_size;
+  const double filter = 2 * (std::pow(2 * w, 2) + std::pow(2 * t, 2)) * kMaxSecond / 8;
+  const double rounding = 2.4 / 1.055 * 0.5 / (bits == 16 ? 65535 : 255);
+  return filter + rounding;
+}
+
+TEST(Transfer, BaseColourMatchesTheAnalyticTextureOnEveryChartLayout) {
+  const TransferScene scene = make_scene();
+  for (const int bits : {16, 8}) {
+    test::TempDir dir;
+    const Image texture = texture_image(256, true);
+    ASSERT_TRUE(write_image(texture, dir.file("albedo.png"), bits == 16 ? PixelFormat::png16 : PixelFormat::png8)
+                    .is_ok());
+    write_scene(dir, scene, "albedo.png");
+    BakeReport report;
+    const Status s = bake(transfer_bake(dir, 128), report);
+    ASSERT_TRUE(s.is_ok()) << s.message();
+    const double bound = filter_bound(128, 256, bits);
+    for (int c = 0; c < 3; ++c) {
+      const scenes::MapError e = score(dir, scene, 128, c);
+      EXPECT_GT(e.texels, 4u * 50u * 50u);
+      EXPECT_LT(e.max, bound) << bits << "-bit, channel " << c << ": " << e.to_text();
+      std::printf("%d-bit texture, channel %d: %s (bound %.2e)\n", bits, c, e.to_text().c_str(), bound);
+    }
+    // Roughness: Pr alone (no map_Pr), every sample counted as factor-only.
+    Image roughness;
+    ASSERT_TRUE(read_image(dir.file("m_roughness.exr"), roughness).is_ok());
+    for (float v : roughness.pixels) ASSERT_TRUE(v == 0.6f || v == 0.0f) << v;
+    bool counted = false;
+    for (const MapReport& m : report.map_reports) {
+      if (m.map == MapKind::roughness) counted = m.figure("samples with the factor alone (no texture)") > 0;
+      if (m.map == MapKind::base_color) {
+        EXPECT_EQ(m.figure("samples with the factor alone (no texture)"), 0);
+      }
+    }
+    EXPECT_TRUE(counted);
+  }
+}
+
+// PNG outputs of colour maps are sRGB-encoded (8-bit), EXR linear: the PNG
+// read back and decoded equals the EXR within the 8-bit step.
+TEST(Transfer, ColourMapsAreSrgbInPngAndLinearInExr) {
+  const TransferScene scene = make_scene();
+  test::TempDir dir;
+  ASSERT_TRUE(write_image(texture_image(128, true), dir.file("albedo.png"), PixelFormat::png16).is_ok());
+  write_scene(dir, scene, "albedo.png");
+  BakeOptions o = transfer_bake(dir, 64);
+  o.maps = {MapKind::base_color};
+  o.outputs = {{dir.file("c.exr"), PixelFormat::exr_float}, {dir.file("c.png"), PixelFormat::png8}};
+  o.dither = false;
+  BakeReport report;
+  ASSERT_TRUE(bake(o, report).is_ok());
+  Image exr, png;
+  ASSERT_TRUE(read_image(dir.file("c.exr"), exr).is_ok());
+  ASSERT_TRUE(read_image(dir.file("c.png"), png).is_ok());
+  ASSERT_EQ(exr.pixels.size(), png.pixels.size());
+  double largest = 0;
+  for (std::size_t i = 0; i < exr.pixels.size(); ++i) {
+    largest = std::max(largest, std::abs(static_cast<double>(linear_to_srgb(exr.pixels[i]) - png.pixels[i])));
+  }
+  EXPECT_LE(largest, 0.5 / 255 + 1e-6);
+}
+
+// One thread or all: the same bytes.
+TEST(Transfer, SameBytesForOneThreadAndAll) {
+  const TransferScene scene = make_scene();
+  test::TempDir dir;
+  ASSERT_TRUE(write_image(texture_image(128, true), dir.file("albedo.png"), PixelFormat::png8).is_ok());
+  write_scene(dir, scene, "albedo.png");
+  BakeOptions o = transfer_bake(dir, 96);
+  o.outputs = {{dir.file("all_<MAP>.png"), PixelFormat::png8}};
+  BakeReport report;
+  ASSERT_TRUE(bake(o, report).is_ok());
+  {
+    tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+    o.outputs = {{dir.file("one_<MAP>.png"), PixelFormat::png8}};
+    ASSERT_TRUE(bake(o, report).is_ok());
+  }
+  for (const char* map : {"base-color", "roughness"}) {
+    const std::string all = read_bytes(dir.file(std::string("all_") + map + ".png"));
+    EXPECT_FALSE(all.empty());
+    EXPECT_TRUE(all == read_bytes(dir.file(std::string("one_") + map + ".png"))) << map;
+  }
+}
+
+// A texture that is not there: exit 2 naming the material and the path,
+// nothing written.
+TEST(Transfer, MissingTextureNamesTheMaterialAndThePath) {
+  const TransferScene scene = make_scene();
+  test::TempDir dir;
+  write_scene(dir, scene, "textures/gone.png");
+  BakeOptions o = transfer_bake(dir, 32);
+  BakeReport report;
+  const Status s = bake(o, report);
+  ASSERT_FALSE(s.is_ok());
+  EXPECT_EQ(s.code(), StatusCode::bad_input);
+  EXPECT_NE(s.message().find("material 'scan'"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("gone.png"), std::string::npos) << s.message();
+  EXPECT_FALSE(std::filesystem::exists(dir.file("m_base-color.exr")));
+  // A missing MTL is named too.
+  test::write_text(dir.file("high.obj"), "mtllib nowhere.mtl\n" + read_bytes(dir.file("high.obj")));
+  std::filesystem::remove(dir.file("high.mtl"));
+  const Status missing = bake(o, report);
+  ASSERT_FALSE(missing.is_ok());
+  EXPECT_NE(missing.message().find("mtllib 'nowhere.mtl'"), std::string::npos) << missing.message();
+}
+
+// Corner UVs do not change the high mesh: the same vertices, triangles and
+// normals as a load without them, and the UVs of every corner.
+TEST(Transfer, CornerUvsLeaveTheHighMeshAsItWas) {
+  const TransferScene scene = make_scene();
+  test::TempDir dir;
+  write_scene(dir, scene, "albedo.png");
+  for (const bool serial : {false, true}) {
+    LoadOptions plain{false, true};
+    plain.serial = serial;
+    LoadOptions with = plain;
+    with.corner_uvs = with.material_defs = true;
+    Mesh a, b;
+    LoadStats sa, sb;
+    ASSERT_TRUE(load_mesh(dir.file("high.obj"), plain, a, sa).is_ok());
+    ASSERT_TRUE(load_mesh(dir.file("high.obj"), with, b, sb).is_ok());
+    EXPECT_TRUE(a.positions == b.positions);
+    EXPECT_TRUE(a.indices == b.indices);
+    EXPECT_TRUE(a.normals == b.normals);
+    ASSERT_EQ(b.corner_uvs.size(), b.indices.size());
+    for (std::size_t i = 0; i < b.indices.size(); ++i) {
+      const glm::vec3 p = b.positions[b.indices[i]];
+      EXPECT_NEAR(b.corner_uvs[i].x, (p.x - scene.min_x) / scene.side, 1e-5);
+      EXPECT_NEAR(b.corner_uvs[i].y, (p.y - scene.min_y) / scene.side, 1e-5);
+    }
+    ASSERT_EQ(b.material_defs.size(), 1u);
+    EXPECT_EQ(b.material_defs[0].name, "scan");
+    EXPECT_FLOAT_EQ(b.material_defs[0].roughness, 0.6f);
+    EXPECT_EQ(b.material_defs[0].base_color, glm::vec4(1.0f));  // map_Kd replaces Kd
+    EXPECT_EQ(sb.corners_without_uvs, 0u);
+  }
+}
+
+}  // namespace
+}  // namespace nmbake
