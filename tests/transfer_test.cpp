@@ -14,6 +14,7 @@
 #include <cmath>
 #include <fstream>
 #include <iterator>
+#include <nlohmann/json.hpp>
 #include <numbers>
 #include <string>
 
@@ -152,7 +153,8 @@ scenes::MapError score(const test::TempDir& dir, const TransferScene& scene, int
 // axes; plus the storage's rounding: half a step of the stored sRGB value,
 // times the largest slope of the sRGB decoding, 2.4 / 1.055 (at 1).
 double filter_bound(int map_size, int texture_size, int bits) {
-  const double w = (0.45 / (0.4 * map_size)) / 2.0;  // UV per sample: a chart is 0.45 wide over 0.4 of the map
+  const double w =
+      (0.45 / (0.4 * map_size)) / 2.0;  // UV per sample: a chart is 0.45 wide over 0.4 of the map
   const double t = 1.0 / texture_size;
   const double filter = 2 * (std::pow(2 * w, 2) + std::pow(2 * t, 2)) * kMaxSecond / 8;
   const double rounding = 2.4 / 1.055 * 0.5 / (bits == 16 ? 65535 : 255);
@@ -164,8 +166,9 @@ TEST(Transfer, BaseColourMatchesTheAnalyticTextureOnEveryChartLayout) {
   for (const int bits : {16, 8}) {
     test::TempDir dir;
     const Image texture = texture_image(256, true);
-    ASSERT_TRUE(write_image(texture, dir.file("albedo.png"), bits == 16 ? PixelFormat::png16 : PixelFormat::png8)
-                    .is_ok());
+    ASSERT_TRUE(
+        write_image(texture, dir.file("albedo.png"), bits == 16 ? PixelFormat::png16 : PixelFormat::png8)
+            .is_ok());
     write_scene(dir, scene, "albedo.png");
     BakeReport report;
     const Status s = bake(transfer_bake(dir, 128), report);
@@ -190,6 +193,108 @@ TEST(Transfer, BaseColourMatchesTheAnalyticTextureOnEveryChartLayout) {
     }
     EXPECT_TRUE(counted);
   }
+}
+
+// UDIM textures: the high's UVs moved one tile right (1002), the MTL naming
+// `albedo.<UDIM>.png`; the same errors as one texture.
+TEST(Transfer, UdimTexturesAreReadPerTile) {
+  TransferScene scene = make_scene();
+  for (glm::vec2& uv : scene.high.uvs) uv.x += 1.0f;
+  test::TempDir dir;
+  ASSERT_TRUE(write_image(texture_image(256, true), dir.file("albedo.1002.png"), PixelFormat::png16).is_ok());
+  write_scene(dir, scene, "albedo.<UDIM>.png");
+  BakeReport report;
+  const Status s = bake(transfer_bake(dir, 128), report);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  for (int c = 0; c < 3; ++c) {
+    const scenes::MapError e = score(dir, scene, 128, c);
+    EXPECT_LT(e.max, filter_bound(128, 256, 16)) << e.to_text();
+  }
+  for (const MapReport& m : report.map_reports) {
+    if (m.map == MapKind::base_color) {
+      EXPECT_EQ(m.figure("samples in a UDIM tile the texture lacks"), 0);
+    }
+  }
+}
+
+// glTF: baseColorFactor times a texture placed by KHR_texture_transform
+// (rotated a quarter turn, scaled by one half, offset), metallicRoughness's
+// G and B channels for roughness and metallic, the sampler's wrap mode.
+TEST(Transfer, GltfFactorsAndTextureTransform) {
+  const TransferScene scene = make_scene();
+  test::TempDir dir;
+  ASSERT_TRUE(save_mesh(dir.file("low.obj"), scene.low).is_ok());
+  ASSERT_TRUE(save_mesh(dir.file("high.gltf"), scene.high).is_ok());
+  // The transform t = offset + R(rotation) (scale uv) in glTF's top-left UVs;
+  // the image holds g at the inverse, so the bake must undo it exactly.
+  // [0, 1]^2 lands on [0.25, 0.75]^2 of the image (roughness is not periodic).
+  const double rotation = kPi / 2, scale = 0.5, ox = 0.25, oy = 0.75;
+  const int n = 512;
+  Image texture;
+  texture.width = texture.height = n;
+  texture.channels = 3;
+  texture.pixels.resize(static_cast<std::size_t>(n) * n * 3);
+  Image mr = texture;  // metallicRoughness: G = roughness 0.3 + 0.2 s, B = metallic 0.9
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const double tx = (i + 0.5) / n - ox, ty = (j + 0.5) / n - oy;
+      const double c = std::cos(rotation), sn = std::sin(rotation);
+      // R^-1 = R^T: [c -s; s c]
+      const double ux = (c * tx - sn * ty) / scale, uy = (sn * tx + c * ty) / scale;
+      const double s_ = ux, t_ = 1.0 - uy;
+      const double v[3] = {red(s_, t_), green(s_, t_), blue(s_, t_)};
+      for (int k = 0; k < 3; ++k) texture.at(i, j)[k] = linear_to_srgb(static_cast<float>(v[k]));
+      mr.at(i, j)[0] = 0.0f;
+      mr.at(i, j)[1] = static_cast<float>(0.3 + 0.2 * std::clamp(s_, 0.0, 1.0));
+      mr.at(i, j)[2] = 0.9f;
+    }
+  }
+  ASSERT_TRUE(write_image(texture, dir.file("albedo.png"), PixelFormat::png16).is_ok());
+  ASSERT_TRUE(write_image(mr, dir.file("mr.png"), PixelFormat::png16).is_ok());
+  nlohmann::json doc = nlohmann::json::parse(read_bytes(dir.file("high.gltf")));
+  nlohmann::json transform = {{"offset", {ox, oy}}, {"rotation", rotation}, {"scale", {scale, scale}}};
+  doc["extensionsUsed"] = {"KHR_texture_transform"};
+  doc["images"] = {{{"uri", "albedo.png"}}, {{"uri", "mr.png"}}};
+  doc["samplers"] = {{{"wrapS", 10497}, {"wrapT", 10497}}};
+  doc["textures"] = {{{"source", 0}, {"sampler", 0}}, {{"source", 1}, {"sampler", 0}}};
+  doc["materials"][0]["pbrMetallicRoughness"] = {
+      {"baseColorFactor", {0.5, 1.0, 1.0, 1.0}},
+      {"baseColorTexture", {{"index", 0}, {"extensions", {{"KHR_texture_transform", transform}}}}},
+      {"metallicRoughnessTexture", {{"index", 1}, {"extensions", {{"KHR_texture_transform", transform}}}}},
+      {"roughnessFactor", 1.0},
+      {"metallicFactor", 0.5}};
+  test::write_text(dir.file("high.gltf"), doc.dump());
+  BakeOptions o = transfer_bake(dir, 128);
+  o.high_path = dir.file("high.gltf");
+  o.maps = {MapKind::base_color, MapKind::roughness, MapKind::metallic};
+  BakeReport report;
+  const Status st = bake(o, report);
+  ASSERT_TRUE(st.is_ok()) << st.message();
+  Image base, rough, metal;
+  ASSERT_TRUE(read_image(dir.file("m_base-color.exr"), base).is_ok());
+  ASSERT_TRUE(read_image(dir.file("m_roughness.exr"), rough).is_ok());
+  ASSERT_TRUE(read_image(dir.file("m_metallic.exr"), metal).is_ok());
+  const double bound = filter_bound(128, n / 2, 16);
+  for (int c = 0; c < 3; ++c) {
+    const auto g = [&](const glm::dvec3& p) {
+      const glm::dvec2 uv = scene.uv_of(p);
+      const double factor = c == 0 ? 0.5 : 1.0;
+      return factor * (c == 0 ? red(uv.x, uv.y) : c == 1 ? green(uv.x, uv.y) : blue(uv.x, uv.y));
+    };
+    const scenes::MapError e =
+        scenes::score_map(base, c, scenes::expected_from_low_points(scene.low, 128, 128, 4, g));
+    EXPECT_GT(e.texels, 4u * 50u * 50u);
+    EXPECT_LT(e.max, bound) << "channel " << c << ": " << e.to_text();
+  }
+  const scenes::MapError r = scenes::score_map(
+      rough, 0, scenes::expected_from_low_points(scene.low, 128, 128, 4, [&](const glm::dvec3& p) {
+        return 0.3 + 0.2 * scene.uv_of(p).x;
+      }));
+  EXPECT_LT(r.max, 2e-4) << r.to_text();
+  const scenes::MapError m = scenes::score_map(
+      metal, 0,
+      scenes::expected_from_low_points(scene.low, 128, 128, 4, [](const glm::dvec3&) { return 0.45; }));
+  EXPECT_LT(m.max, 1e-4) << m.to_text();
 }
 
 // PNG outputs of colour maps are sRGB-encoded (8-bit), EXR linear: the PNG

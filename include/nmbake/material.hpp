@@ -45,14 +45,14 @@ struct TextureRef {
 // MTL's and glTF's factors as their specs say: glTF factors are linear, MTL
 // Kd/Ke are read as linear too, as Blender's and three.js's importers do).
 struct Material {
-  std::string name;  // the Mesh::materials range name it describes
-  glm::vec4 base_color{1.0f};  // RGB, A = opacity factor
+  std::string name;               // the Mesh::materials range name it describes
+  glm::vec4 base_color{1.0f};     // RGB, A = opacity factor
   TextureRef base_color_texture;  // sRGB-encoded RGB(A)
-  bool has_color = false;          // the file gave a colour (Kd, baseColorFactor): the id map uses it
+  bool has_color = false;         // the file gave a colour (Kd, baseColorFactor): the id map uses it
   float roughness = 1.0f;
   TextureRef roughness_texture;  // linear, `channel` (glTF: G of metallicRoughness)
   float metallic = 0.0f;
-  TextureRef metallic_texture;   // linear, `channel` (glTF: B of metallicRoughness)
+  TextureRef metallic_texture;  // linear, `channel` (glTF: B of metallicRoughness)
   glm::vec3 emissive{0.0f};
   TextureRef emissive_texture;  // sRGB-encoded RGB
   TextureRef opacity_texture;   // linear, `channel` (glTF: A of the base colour texture; MTL map_d)

@@ -40,10 +40,30 @@
 
 namespace nmbake {
 
+// One level of a mip chain: RGBA texels (a grey image as (g, g, g, 1),
+// grey + alpha as (g, g, g, a), RGB with a = 1) in 4 x 4 blocks, blocks in
+// rows: a chart laid across the texture's rows (a rotated UV island) walks
+// it down a column, and a block serves four texels of that walk from one
+// cache line (BENCHMARKS.md, "Texture transfer").
+struct MipLevel {
+  int width = 0, height = 0;
+  int blocks_x = 0;
+  std::vector<glm::vec4> texels;
+  std::size_t index(int x, int y) const {
+    const std::size_t block = static_cast<std::size_t>(y >> 2) * static_cast<std::size_t>(blocks_x) +
+                              static_cast<std::size_t>(x >> 2);
+    return block * 16 + static_cast<std::size_t>((y & 3) * 4 + (x & 3));
+  }
+  const glm::vec4& at(int x, int y) const { return texels[index(x, y)]; }
+  glm::vec4& at(int x, int y) { return texels[index(x, y)]; }
+};
+
 // One image, mip-mapped: levels[0] as read (linear, colour decoded), each
 // next level half the size (rounded down, at least 1) by a 2x2 box filter.
+// `channels`: the file's (1 grey, 2 grey + alpha, 3 RGB, 4 RGBA).
 struct MipTexture {
-  std::vector<Image> levels;
+  int channels = 3;
+  std::vector<MipLevel> levels;
 };
 
 // A texture file in memory; a <UDIM> path holds one image per tile found

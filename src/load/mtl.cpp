@@ -146,7 +146,8 @@ class MtlParser {
         std::string_view token;
         const char* after = next(token);
         float v = 0.0f;
-        if (token.empty() || parse_float(token.data(), token.data() + token.size(), v) != NumberError::none) break;
+        if (token.empty() || parse_float(token.data(), token.data() + token.size(), v) != NumberError::none)
+          break;
         values[read] = v;
         p = after;
       }
@@ -165,8 +166,10 @@ class MtlParser {
       if (option == "-o" || option == "-s") {
         float v[3] = {0.0f, 0.0f, 0.0f};
         NMBAKE_TRY(numbers(v, 3));
-        if (option == "-o") mtl_offset = glm::vec2(v[0], v[1]);
-        else ref.scale = glm::vec2(v[0], v[1]);
+        if (option == "-o")
+          mtl_offset = glm::vec2(v[0], v[1]);
+        else
+          ref.scale = glm::vec2(v[0], v[1]);
       } else if (option == "-t") {
         float v[3];
         NMBAKE_TRY(numbers(v, 3));
@@ -188,12 +191,18 @@ class MtlParser {
       } else if (option == "-imfchan") {
         std::string_view value;
         p = next(value);
-        if (value == "r") ref.channel = 0;
-        else if (value == "g") ref.channel = 1;
-        else if (value == "b") ref.channel = 2;
-        else if (value == "m" || value == "z") ref.channel = 3;
-        else if (value == "l") ref.channel = -1;
-        else return error("-imfchan takes r, g, b, m, l or z");
+        if (value == "r")
+          ref.channel = 0;
+        else if (value == "g")
+          ref.channel = 1;
+        else if (value == "b")
+          ref.channel = 2;
+        else if (value == "m" || value == "z")
+          ref.channel = 3;
+        else if (value == "l")
+          ref.channel = -1;
+        else
+          return error("-imfchan takes r, g, b, m, l or z");
       } else {
         return error("unknown texture option '" + token_text(option) + "'");
       }
@@ -231,8 +240,8 @@ class MtlParser {
     if (!current_.roughness_texture.empty()) current_.roughness = 1.0f;
     if (!current_.metallic_texture.empty()) current_.metallic = 1.0f;
     if (std::find(used_.begin(), used_.end(), current_.name) == used_.end()) return;
-    const bool known = std::any_of(defs_.begin(), defs_.end(),
-                                   [&](const Material& m) { return m.name == current_.name; });
+    const bool known =
+        std::any_of(defs_.begin(), defs_.end(), [&](const Material& m) { return m.name == current_.name; });
     if (!known) defs_.push_back(current_);
   }
 
@@ -271,9 +280,9 @@ Status read_mtl_library(const std::string& obj_path, const std::string& statemen
     // A FIFO would block and a device never end: regular files only.
     const fs::file_status status = fs::status(path, ec);
     if (!fs::is_regular_file(status)) {
-      return Status::bad_input(obj_path + ": mtllib '" + printable_text(file) + "': " +
-                               (fs::exists(status) ? "not a regular file" : "no such file") + " (looked for " +
-                               printable_text(path) + ")");
+      return Status::bad_input(obj_path + ": mtllib '" + printable_text(file) +
+                               "': " + (fs::exists(status) ? "not a regular file" : "no such file") +
+                               " (looked for " + printable_text(path) + ")");
     }
     FileReader reader;
     if (Status s = reader.open(path); !s.is_ok()) {

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "base/huge_pages.hpp"
 #include "nmbake/udim.hpp"
 
 namespace nmbake {
@@ -26,7 +27,8 @@ Image half_level(const Image& fine) {
   coarse.width = std::max(1, fine.width / 2);
   coarse.height = std::max(1, fine.height / 2);
   coarse.channels = fine.channels;
-  coarse.pixels.assign(static_cast<std::size_t>(coarse.width) * coarse.height * coarse.channels, 0.0f);
+  detail::size_output(coarse.pixels,
+                      static_cast<std::size_t>(coarse.width) * coarse.height * coarse.channels);
   const int c = fine.channels;
   tbb::parallel_for(tbb::blocked_range<int>(0, coarse.height), [&](const tbb::blocked_range<int>& rows) {
     for (int y = rows.begin(); y != rows.end(); ++y) {
@@ -70,9 +72,44 @@ int wrap_index(int i, int n, TextureWrap wrap) {
   }
 }
 
+// A row-major image as a block-ordered level of RGBA texels.
+MipLevel to_level(const Image& image) {
+  MipLevel level;
+  level.width = image.width;
+  level.height = image.height;
+  level.blocks_x = (image.width + 3) / 4;
+  const int blocks_y = (image.height + 3) / 4;
+  detail::size_output(level.texels, static_cast<std::size_t>(level.blocks_x) * blocks_y * 16);
+  const int c = image.channels;
+  tbb::parallel_for(tbb::blocked_range<int>(0, image.height), [&](const tbb::blocked_range<int>& rows) {
+    for (int y = rows.begin(); y != rows.end(); ++y) {
+      for (int x = 0; x < image.width; ++x) {
+        const float* p = image.at(x, y);
+        glm::vec4 v;
+        switch (c) {
+          case 1:
+            v = glm::vec4(p[0], p[0], p[0], 1.0f);
+            break;
+          case 2:
+            v = glm::vec4(p[0], p[0], p[0], p[1]);
+            break;
+          case 3:
+            v = glm::vec4(p[0], p[1], p[2], 1.0f);
+            break;
+          default:
+            v = glm::vec4(p[0], p[1], p[2], p[3]);
+            break;
+        }
+        level.at(x, y) = v;
+      }
+    }
+  });
+  return level;
+}
+
 // Bilinear at (x, y) in the level's texel units (texel centres at + 0.5),
 // y from the top.
-glm::vec4 bilinear(const Image& level, float x, float y, const TextureRef& ref) {
+glm::vec4 bilinear(const MipLevel& level, float x, float y, const TextureRef& ref) {
   x -= 0.5f;
   y -= 0.5f;
   const float fx = std::floor(x), fy = std::floor(y);
@@ -80,20 +117,7 @@ glm::vec4 bilinear(const Image& level, float x, float y, const TextureRef& ref) 
   const int ix = static_cast<int>(fx), iy = static_cast<int>(fy);
   const int x0 = wrap_index(ix, level.width, ref.wrap_u), x1 = wrap_index(ix + 1, level.width, ref.wrap_u);
   const int y0 = wrap_index(iy, level.height, ref.wrap_v), y1 = wrap_index(iy + 1, level.height, ref.wrap_v);
-  const int c = level.channels;
-  const auto texel = [&](int tx, int ty) {
-    const float* p = level.at(tx, ty);
-    switch (c) {
-      case 1:
-        return glm::vec4(p[0], p[0], p[0], 1.0f);
-      case 2:
-        return glm::vec4(p[0], p[0], p[0], p[1]);
-      case 3:
-        return glm::vec4(p[0], p[1], p[2], 1.0f);
-      default:
-        return glm::vec4(p[0], p[1], p[2], p[3]);
-    }
-  };
+  const auto texel = [&](int tx, int ty) { return level.at(tx, ty); };
   const glm::vec4 top = texel(x0, y0) * (1.0f - ax) + texel(x1, y0) * ax;
   const glm::vec4 bottom = texel(x0, y1) * (1.0f - ax) + texel(x1, y1) * ax;
   return top * (1.0f - ay) + bottom * ay;
@@ -116,12 +140,20 @@ Status read_texture_image(const std::string& path, bool color, Image& image) {
   if (color) {
     const int c = image.channels;
     const int color_channels = c >= 3 ? 3 : (c == 2 ? 1 : c);
+    float table[256];
+    for (int q = 0; q < 256; ++q) table[q] = srgb_to_linear(static_cast<float>(q) / 255.0f);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, image.pixels.size() / c),
                       [&](const tbb::blocked_range<std::size_t>& r) {
                         for (std::size_t i = r.begin(); i != r.end(); ++i) {
                           for (int k = 0; k < color_channels; ++k) {
                             float& v = image.pixels[i * c + k];
-                            v = srgb_to_linear(v);
+                            // An 8-bit file's values are k / 255 (to float rounding:
+                            // OpenImageIO multiplies by 1 / 255): from the table.
+                            const float step = v * 255.0f + 0.5f;
+                            const auto q = static_cast<int>(step);
+                            const bool eight_bit = v >= 0.0f && v <= 1.0f &&
+                                                   std::abs(static_cast<float>(q) / 255.0f - v) <= 1e-7f;
+                            v = eight_bit ? table[static_cast<std::size_t>(q)] : srgb_to_linear(v);
                           }
                         }
                       });
@@ -143,9 +175,12 @@ float linear_to_srgb(float v) {
 
 MipTexture make_mip_texture(Image image) {
   MipTexture mip;
-  mip.levels.push_back(std::move(image));
-  while (mip.levels.back().width > 1 || mip.levels.back().height > 1) {
-    mip.levels.push_back(half_level(mip.levels.back()));
+  mip.channels = image.channels;
+  // Built row-major, stored in blocks (in 2 MB pages: size_output).
+  mip.levels.push_back(to_level(image));
+  while (image.width > 1 || image.height > 1) {
+    image = half_level(image);
+    mip.levels.push_back(to_level(image));
   }
   return mip;
 }
@@ -176,7 +211,7 @@ glm::vec4 sample_texture(const LoadedTexture& texture, const TextureRef& ref, gl
   } else {
     mip = &texture.tiles.begin()->second;
   }
-  const Image& base = mip->levels.front();
+  const MipLevel& base = mip->levels.front();
   const float scale = std::max(std::abs(ref.scale.x), std::abs(ref.scale.y));
   const float width = footprint * scale * static_cast<float>(std::max(base.width, base.height));
   const float last = static_cast<float>(mip->levels.size() - 1);
@@ -184,8 +219,9 @@ glm::vec4 sample_texture(const LoadedTexture& texture, const TextureRef& ref, gl
   const int l0 = static_cast<int>(lod);
   const float a = lod - static_cast<float>(l0);
   const auto at_level = [&](int l) {
-    const Image& level = mip->levels[static_cast<std::size_t>(l)];
-    return bilinear(level, t.x * static_cast<float>(level.width), t.y * static_cast<float>(level.height), ref);
+    const MipLevel& level = mip->levels[static_cast<std::size_t>(l)];
+    return bilinear(level, t.x * static_cast<float>(level.width), t.y * static_cast<float>(level.height),
+                    ref);
   };
   const glm::vec4 fine = at_level(l0);
   if (a <= 0.0f || l0 + 1 >= static_cast<int>(mip->levels.size())) return fine;
@@ -203,21 +239,27 @@ Status load_material_textures(const Mesh& high, const std::string& high_path, co
   const auto begin = std::chrono::steady_clock::now();
   out = TextureSet{};
   out.by_material.resize(high.material_defs.size());
-  // One read per file and colour space.
-  const auto load = [&](const Material& m, const char* attribute, const TextureRef& ref, bool color,
+  // Which files: one read per file and colour space (the alpha of a colour
+  // texture is linear, so opacity from the base colour's alpha shares it).
+  struct Read {
+    std::size_t texture;
+    int tile;
+    std::string path, where;
+  };
+  std::vector<Read> reads;
+  const auto plan = [&](const Material& m, const char* attribute, const TextureRef& ref, bool color,
                         int& index) -> Status {
     if (ref.empty()) return Status::ok();
-    const std::string where = high_path + ": material '" + printable_text(m.name) + "', " + attribute + " texture";
+    const std::string where =
+        high_path + ": material '" + printable_text(m.name) + "', " + attribute + " texture";
     if (!ref.problem.empty()) return Status::bad_input(where + ": " + ref.problem);
     for (std::size_t i = 0; i < out.textures.size(); ++i) {
-      if (out.textures[i].path == ref.path && out.textures[i].color == color) {
+      const bool alpha_only = !color && ref.channel == 3;
+      if (out.textures[i].path == ref.path && (out.textures[i].color == color || alpha_only)) {
         index = static_cast<int>(i);
         return Status::ok();
       }
     }
-    LoadedTexture texture;
-    texture.path = ref.path;
-    texture.color = color;
     std::vector<std::pair<int, std::string>> files;
     if (has_udim_token(ref.path)) {
       files = udim_files(ref.path);
@@ -228,28 +270,40 @@ Status load_material_textures(const Mesh& high, const std::string& high_path, co
     } else {
       files.emplace_back(0, ref.path);
     }
-    for (const auto& [tile, path] : files) {
-      Image image;
-      if (Status s = read_texture_image(path, color, image); !s.is_ok()) {
-        return Status::bad_input(where + " '" + printable_text(path) + "': " + s.message());
-      }
-      MipTexture mip = make_mip_texture(std::move(image));
-      for (const Image& level : mip.levels) out.bytes += level.pixels.size() * sizeof(float);
-      texture.tiles.emplace(tile, std::move(mip));
-    }
     index = static_cast<int>(out.textures.size());
-    out.textures.push_back(std::move(texture));
+    out.textures.emplace_back();
+    out.textures.back().path = ref.path;
+    out.textures.back().color = color;
+    for (auto& [tile, path] : files)
+      reads.push_back(Read{static_cast<std::size_t>(index), tile, path, where});
     return Status::ok();
   };
   for (std::size_t i = 0; i < high.material_defs.size(); ++i) {
     const Material& m = high.material_defs[i];
     MaterialTextures& t = out.by_material[i];
-    if (needs.base_color) NMBAKE_TRY(load(m, "base colour", m.base_color_texture, true, t.base_color));
-    if (needs.roughness) NMBAKE_TRY(load(m, "roughness", m.roughness_texture, false, t.roughness));
-    if (needs.metallic) NMBAKE_TRY(load(m, "metallic", m.metallic_texture, false, t.metallic));
-    if (needs.emissive) NMBAKE_TRY(load(m, "emission", m.emissive_texture, true, t.emissive));
-    // Opacity reads the base colour's alpha in glTF (the same file, linear alpha).
-    if (needs.opacity) NMBAKE_TRY(load(m, "opacity", m.opacity_texture, false, t.opacity));
+    if (needs.base_color) NMBAKE_TRY(plan(m, "base colour", m.base_color_texture, true, t.base_color));
+    if (needs.roughness) NMBAKE_TRY(plan(m, "roughness", m.roughness_texture, false, t.roughness));
+    if (needs.metallic) NMBAKE_TRY(plan(m, "metallic", m.metallic_texture, false, t.metallic));
+    if (needs.emissive) NMBAKE_TRY(plan(m, "emission", m.emissive_texture, true, t.emissive));
+    if (needs.opacity) NMBAKE_TRY(plan(m, "opacity", m.opacity_texture, false, t.opacity));
+  }
+  // The reads side by side (a PNG decodes on one core); the first failure
+  // in material order is the one reported.
+  std::vector<Status> status(reads.size());
+  std::vector<MipTexture> mips(reads.size());
+  tbb::parallel_for(std::size_t{0}, reads.size(), [&](std::size_t r) {
+    Image image;
+    const Read& read = reads[r];
+    if (Status s = read_texture_image(read.path, out.textures[read.texture].color, image); !s.is_ok()) {
+      status[r] = Status::bad_input(read.where + " '" + printable_text(read.path) + "': " + s.message());
+      return;
+    }
+    mips[r] = make_mip_texture(std::move(image));
+  });
+  for (std::size_t r = 0; r < reads.size(); ++r) {
+    NMBAKE_TRY(status[r]);
+    for (const MipLevel& level : mips[r].levels) out.bytes += level.texels.size() * sizeof(glm::vec4);
+    out.textures[reads[r].texture].tiles.emplace(reads[r].tile, std::move(mips[r]));
   }
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
   return Status::ok();

@@ -96,7 +96,7 @@ struct TransferModule : MapSet::Module {
       texel = sample_texture(texture, ref_of(*m), hit_uv(transfer, hit, in.hits.bary[s]),
                              footprint.of(in, transfer, s, hit), missing);
       if (missing) tile_missing.fetch_add(1, std::memory_order_relaxed);
-      const int c = texture.tiles.begin()->second.levels.front().channels;
+      const int c = texture.tiles.begin()->second.channels;
       alpha = c == 2 || c == 4;
       return true;
     };
