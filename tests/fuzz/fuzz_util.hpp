@@ -58,16 +58,21 @@ inline int load_mesh_both_ways(const std::uint8_t* data, std::size_t size, const
   LoadOptions parallel;
   parallel.block_bytes = 64;
   parallel.keep_colors = size % 2 == 1;
+  // One input in three as the high of a texture bake: corner UVs and the
+  // MTL files it names.
+  parallel.corner_uvs = parallel.material_defs = size % 3 == 0;
   LoadOptions serial;
   serial.serial = true;
   serial.keep_colors = parallel.keep_colors;
+  serial.corner_uvs = serial.material_defs = parallel.corner_uvs;
   Mesh a, b;
   LoadStats stats;
   const Status sa = load_mesh(file.path(), parallel, a, stats);
   const Status sb = load_mesh(file.path(), serial, b, stats);
   if (sa.is_ok() != sb.is_ok() || sa.message() != sb.message() || a.positions != b.positions ||
       a.indices != b.indices || a.uvs != b.uvs || a.normals != b.normals || a.colors != b.colors ||
-      a.parts != b.parts || a.materials != b.materials) {
+      a.parts != b.parts || a.materials != b.materials || a.corner_uvs != b.corner_uvs ||
+      a.material_defs != b.material_defs) {
     std::abort();
   }
   if (sa.is_ok()) (void)check_coordinate_range(a, file.path());
