@@ -21,8 +21,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     std::size_t begin = at + 6, end = text.find_first_of("\r\n#", begin);
     if (end == std::string::npos) end = text.size();
     while (begin < end && (text[begin] == ' ' || text[begin] == '\t')) ++begin;
-    while (end > begin && (text[end - 1] == ' ' || text[end - 1] == '\t' || text[end - 1] == '\f' ||
-                           text[end - 1] == '\v'))
+    while (end > begin &&
+           (text[end - 1] == ' ' || text[end - 1] == '\t' || text[end - 1] == '\f' || text[end - 1] == '\v'))
       --end;
     used.push_back(text.substr(begin, end - begin));
   }
