@@ -75,6 +75,7 @@ const std::map<std::string, std::vector<std::string>> kSamples = {
     {"ao_distance", {"0.3", "5%"}},
     {"thickness_rays", {"8"}},
     {"thickness_distance", {"0.2"}},
+    {"pack", {"PACK"}},
 };
 
 TEST(OptionTable, EveryWordAndValueGivesTheSameOptionsAsAFlagAndAsAJobKey) {
@@ -94,6 +95,7 @@ TEST(OptionTable, EveryWordAndValueGivesTheSameOptionsAsAFlagAndAsAJobKey) {
     ASSERT_FALSE(values.empty()) << key << ": neither words nor a sample value in this test";
     for (std::string value : values) {
       if (value == "CAGE" || value == "DUMP") value = dir.file(value == "CAGE" ? "cage.obj" : "dump");
+      if (value == "PACK") value = dir.file("orm.png") + "=r:ao,g:0.5,b:1-base-color.g,a:1";
       const std::string flag = spec.is_switch ? flag_of(spec) : flag_of(spec) + " " + squote(value);
       const test::CommandResult by_flag = run_command(base + " " + flag);
       std::string toml = "[[bake]]\nname = 'b'\nlow = " + toml_value(low) + "\nhigh = " + toml_value(high) +

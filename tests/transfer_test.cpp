@@ -297,6 +297,111 @@ TEST(Transfer, GltfFactorsAndTextureTransform) {
   EXPECT_LT(m.max, 1e-4) << m.to_text();
 }
 
+// The id map in the materials' own colours: Kd as the DCC shows it
+// (sRGB-encoded), a hue for a material without Kd and for two that share one.
+TEST(Transfer, IdMapTakesTheMaterialsOwnColours) {
+  TransferScene scene = make_scene();
+  const auto n = static_cast<std::uint32_t>(scene.high.triangle_count());
+  const std::uint32_t q = n / 4;
+  scene.high.materials = {{"red", 0, q}, {"plain", q, q}, {"grey_a", 2 * q, q}, {"grey_b", 3 * q, n - 3 * q}};
+  test::TempDir dir;
+  ASSERT_TRUE(save_mesh(dir.file("low.obj"), scene.low).is_ok());
+  ASSERT_TRUE(save_mesh(dir.file("high.obj"), scene.high).is_ok());
+  test::write_text(dir.file("high.obj"), "mtllib high.mtl\n" + read_bytes(dir.file("high.obj")));
+  test::write_text(dir.file("high.mtl"),
+                   "newmtl red\nKd 0.5 0.1 0.05\nnewmtl plain\nNs 10\nnewmtl grey_a\nKd 0.8 0.8 0.8\n"
+                   "newmtl grey_b\nKd 0.8 0.8 0.8\n");
+  BakeOptions o = transfer_bake(dir, 32);
+  o.maps = {MapKind::id};
+  BakeReport report;
+  const Status s = bake(o, report);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  ASSERT_EQ(report.id_names.size(), 4u);
+  for (const auto& [name, color] : report.id_names) {
+    if (name == "red") {
+      EXPECT_EQ(color, glm::vec3(linear_to_srgb(0.5f), linear_to_srgb(0.1f), linear_to_srgb(0.05f)));
+    } else {
+      EXPECT_EQ(color, part_color(name)) << name;
+    }
+  }
+}
+
+// Packed outputs: each channel equals the channel of the map's own file at
+// that depth (mapped, sRGB-encoded, dithered as the map alone is); an
+// inverted channel is 1 minus it; a constant is its step.
+TEST(Transfer, PackedChannelsEqualTheMapsBakedAlone) {
+  const TransferScene scene = make_scene();
+  test::TempDir dir;
+  ASSERT_TRUE(write_image(texture_image(128, true), dir.file("albedo.png"), PixelFormat::png16).is_ok());
+  write_scene(dir, scene, "albedo.png");
+  BakeOptions o = transfer_bake(dir, 64);
+  o.maps = {MapKind::base_color, MapKind::roughness, MapKind::height};
+  o.outputs = {{dir.file("m_<MAP>.png"), PixelFormat::png8, true}};
+  PackSpec pack, orm;
+  ASSERT_TRUE(
+      parse_pack(dir.file("p.png") + "=r:height,g:roughness,b:base-color.g,a:1-roughness", pack).is_ok());
+  ASSERT_TRUE(parse_pack(dir.file("p16.tif") + "=r:height,g:0.25,b:base-color.r", orm).is_ok());
+  o.packs = {pack, orm};
+  BakeReport report;
+  const Status s = bake(o, report);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  Image p, height, rough, base;
+  ASSERT_TRUE(read_image(dir.file("p.png"), p).is_ok());
+  ASSERT_TRUE(read_image(dir.file("m_height.png"), height).is_ok());
+  ASSERT_TRUE(read_image(dir.file("m_roughness.png"), rough).is_ok());
+  ASSERT_TRUE(read_image(dir.file("m_base-color.png"), base).is_ok());
+  ASSERT_EQ(p.channels, 4);
+  ASSERT_EQ(p.pixels.size(), height.pixels.size() * 4);
+  for (std::size_t t = 0; t < height.pixels.size(); ++t) {
+    ASSERT_EQ(p.pixels[4 * t], height.pixels[t]) << t;
+    ASSERT_EQ(p.pixels[4 * t + 1], rough.pixels[t]) << t;
+    ASSERT_EQ(p.pixels[4 * t + 2], base.pixels[3 * t + 1]) << t;
+    ASSERT_NEAR(p.pixels[4 * t + 3], 1.0f - rough.pixels[t], 1.5f / 255) << t;
+  }
+  // 16-bit TIFF: the maps written at 16 bits are its channels.
+  o.packs.clear();
+  o.outputs = {{dir.file("w_<MAP>.tif"), PixelFormat::tiff16, true}};
+  ASSERT_TRUE(bake(o, report).is_ok());
+  Image t16, h16, b16;
+  ASSERT_TRUE(read_image(dir.file("p16.tif"), t16).is_ok());
+  ASSERT_TRUE(read_image(dir.file("w_height.tif"), h16).is_ok());
+  ASSERT_TRUE(read_image(dir.file("w_base-color.tif"), b16).is_ok());
+  ASSERT_EQ(t16.channels, 3);
+  for (std::size_t t = 0; t < h16.pixels.size(); ++t) {
+    ASSERT_EQ(t16.pixels[3 * t], h16.pixels[t]) << t;
+    ASSERT_EQ(t16.pixels[3 * t + 1], std::round(0.25f * 65535) / 65535) << t;
+    ASSERT_EQ(t16.pixels[3 * t + 2], b16.pixels[3 * t]) << t;
+  }
+}
+
+// A pack of a map the bake does not make, or two outputs writing one file:
+// exit 2 before anything is baked, nothing written.
+TEST(Transfer, PackMistakesAreFoundBeforeTheBake) {
+  const TransferScene scene = make_scene();
+  test::TempDir dir;
+  ASSERT_TRUE(write_image(texture_image(64, true), dir.file("albedo.png"), PixelFormat::png8).is_ok());
+  write_scene(dir, scene, "albedo.png");
+  BakeOptions o = transfer_bake(dir, 32);
+  PackSpec pack;
+  ASSERT_TRUE(parse_pack(dir.file("orm.png") + "=r:ao,g:roughness,b:metallic", pack).is_ok());
+  o.packs = {pack};
+  BakeReport report;
+  Status s = bake(o, report);
+  EXPECT_EQ(s.code(), StatusCode::bad_input);
+  EXPECT_NE(s.message().find("it packs ao, which --map does not bake"), std::string::npos) << s.message();
+  ASSERT_TRUE(parse_pack(dir.file("m_roughness.exr") + "=r:roughness", pack).is_ok());
+  o.packs = {pack};
+  s = bake(o, report);
+  EXPECT_EQ(s.code(), StatusCode::bad_input);
+  EXPECT_NE(s.message().find("is also written by another output"), std::string::npos) << s.message();
+  EXPECT_FALSE(std::filesystem::exists(dir.file("m_base-color.exr")));
+  EXPECT_FALSE(std::filesystem::exists(dir.file("orm.png")));
+  for (const char* bad : {"orm.png", "orm.png=g:ao", "orm.png=r:normal", "orm.png=r:ao,g:ao", "orm.png=r:2",
+                          "orm.png=r:ao.r", "o_<MAP>.png=r:ao"}) {
+    EXPECT_EQ(parse_pack(bad, pack).code(), StatusCode::bad_input) << bad;
+  }
+}
+
 // PNG outputs of colour maps are sRGB-encoded (8-bit), EXR linear: the PNG
 // read back and decoded equals the EXR within the 8-bit step.
 TEST(Transfer, ColourMapsAreSrgbInPngAndLinearInExr) {

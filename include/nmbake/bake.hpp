@@ -24,6 +24,14 @@ namespace nmbake {
 // (files side by side, each writer parallel inside), integer files of ranged maps stored
 // through MapSet::integer_mapping(). 8-bit files dithered when `dither`.
 Status write_map_files(MapSet& maps, const std::vector<MapOutput>& files, bool dither);
+// The packed outputs of a UDIM tile's finished maps (bake_options.hpp
+// PackSpec): each channel as the map's own integer file stores it (mapped,
+// sRGB-encoded for colour maps, quantised and dithered with the map's own
+// pattern), so it equals that file's channel byte for byte; an inverted
+// channel is 1 - that value. `.png` and `.tga`: 8-bit; `.tif`: 16-bit;
+// `.exr`: float, the raw texels. Appends the paths written.
+Status write_pack_files(MapSet& maps, const std::vector<PackSpec>& packs, int udim_tile, bool dither,
+                        std::vector<std::string>& written);
 // The set's reports (MapSet::reports(tile)), each with the files of its map.
 std::vector<MapReport> map_file_reports(const MapSet& maps, const std::vector<MapOutput>& files, int tile);
 

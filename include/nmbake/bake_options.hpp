@@ -26,6 +26,31 @@ struct OutputSpec {
   bool format_given = false;
 };
 
+// A packed output (README, "Packing and naming"): channels of several maps
+// in one file, e.g. "orm_<UDIM>.png=r:ao,g:roughness,b:metallic" (glTF's
+// ORM) or "mask.png=r:metallic,g:ao,b:0,a:1-roughness" (Unity's mask map).
+struct PackChannel {
+  bool constant = false;
+  float value = 0.0f;  // constant: the value in [0, 1]
+  MapKind map = MapKind::normal;
+  int component = 0;    // of a map of three channels: .r .g .b (0, 1, 2)
+  bool invert = false;  // 1 - the value as the map's integer file stores it
+  friend bool operator==(const PackChannel&, const PackChannel&) = default;
+};
+struct PackSpec {
+  std::string path;                   // may hold <UDIM>; never <MAP>
+  std::vector<PackChannel> channels;  // r, g, b, a in order: 1, 3 or 4 of them
+  friend bool operator==(const PackSpec&, const PackSpec&) = default;
+};
+// "FILE=r:SRC,g:SRC,..." with SRC a number in [0, 1], MAP, MAP.r|g|b or
+// 1-MAP(.c); bad_input saying what is wrong. The maps need not be known
+// to be baked here (validate_options() checks that).
+Status parse_pack(const std::string& text, PackSpec& out);
+std::string pack_text(const PackSpec& pack);
+// The format of a packed output's path: `.png` and `.tga` 8-bit, `.tif`
+// 16-bit, `.exr` float (write_pack_files(), bake.hpp).
+PixelFormat pack_format(const std::string& path);
+
 // The map set's auto AO and thickness distance: this share of the low mesh's
 // bounding-box diagonal.
 constexpr float kAutoMapDistancePercent = 10.0f;
@@ -96,6 +121,7 @@ struct BakeOptions {
   int thickness_rays = 16;
   Distance thickness_distance;               // auto: as ao_distance
   IdSource id_source = IdSource::automatic;  // what the id map colours (maps.hpp)
+  std::vector<PackSpec> packs;               // packed outputs, written beside the maps
 };
 
 // One file a bake writes per UV tile: an output for one map.

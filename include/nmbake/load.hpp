@@ -123,7 +123,8 @@ struct LoadOptions {
   // 1 - d), glTF materials (pbrMetallicRoughness factors and textures,
   // normalTexture + scale, emissiveTexture + factor, samplers' wrap modes,
   // KHR_texture_transform). A library or image path is resolved against the
-  // mesh's folder; a missing MTL file is bad_input naming it.
+  // mesh's folder; a missing MTL file is bad_input naming it. PLY, FBX,
+  // Collada, 3DS, STL: none (not read yet from Assimp's materials).
   bool material_defs = false;
   // Tuning of the parallel parsers, for tests and benchmarks; the loaded mesh
   // and every error are the same whatever they are set to.

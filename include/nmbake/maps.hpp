@@ -23,7 +23,7 @@
 // | object-normal  | 0.5 n + 0.5, world space (the normal map's object space) | the same | low normal |
 // | miss           | share of the texel's samples whose ray missed | the same | 1 |
 // | vertex-color   | the high mesh's vertex colour (RGB, sRGB-encoded) at the hit (PLY, OBJ "v x y z r g b", glTF COLOR_0, FBX/Collada colours: load.hpp) | the same | black |
-// | id             | the colour (part_color) of the hit's material or part (IdSource): the one most of the texel's samples hit | the same | black |
+// | id             | the colour of the hit's material or part (IdSource): the one most of the texel's samples hit; a material's own colour (Kd, baseColorFactor, sRGB-encoded) when the file gives one that no other material shares, else part_color() of the name | the same | black |
 // | base-color     | the hit material's base colour factor x its texture (textures.hpp), linear RGB | sRGB-encoded | black |
 // | roughness      | roughness factor x texture channel (glTF: G of metallicRoughness)  | the same | 0 |
 // | metallic       | metallic factor x texture channel (glTF: B of metallicRoughness)   | the same | 0 |

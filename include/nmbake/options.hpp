@@ -60,6 +60,8 @@ struct OptionSpec {
   bool first = false;
   // The flag's name when it is not the key's ("map" for `maps`).
   std::string_view flag = "";
+  // Repeated on the command line, each flag one value of a list (--pack).
+  bool repeated = false;
 };
 
 // Every option, in --help's order.

@@ -105,7 +105,10 @@ Status finish_rows(const Prepared& p, MapSet& maps, std::vector<std::uint8_t>& c
 
   timer.start("write");
   NMBAKE_TRY(write_map_files(maps, outputs, p.options.dither));
+  std::vector<std::string> packed;
+  NMBAKE_TRY(write_pack_files(maps, p.options.packs, udim_tile, p.options.dither, packed));
   timer.stop();
+  for (std::string& path : packed) r.outputs.push_back(std::move(path));
   for (MapReport& m : map_file_reports(maps, outputs, udim_tile)) r.map_reports.push_back(std::move(m));
   return Status::ok();
 }
@@ -193,7 +196,11 @@ Status load_inputs(const BakeOptions& o, BakeReport& r, StageTimer& timer, Meshe
   high_options.keep_colors = std::find(o.maps.begin(), o.maps.end(), MapKind::vertex_color) != o.maps.end();
   // The transfer maps read the high's corner UVs and materials; the mesh
   // itself (vertices, triangles, normals) is the same as without them.
-  high_options.corner_uvs = high_options.material_defs = texture_needs(o.maps).any();
+  high_options.corner_uvs = texture_needs(o.maps).any();
+  // The id map colours materials in their own colours where the file gives them.
+  high_options.material_defs =
+      high_options.corner_uvs ||
+      (std::find(o.maps.begin(), o.maps.end(), MapKind::id) != o.maps.end() && o.id_source != IdSource::part);
   NMBAKE_TRY(load_mesh(o.high_path, high_options, m.high, r.high_load));
   NMBAKE_TRY(check_high_for_maps(o, m.high, high_options.keep_colors));
   m.has_cage = !o.cage_path.empty();

@@ -374,6 +374,37 @@ const OptionSpec kTable[] = {
      [](BakeOptions& o, const OptionValue& v) { return read_distance(v, o.thickness_distance, true); },
      [](const BakeOptions& o) { return to_string(o.thickness_distance); }, no_words},
     NMBAKE_WORD_ROW("id_source", IdSource, o.id_source, "what the id map colours"),
+    {"pack", "FILE=r:MAP,g:MAP,...",
+     "a packed output (repeatable): channels of the baked maps, e.g. orm.png=r:ao,g:roughness,b:metallic; a "
+     "channel is MAP, MAP.r|g|b, 1-MAP or a number",
+     [](BakeOptions& o, const OptionValue& v) {
+       std::vector<std::string> texts;
+       if (v.kind == OptionValue::Kind::list) {
+         texts = v.list;
+       } else if (v.kind == OptionValue::Kind::text) {
+         texts = {v.text};
+       } else {
+         return expected("FILE=r:MAP,g:MAP,... or a list of them");
+       }
+       std::vector<PackSpec> packs;
+       for (const std::string& text : texts) {
+         PackSpec pack;
+         NMBAKE_TRY(parse_pack(text, pack));
+         // A job file's pack lies beside its outputs: relative to the job.
+         const std::filesystem::path path(pack.path);
+         if (!v.folder.empty() && !path.is_absolute())
+           pack.path = (std::filesystem::path(v.folder) / path).lexically_normal().string();
+         packs.push_back(std::move(pack));
+       }
+       o.packs = std::move(packs);
+       return Status::ok();
+     },
+     [](const BakeOptions& o) {
+       std::string text;
+       for (const PackSpec& p : o.packs) text += (text.empty() ? "" : "; ") + pack_text(p);
+       return text;
+     },
+     no_words, false, false, false, "", true},
 };
 
 #undef NMBAKE_WORD_ROW

@@ -29,6 +29,52 @@ std::string number_text(double value) {
 }
 
 // The map set's options (maps.hpp).
+Status check_output_spec(const OutputSpec& out);
+
+// Packed outputs: their maps are baked, their files writable and named once
+// (no map output or other pack resolves to the same path), whole bakes only.
+Status check_packs(const BakeOptions& o) {
+  std::vector<std::string> paths;
+  for (const MapOutput& out : map_outputs(o)) {
+    if (std::find(paths.begin(), paths.end(), out.path) != paths.end()) {
+      return Status::bad_input(printable_text(out.path) + ": two outputs write this file");
+    }
+    paths.push_back(out.path);
+  }
+  for (const PackSpec& pack : o.packs) {
+    const std::string text = "--pack '" + printable_text(pack_text(pack)) + "'";
+    if (o.tile_count > 0)
+      return Status::bad_input(text + ": packs are written by whole bakes, not by tiles (yet)");
+    bool any_map = false;
+    for (const PackChannel& c : pack.channels) {
+      if (c.constant) continue;
+      any_map = true;
+      if (std::find(o.maps.begin(), o.maps.end(), c.map) == o.maps.end()) {
+        return Status::bad_input(text + ": it packs " + to_string(c.map) + ", which --map does not bake (" +
+                                 map_list_text(o.maps) + ")");
+      }
+    }
+    if (!any_map) return Status::bad_input(text + ": a pack needs at least one map");
+    if (pack.path.find('\0') != std::string::npos)
+      return Status::bad_input(text + ": the path holds a NUL byte");
+    OutputSpec spec;
+    spec.path = pack.path;
+    spec.format = pack_format(pack.path);
+    PixelFormat from_path = PixelFormat::png8;
+    if (!pixel_format_from_path(pack.path, from_path)) {
+      return Status::bad_input(text + ": " + printable_text(pack.path) +
+                               ": a packed file is .png or .tga (8-bit), .tif (16-bit) or .exr (float)");
+    }
+    NMBAKE_TRY(check_output_spec(spec));
+    if (std::find(paths.begin(), paths.end(), pack.path) != paths.end()) {
+      return Status::bad_input(text + ": " + printable_text(pack.path) +
+                               " is also written by another output");
+    }
+    paths.push_back(pack.path);
+  }
+  return Status::ok();
+}
+
 Status validate_map_set(const BakeOptions& o) {
   if (o.maps.empty()) return Status::bad_input("no map to bake (--map)");
   for (const MapKind map : o.maps) {
@@ -40,6 +86,7 @@ Status validate_map_set(const BakeOptions& o) {
     if (const Status target = check_output_target(out.path); !target)
       return Status::bad_input(target.message());
   }
+  NMBAKE_TRY(check_packs(o));
   const auto check_range = [](const char* name, float value) {
     if (!(value >= 0.0f) || !std::isfinite(value)) {
       return Status::bad_input(std::string(name) + " " + number_text(value) +

@@ -84,7 +84,9 @@ Status write_text(const std::string& path, const std::string& text) {
 Status bake_or_fetch(const BakeJob& job, const std::string& cache_dir, BakeReport& report,
                      const ProgressFn& listener, bool& cached) {
   cached = false;
-  if (cache_dir.empty() || job.options.tile_count > 0) return bake(job.options, report, listener);
+  // Packed files are not stored in cache entries (yet): such a bake is baked.
+  if (cache_dir.empty() || job.options.tile_count > 0 || !job.options.packs.empty())
+    return bake(job.options, report, listener);
   BakeKey key;
   NMBAKE_TRY(validate_options(job.options));
   NMBAKE_TRY(bake_key(job.options, key));

@@ -34,7 +34,12 @@ Status apply_table_flags(const TableFlags& flags, BakeOptions& options) {
       // (--map normal --map ao).
       std::string joined;
       for (const std::string& word : it->second) joined += (joined.empty() ? "" : ",") + word;
-      g.value = OptionValue::of_text(spec.key == "maps" ? joined : it->second.back());
+      if (spec.repeated) {
+        g.value.kind = OptionValue::Kind::list;
+        g.value.list = it->second;
+      } else {
+        g.value = OptionValue::of_text(spec.key == "maps" ? joined : it->second.back());
+      }
     }
     given.push_back(std::move(g));
   }

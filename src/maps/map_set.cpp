@@ -178,6 +178,19 @@ void MapMeshData::apply(MapSettings& settings) const {
 
 namespace {
 
+// The id map's colour of a material: its own colour (Kd, baseColorFactor),
+// sRGB-encoded as the map's colours are display values, when the file gave
+// one; else (and for parts) the hue of its name.
+glm::vec3 material_id_color(const Mesh& high, IdSource source, const std::string& name) {
+  if (source == IdSource::material) {
+    if (const Material* m = high.material_def(name); m != nullptr && m->has_color) {
+      return glm::vec3(linear_to_srgb(m->base_color.r), linear_to_srgb(m->base_color.g),
+                       linear_to_srgb(m->base_color.b));
+    }
+  }
+  return part_color(name);
+}
+
 // SurfaceTransfer's per-triangle data, in the scene's order.
 void prepare_transfer(const Mesh& high, const BakeGroups& groups, SurfaceTransfer& out) {
   NMBAKE_CHECK(high.has_corner_uvs(), "corner UVs loaded for a transfer map");
@@ -256,10 +269,19 @@ void prepare_map_mesh(const Mesh& high, const std::vector<MapKind>& maps, IdSour
       std::fill_n(id.begin() + range.first_triangle, range.triangle_count, index);
     }
     if (names.empty()) names.emplace_back();
-    for (const std::string& name : names) {
-      out.id_colors.push_back(part_color(name));
-      out.ids.emplace_back(name, out.id_colors.back());
+    for (const std::string& name : names)
+      out.id_colors.push_back(material_id_color(high, out.id_source, name));
+    // A colour two names share would merge them in the mask (Blender writes
+    // Kd 0.8 for every material it was not given one for): those names
+    // take their hues.
+    std::vector<bool> shared(names.size());
+    for (std::size_t i = 0; i < names.size(); ++i) {
+      shared[i] = std::count(out.id_colors.begin(), out.id_colors.end(), out.id_colors[i]) > 1;
     }
+    for (std::size_t i = 0; i < names.size(); ++i) {
+      if (shared[i]) out.id_colors[i] = part_color(names[i]);
+    }
+    for (std::size_t i = 0; i < names.size(); ++i) out.ids.emplace_back(names[i], out.id_colors[i]);
     if (groups.grouped()) {
       // The grouped index buffer holds each group's triangles in turn
       // (group_high_indices); a triangle in two groups is there twice.
