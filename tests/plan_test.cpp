@@ -355,5 +355,29 @@ TEST(PlanQuoting, JsonRefusesBytesThatAreNotUtf8) {
   EXPECT_FALSE(fs::exists(dir.file("plan.ninja")));
 }
 
+// A bake with packed outputs is planned whole (a tile file carries no
+// pack), and its task lists the pack among the files it writes.
+TEST(Plan, BakesWithPacksAreNotTiled) {
+  test::TempDir dir;
+  write_meshes(dir);
+  const std::string job = dir.file("job.toml");
+  test::write_text(job, bake_entry("packed", "m_<MAP>.png", 128) +
+                            "maps = [\"normal\", \"height\"]\npack = [\"orm.png=r:height,g:0,b:1\"]\n");
+  std::vector<BakeJob> jobs;
+  ASSERT_TRUE(load_job_file(job, jobs).is_ok());
+  PlanOptions options;
+  options.nmbake = "nmbake";
+  options.job_file = job;
+  options.tiles = 4;
+  options.tiles_min_size = 64;
+  std::vector<PlanTask> tasks;
+  const Status s = plan_jobs(jobs, options, tasks);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  ASSERT_EQ(tasks.size(), 1u);
+  EXPECT_EQ(tasks[0].kind, "bake");
+  EXPECT_NE(std::find(tasks[0].outputs.begin(), tasks[0].outputs.end(), dir.file("orm.png")),
+            tasks[0].outputs.end());
+}
+
 }  // namespace
 }  // namespace nmbake

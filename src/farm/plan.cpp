@@ -179,8 +179,9 @@ Status plan_jobs(const std::vector<BakeJob>& jobs, const PlanOptions& options, s
     const bool udim = maps.size() != map_outputs(job.options).size() ||
                       std::any_of(job.options.outputs.begin(), job.options.outputs.end(),
                                   [](const OutputSpec& o) { return has_udim_token(o.path); });
-    // A tile file carries every map of a map set; <UDIM> outputs are not tiled.
-    const bool tiled = options.tiles > 1 && !udim &&
+    // A tile file carries every map of a map set; <UDIM> outputs are not
+    // tiled, nor bakes with packed outputs (written by whole bakes only).
+    const bool tiled = options.tiles > 1 && !udim && job.options.packs.empty() &&
                        std::max(job.options.width, job.options.height) >= options.tiles_min_size;
     if (!tiled) {
       PlanTask t;
@@ -194,6 +195,9 @@ Status plan_jobs(const std::vector<BakeJob>& jobs, const PlanOptions& options, s
       }
       t.inputs = inputs;
       t.outputs = maps;
+      for (const PackSpec& pack : job.options.packs) {
+        if (!has_udim_token(pack.path)) t.outputs.push_back(absolute(pack.path));
+      }
       if (!job.report_path.empty()) t.outputs.push_back(absolute(job.report_path));
       t.key = key.hex();
       tasks.push_back(std::move(t));
