@@ -13,7 +13,9 @@
 
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <iterator>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <string>
@@ -400,6 +402,66 @@ TEST(Transfer, PackMistakesAreFoundBeforeTheBake) {
                           "orm.png=r:ao.r", "o_<MAP>.png=r:ao"}) {
     EXPECT_EQ(parse_pack(bad, pack).code(), StatusCode::bad_input) << bad;
   }
+}
+
+// Opacity and emission from MTL: map_d reads the texture's alpha (here a
+// known function), d the factor of a material without one; Ke alone gives
+// its colour, map_Ke replaces it.
+TEST(Transfer, OpacityAndEmissionFromMtl) {
+  TransferScene scene = make_scene();
+  const auto n = static_cast<std::uint32_t>(scene.high.triangle_count());
+  scene.high.materials = {{"masked", 0, n / 2}, {"glow", n / 2, n - n / 2}};
+  test::TempDir dir;
+  Image alpha = texture_image(128, false);
+  Image rgba;
+  rgba.width = rgba.height = 128;
+  rgba.channels = 4;
+  for (int j = 0; j < 128; ++j) {
+    for (int i = 0; i < 128; ++i) {
+      const float* p = alpha.at(i, j);
+      rgba.pixels.insert(rgba.pixels.end(), {0.5f, 0.5f, 0.5f, p[0]});  // alpha = red(s, t), linear
+    }
+  }
+  ASSERT_TRUE(write_image(rgba, dir.file("cutout.png"), PixelFormat::png16).is_ok());
+  ASSERT_TRUE(save_mesh(dir.file("low.obj"), scene.low).is_ok());
+  ASSERT_TRUE(save_mesh(dir.file("high.obj"), scene.high).is_ok());
+  test::write_text(dir.file("high.obj"), "mtllib high.mtl\n" + read_bytes(dir.file("high.obj")));
+  test::write_text(dir.file("high.mtl"),
+                   "newmtl masked\nd 0.3\nmap_d cutout.png\nnewmtl glow\nd 0.4\nKe 0.2 0.5 1.0\n");
+  BakeOptions o = transfer_bake(dir, 64);
+  o.maps = {MapKind::opacity, MapKind::emissive};
+  BakeReport report;
+  const Status s = bake(o, report);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  Image opacity, emissive;
+  ASSERT_TRUE(read_image(dir.file("m_opacity.exr"), opacity).is_ok());
+  ASSERT_TRUE(read_image(dir.file("m_emissive.exr"), emissive).is_ok());
+  // Which material a point hits: the high's first half of triangles is its
+  // lower rows (make_heightfield writes rows from y's minimum).
+  const double split_y = scene.min_y + scene.side / 2;
+  // Texels within two of the materials' border are not scored: a sample
+  // there may fall either side (float against double).
+  const auto expected = [&](const std::function<double(const glm::dvec3&, bool)>& f) {
+    const double margin = 2.0 * scene.side / (0.4 * 64);
+    scenes::ExpectedMap map = scenes::expected_from_low_points(
+        scene.low, 64, 64, 4, [&](const glm::dvec3& p) { return f(p, p.y < split_y); });
+    const scenes::ExpectedMap near = scenes::expected_from_low_points(
+        scene.low, 64, 64, 4,
+        [&](const glm::dvec3& p) { return std::abs(p.y - split_y) < margin ? 1.0 : 0.0; });
+    for (std::size_t i = 0; i < map.value.size(); ++i) {
+      if (near.value[i] > 0.0) map.value[i] = std::numeric_limits<double>::quiet_NaN();
+    }
+    return map;
+  };
+  const scenes::MapError e = scenes::score_map(opacity, 0, expected([&](const glm::dvec3& p, bool masked) {
+                                                 const glm::dvec2 uv = scene.uv_of(p);
+                                                 return masked ? red(uv.x, uv.y) : 0.4;
+                                               }));
+  EXPECT_GT(e.texels, 2000u);
+  EXPECT_LT(e.max, filter_bound(64, 128, 16)) << e.to_text();
+  const scenes::MapError glow = scenes::score_map(
+      emissive, 2, expected([](const glm::dvec3&, bool masked) { return masked ? 0.0 : 1.0; }));
+  EXPECT_LT(glow.max, 1e-6) << glow.to_text();
 }
 
 // PNG outputs of colour maps are sRGB-encoded (8-bit), EXR linear: the PNG
