@@ -40,22 +40,26 @@
 
 namespace nmbake {
 
-// One level of a mip chain: RGBA texels (a grey image as (g, g, g, 1),
-// grey + alpha as (g, g, g, a), RGB with a = 1) in 4 x 4 blocks, blocks in
-// rows: a chart laid across the texture's rows (a rotated UV island) walks
-// it down a column, and a block serves four texels of that walk from one
-// cache line (BENCHMARKS.md, "Texture transfer").
+// One level of a mip chain: texels in 4 x 4 blocks, blocks in rows (a
+// chart laid across the texture's rows, a rotated UV island, walks it down a
+// column, and a block serves four texels of that walk from one cache line:
+// BENCHMARKS.md, "Texture transfer"). A grey image keeps one float a texel,
+// any other four (RGBA: grey + alpha as (g, g, g, a), RGB with a = 1).
 struct MipLevel {
   int width = 0, height = 0;
   int blocks_x = 0;
-  std::vector<glm::vec4> texels;
+  int channels = 4;  // 1 or 4
+  std::vector<float> data;
   std::size_t index(int x, int y) const {
     const std::size_t block = static_cast<std::size_t>(y >> 2) * static_cast<std::size_t>(blocks_x) +
                               static_cast<std::size_t>(x >> 2);
-    return block * 16 + static_cast<std::size_t>((y & 3) * 4 + (x & 3));
+    return (block * 16 + static_cast<std::size_t>((y & 3) * 4 + (x & 3))) *
+           static_cast<std::size_t>(channels);
   }
-  const glm::vec4& at(int x, int y) const { return texels[index(x, y)]; }
-  glm::vec4& at(int x, int y) { return texels[index(x, y)]; }
+  glm::vec4 at(int x, int y) const {
+    const float* p = &data[index(x, y)];
+    return channels == 1 ? glm::vec4(p[0], p[0], p[0], 1.0f) : glm::vec4(p[0], p[1], p[2], p[3]);
+  }
 };
 
 // One image, mip-mapped: levels[0] as read (linear, colour decoded), each

@@ -79,8 +79,9 @@ MipLevel to_level(const Image& image) {
   level.height = image.height;
   level.blocks_x = (image.width + 3) / 4;
   const int blocks_y = (image.height + 3) / 4;
-  detail::size_output(level.texels, static_cast<std::size_t>(level.blocks_x) * blocks_y * 16);
   const int c = image.channels;
+  level.channels = c == 1 ? 1 : 4;
+  detail::size_output(level.data, static_cast<std::size_t>(level.blocks_x) * blocks_y * 16 * level.channels);
   tbb::parallel_for(tbb::blocked_range<int>(0, image.height), [&](const tbb::blocked_range<int>& rows) {
     for (int y = rows.begin(); y != rows.end(); ++y) {
       for (int x = 0; x < image.width; ++x) {
@@ -100,7 +101,15 @@ MipLevel to_level(const Image& image) {
             v = glm::vec4(p[0], p[1], p[2], p[3]);
             break;
         }
-        level.at(x, y) = v;
+        float* out = &level.data[level.index(x, y)];
+        if (level.channels == 1) {
+          out[0] = v.r;
+        } else {
+          out[0] = v.r;
+          out[1] = v.g;
+          out[2] = v.b;
+          out[3] = v.a;
+        }
       }
     }
   });
@@ -302,7 +311,7 @@ Status load_material_textures(const Mesh& high, const std::string& high_path, co
   });
   for (std::size_t r = 0; r < reads.size(); ++r) {
     NMBAKE_TRY(status[r]);
-    for (const MipLevel& level : mips[r].levels) out.bytes += level.texels.size() * sizeof(glm::vec4);
+    for (const MipLevel& level : mips[r].levels) out.bytes += level.data.size() * sizeof(float);
     out.textures[reads[r].texture].tiles.emplace(reads[r].tile, std::move(mips[r]));
   }
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
