@@ -44,6 +44,7 @@ inline constexpr Word<PixelFormat> kPixelFormatWords[] = {
 NMBAKE_WORDS(PixelFormat, kPixelFormatWords)
 // Whether the format stores 8 bits a sample (png8, tga8): the ones dithered.
 bool is_8bit(PixelFormat format);
+bool is_float_format(PixelFormat format);  // EXR: values stored as they are
 // From the file extension: .png -> png16, .tif/.tiff -> tiff16, .exr -> exr_float, .tga -> tga8.
 bool pixel_format_from_path(const std::string& path, PixelFormat& out);
 // Whether `format` can be written to a file with this extension.

@@ -217,8 +217,7 @@ std::vector<float> vertex_mean_curvature(const Mesh& high, const std::vector<glm
 // bounds (position), vertex curvature (curvature), and each triangle's part
 // or material with their names and colours (id), for the maps in `maps`
 // only. The transfer maps' per-triangle data (materials, corner UVs) need
-// high.corner_uvs and material_defs; its textures are read before
-// (load_material_textures() into transfer.textures, kept).
+// high.corner_uvs and material_defs; its textures are handed in.
 struct MapMeshData {
   Bounds position_bounds;
   std::vector<float> vertex_curvature;
@@ -227,7 +226,7 @@ struct MapMeshData {
   std::vector<std::uint32_t> triangle_id;  // in the scene's triangle order (after groups)
   std::vector<glm::vec3> id_colors;
   std::vector<std::pair<std::string, glm::vec3>> ids;  // name, colour; in order of first triangle
-  SurfaceTransfer transfer;  // textures: load_material_textures() before prepare_map_mesh()
+  SurfaceTransfer transfer;
   // Points `settings` at this data (which must outlive it).
   void apply(MapSettings& settings) const;
 };
@@ -237,8 +236,10 @@ struct MapMeshData {
 // area-weighted ones. The id map's names are `id_source`'s
 // (resolve_id_source()); an explicit material source on a mesh without
 // named materials is the caller's error to report first (all "" then).
+// `textures`: the high's textures the transfer maps read
+// (load_material_textures(); empty without transfer maps), kept in `out`.
 void prepare_map_mesh(const Mesh& high, const std::vector<MapKind>& maps, IdSource id_source,
-                      const BakeGroups& groups, MapMeshData& out);
+                      const BakeGroups& groups, TextureSet textures, MapMeshData& out);
 
 // What the bands of a map set counted: per map (in the set's order) the
 // figures its module added up band by band (fallback counters), and the rays

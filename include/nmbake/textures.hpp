@@ -33,6 +33,7 @@
 #include <utility>
 #include <vector>
 
+#include "nmbake/color.hpp"
 #include "nmbake/common.hpp"
 #include "nmbake/image.hpp"
 #include "nmbake/material.hpp"
@@ -94,10 +95,6 @@ glm::vec4 sample_texture(const LoadedTexture& texture, const TextureRef& ref, gl
 // luminance of RGB for -1 (and for the alpha of an image without one, which
 // sample_texture gives as 1: opacity maps read alpha only where it exists).
 float texture_channel(const glm::vec4& value, int channel, bool has_alpha);
-
-// The sRGB transfer functions (IEC 61966-2-1), on [0, 1] (clamped).
-float srgb_to_linear(float v);
-float linear_to_srgb(float v);
 
 // Which attributes a bake reads (the transfer maps it bakes).
 struct TextureNeeds {

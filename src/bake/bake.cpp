@@ -303,10 +303,11 @@ Status prepare_high_scene(const BakeOptions& o, BakeReport& r, StageTimer& timer
   timer.start("prepare");
   prepare_low_normals(m.low, r.low_mesh);
   if (o.encode.high_normals == HighNormals::smooth) prepare_high_normals(m.high, r.high_mesh);
+  TextureSet textures;
   if (const TextureNeeds needs = texture_needs(o.maps); needs.any()) {
-    NMBAKE_TRY(load_material_textures(m.high, o.high_path, needs, s.map_mesh.transfer.textures));
+    NMBAKE_TRY(load_material_textures(m.high, o.high_path, needs, textures));
   }
-  prepare_map_mesh(m.high, o.maps, o.id_source, m.groups, s.map_mesh);
+  prepare_map_mesh(m.high, o.maps, o.id_source, m.groups, std::move(textures), s.map_mesh);
   detail::report_map_mesh(s.map_mesh, r);
   if (m.groups.grouped()) group_high_mesh(o, m.groups, m.high, s.groups);
   r.high_triangles_used = m.high.triangle_count();

@@ -43,8 +43,7 @@ Status write_pack_files(MapSet& maps, const std::vector<PackSpec>& packs, int ud
   for (const PackSpec& pack : packs) {
     const std::string path = udim_path(pack.path, udim_tile);
     const PixelFormat format = pack_format(path);
-    const bool integer = !(format == PixelFormat::exr_half || format == PixelFormat::exr_float ||
-                           format == PixelFormat::exr_float_piz);
+    const bool integer = !is_float_format(format);
     const float steps = format == PixelFormat::tiff16 ? 65535.0f : 255.0f;
     const bool eight = is_8bit(format);
     Image out;

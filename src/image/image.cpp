@@ -31,6 +31,7 @@
 #include "image/oiio.hpp"
 #include "image/png.hpp"
 #include "nmbake/cleanup.hpp"
+#include "nmbake/color.hpp"
 #include "nmbake/memory.hpp"
 
 namespace nmbake {
@@ -386,6 +387,11 @@ Status check_image_header(const std::string& path, const ImageFileInfo& info) {
 
 bool is_8bit(PixelFormat format) { return format == PixelFormat::png8 || format == PixelFormat::tga8; }
 
+bool is_float_format(PixelFormat format) {
+  return format == PixelFormat::exr_half || format == PixelFormat::exr_float ||
+         format == PixelFormat::exr_float_piz;
+}
+
 bool pixel_format_from_path(const std::string& path, PixelFormat& out) {
   const std::string ext = lower_extension(path);
   if (ext == ".png") {
@@ -456,19 +462,12 @@ Image mapped_copy(const Image& image, float scale, float offset) {
 // first three, or the first of one or two), alpha as it is.
 Image srgb_copy(const Image& image, float scale, float offset) {
   Image out = mapped_copy(image, scale, offset);
-  const int c = image.channels;
-  const int colour = c >= 3 ? 3 : 1;
+  const auto c = static_cast<std::size_t>(image.channels);
+  const std::size_t colour = c >= 3 ? 3 : 1;
   for (std::size_t i = 0; i < out.pixels.size(); ++i) {
-    if (static_cast<int>(i % c) >= colour) continue;
-    float v = std::clamp(out.pixels[i], 0.0f, 1.0f);
-    out.pixels[i] = v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
+    if (i % c < colour) out.pixels[i] = linear_to_srgb(out.pixels[i]);
   }
   return out;
-}
-
-bool is_float_format(PixelFormat format) {
-  return format == PixelFormat::exr_half || format == PixelFormat::exr_float ||
-         format == PixelFormat::exr_float_piz;
 }
 
 }  // namespace

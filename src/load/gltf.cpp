@@ -37,6 +37,7 @@
 
 #include "load/parsers.hpp"
 #include "load/tinygltf.hpp"
+#include "nmbake/color.hpp"
 #include "nmbake/memory.hpp"
 
 namespace nmbake::load_detail {
@@ -919,10 +920,7 @@ class GltfReader {
       out_.colors.resize(base + vertex_count, glm::vec4(1.0f));
       if (color_accessor >= 0) {
         any_colors_ = true;
-        const auto encode = [](float c) {
-          c = std::clamp(c, 0.0f, 1.0f);
-          return c <= 0.0031308f ? 12.92f * c : 1.055f * std::pow(c, 1.0f / 2.4f) - 0.055f;
-        };
+        const auto encode = linear_to_srgb;
         if (std::string e = read_accessor(model_, color_accessor, color_components, false, count,
                                           [&](std::size_t v, const float* c) {
                                             out_.colors[base + v] =

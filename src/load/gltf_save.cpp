@@ -13,6 +13,7 @@
 
 #include "load/parsers.hpp"
 #include "load/tinygltf.hpp"
+#include "nmbake/color.hpp"
 
 namespace nmbake::load_detail {
 
@@ -89,10 +90,7 @@ Status encode_gltf(const Mesh& mesh, const std::string& bin_uri, std::string& by
   if (mesh.has_colors()) {
     // glTF colours are linear; nmbake's are sRGB-encoded (load.hpp): the
     // loader's curve, inverted.
-    const auto decode = [](float c) {
-      c = std::clamp(c, 0.0f, 1.0f);
-      return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
-    };
+    const auto decode = srgb_to_linear;
     linear_colors.reserve(vertex_count);
     for (const glm::vec4& c : mesh.colors)
       linear_colors.emplace_back(decode(c.r), decode(c.g), decode(c.b), c.a);

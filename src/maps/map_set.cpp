@@ -236,9 +236,8 @@ void prepare_transfer(const Mesh& high, const BakeGroups& groups, SurfaceTransfe
 }  // namespace
 
 void prepare_map_mesh(const Mesh& high, const std::vector<MapKind>& maps, IdSource id_source,
-                      const BakeGroups& groups, MapMeshData& out) {
+                      const BakeGroups& groups, TextureSet textures, MapMeshData& out) {
   const auto wants = [&](MapKind map) { return std::find(maps.begin(), maps.end(), map) != maps.end(); };
-  TextureSet textures = std::move(out.transfer.textures);
   out = MapMeshData{};
   out.transfer.textures = std::move(textures);
   if (texture_needs(maps).any()) prepare_transfer(high, groups, out.transfer);

@@ -55,6 +55,7 @@ Image half_level(const Image& fine) {
 }
 
 int wrap_index(int i, int n, TextureWrap wrap) {
+  if (i >= 0 && i < n) return i;  // inside: every mode leaves it (no division on the common path)
   switch (wrap) {
     case TextureWrap::clamp:
       return std::clamp(i, 0, n - 1);
@@ -126,9 +127,8 @@ glm::vec4 bilinear(const MipLevel& level, float x, float y, const TextureRef& re
   const int ix = static_cast<int>(fx), iy = static_cast<int>(fy);
   const int x0 = wrap_index(ix, level.width, ref.wrap_u), x1 = wrap_index(ix + 1, level.width, ref.wrap_u);
   const int y0 = wrap_index(iy, level.height, ref.wrap_v), y1 = wrap_index(iy + 1, level.height, ref.wrap_v);
-  const auto texel = [&](int tx, int ty) { return level.at(tx, ty); };
-  const glm::vec4 top = texel(x0, y0) * (1.0f - ax) + texel(x1, y0) * ax;
-  const glm::vec4 bottom = texel(x0, y1) * (1.0f - ax) + texel(x1, y1) * ax;
+  const glm::vec4 top = level.at(x0, y0) * (1.0f - ax) + level.at(x1, y0) * ax;
+  const glm::vec4 bottom = level.at(x0, y1) * (1.0f - ax) + level.at(x1, y1) * ax;
   return top * (1.0f - ay) + bottom * ay;
 }
 
@@ -171,16 +171,6 @@ Status read_texture_image(const std::string& path, bool color, Image& image) {
 }
 
 }  // namespace
-
-float srgb_to_linear(float v) {
-  v = std::clamp(v, 0.0f, 1.0f);
-  return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
-}
-
-float linear_to_srgb(float v) {
-  v = std::clamp(v, 0.0f, 1.0f);
-  return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
-}
 
 MipTexture make_mip_texture(Image image) {
   MipTexture mip;

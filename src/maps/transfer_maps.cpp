@@ -8,6 +8,7 @@
 #include <atomic>
 #include <cmath>
 #include <glm/geometric.hpp>
+#include <vector>
 
 #include "maps/modules.hpp"
 #include "nmbake/textures.hpp"
@@ -17,121 +18,113 @@ namespace {
 
 using maps_detail::texel_means;
 
-// Per sample: the footprint (UV width on the high's texture) of one sample
-// of a texel of a width x height map.
-struct Footprint {
-  float texel_scale;  // 1 / sqrt(width * height * samples)
-
-  float of(const BandInputs& in, const SurfaceTransfer& transfer, std::size_t s, std::int32_t hit) const {
-    const auto low = static_cast<std::size_t>(in.samples.triangle[s]);
-    const glm::vec3* p = &in.surface.position[3 * low];
-    const glm::vec2* uv = &in.surface.uv[3 * low];
-    const float area = glm::length(glm::cross(p[1] - p[0], p[2] - p[0]));
-    const glm::vec2 a = uv[1] - uv[0], b = uv[2] - uv[0];
-    const float uv_area = std::abs(a.x * b.y - a.y * b.x);
-    if (!(uv_area > 0.0f)) return 0.0f;
-    const float side = std::sqrt(area / uv_area) * texel_scale;  // scene units per sample
-    const float f = side * transfer.uv_density[static_cast<std::size_t>(hit)];
-    return std::isfinite(f) ? f : 0.0f;
-  }
+// What a map reads of one material: its factor (a scalar map's in .r), the
+// texture (an index into the texture set, -1: none) and how it is read.
+struct Attribute {
+  glm::vec3 factor;
+  const TextureRef* ref;
+  int texture;
+  bool alpha;  // the texture has an alpha channel
 };
 
-glm::vec2 hit_uv(const SurfaceTransfer& transfer, std::int32_t hit, glm::vec2 b) {
-  return maps_detail::interpolate(transfer.corner_uv, 3 * static_cast<std::size_t>(hit), b);
+Attribute attribute_of(MapKind kind, const Material& m, const MaterialTextures& t, const TextureSet& set) {
+  Attribute a{glm::vec3(m.base_color.a), &m.opacity_texture, t.opacity, false};
+  switch (kind) {
+    case MapKind::base_color:
+      a = {glm::vec3(m.base_color), &m.base_color_texture, t.base_color, false};
+      break;
+    case MapKind::emissive:
+      a = {m.emissive, &m.emissive_texture, t.emissive, false};
+      break;
+    case MapKind::roughness:
+      a = {glm::vec3(m.roughness), &m.roughness_texture, t.roughness, false};
+      break;
+    case MapKind::metallic:
+      a = {glm::vec3(m.metallic), &m.metallic_texture, t.metallic, false};
+      break;
+    default:
+      break;
+  }
+  if (a.texture >= 0) {
+    const int c = set.textures[static_cast<std::size_t>(a.texture)].tiles.begin()->second.channels;
+    a.alpha = c == 2 || c == 4;
+  }
+  return a;
 }
 
 struct TransferModule : MapSet::Module {
   explicit TransferModule(MapKind map) : Module(map) {}
 
+  // Per low triangle: the side of one sample of a texel in scene units,
+  // sqrt(area / UV area) / sqrt(width * height * samples) (0 for a triangle
+  // without UV area), for the footprint (textures.hpp). Every band of a map
+  // set reads the same surface: computed at its first band.
+  std::vector<float> sample_side_;
+
   void encode_band(const BandInputs& in, const MapSettings& settings, EncodeStats&) override {
     NMBAKE_CHECK(settings.transfer != nullptr && settings.map_height > 0, "surface data for a transfer map");
     const SurfaceTransfer& transfer = *settings.transfer;
-    const Footprint footprint{
-        1.0f / std::sqrt(static_cast<float>(in.samples.width) * static_cast<float>(settings.map_height) *
-                         static_cast<float>(in.samples.samples))};
+    if (sample_side_.empty()) {
+      NMBAKE_CHECK(in.surface.triangle_count() > 0, "a low surface");
+      const float texel_scale =
+          1.0f / std::sqrt(static_cast<float>(in.samples.width) * static_cast<float>(settings.map_height) *
+                           static_cast<float>(in.samples.samples));
+      sample_side_.resize(in.surface.triangle_count());
+      for (std::size_t t = 0; t < sample_side_.size(); ++t) {
+        const glm::vec3* p = &in.surface.position[3 * t];
+        const glm::vec2* uv = &in.surface.uv[3 * t];
+        const float area = glm::length(glm::cross(p[1] - p[0], p[2] - p[0]));
+        const glm::vec2 a = uv[1] - uv[0], b = uv[2] - uv[0];
+        const float uv_area = std::abs(a.x * b.y - a.y * b.x);
+        sample_side_[t] = uv_area > 0.0f ? std::sqrt(area / uv_area) * texel_scale : 0.0f;
+      }
+    }
+    NMBAKE_CHECK(sample_side_.size() == in.surface.triangle_count(), "one surface for the map set's bands");
+    std::vector<Attribute> attributes;
+    for (std::size_t m = 0; m < transfer.materials.size(); ++m) {
+      attributes.push_back(
+          attribute_of(kind, transfer.materials[m], transfer.material_textures[m], transfer.textures));
+    }
     std::atomic<std::uint64_t> factor_only{0}, tile_missing{0};
-    const auto texture_of = [&](const MaterialTextures& t) {
-      switch (kind) {
-        case MapKind::base_color:
-          return t.base_color;
-        case MapKind::roughness:
-          return t.roughness;
-        case MapKind::metallic:
-          return t.metallic;
-        case MapKind::emissive:
-          return t.emissive;
-        default:
-          return t.opacity;
-      }
-    };
-    const auto ref_of = [&](const Material& m) -> const TextureRef& {
-      switch (kind) {
-        case MapKind::base_color:
-          return m.base_color_texture;
-        case MapKind::roughness:
-          return m.roughness_texture;
-        case MapKind::metallic:
-          return m.metallic_texture;
-        case MapKind::emissive:
-          return m.emissive_texture;
-        default:
-          return m.opacity_texture;
-      }
-    };
-    // The material, and its texture's value at the sample (RGBA, 1 without
-    // one); false: no texture.
-    const auto lookup = [&](std::size_t s, const Material*& m, glm::vec4& texel, bool& alpha) {
+    // The hit material's attribute, and its texture's value at the sample
+    // (RGBA; 1 without a texture); false: no texture.
+    const auto lookup = [&](std::size_t s, const Attribute*& a, glm::vec4& texel) {
       const std::int32_t hit = in.hits.triangle[s];
-      const std::uint32_t index = transfer.triangle_material[static_cast<std::size_t>(hit)];
-      m = &transfer.materials[index];
+      a = &attributes[transfer.triangle_material[static_cast<std::size_t>(hit)]];
       texel = glm::vec4(1.0f);
-      alpha = false;
-      const int t = texture_of(transfer.material_textures[index]);
-      if (t < 0) {
+      if (a->texture < 0) {
         factor_only.fetch_add(1, std::memory_order_relaxed);
         return false;
       }
-      const LoadedTexture& texture = transfer.textures.textures[static_cast<std::size_t>(t)];
+      // The footprint: the sample's side on the low times the hit triangle's UV density.
+      const float f = sample_side_[static_cast<std::size_t>(in.samples.triangle[s])] *
+                      transfer.uv_density[static_cast<std::size_t>(hit)];
       bool missing = false;
-      texel = sample_texture(texture, ref_of(*m), hit_uv(transfer, hit, in.hits.bary[s]),
-                             footprint.of(in, transfer, s, hit), missing);
+      texel = sample_texture(
+          transfer.textures.textures[static_cast<std::size_t>(a->texture)], *a->ref,
+          maps_detail::interpolate(transfer.corner_uv, 3 * static_cast<std::size_t>(hit), in.hits.bary[s]),
+          std::isfinite(f) ? f : 0.0f, missing);
       if (missing) tile_missing.fetch_add(1, std::memory_order_relaxed);
-      const int c = texture.tiles.begin()->second.channels;
-      alpha = c == 2 || c == 4;
       return true;
     };
     if (map_traits(kind).channels == 3) {
       texel_means<3>(in, image, {0.0f, 0.0f, 0.0f}, [&](std::size_t s, std::array<float, 3>& v) {
         v = {0.0f, 0.0f, 0.0f};
         if (in.hits.triangle[s] < 0) return;
-        const Material* m = nullptr;
+        const Attribute* a = nullptr;
         glm::vec4 texel;
-        bool alpha = false;
-        lookup(s, m, texel, alpha);
-        const glm::vec3 factor = kind == MapKind::base_color ? glm::vec3(m->base_color) : m->emissive;
-        const glm::vec3 c = factor * glm::vec3(texel);
+        lookup(s, a, texel);
+        const glm::vec3 c = a->factor * glm::vec3(texel);
         v = {c.r, c.g, c.b};
       });
     } else {
       texel_means<1>(in, image, {0.0f}, [&](std::size_t s, std::array<float, 1>& v) {
         v = {0.0f};
         if (in.hits.triangle[s] < 0) return;
-        const Material* m = nullptr;
+        const Attribute* a = nullptr;
         glm::vec4 texel;
-        bool alpha = false;
-        const bool textured = lookup(s, m, texel, alpha);
-        float factor = m->base_color.a;
-        int channel = 3;
-        if (kind == MapKind::roughness) {
-          factor = m->roughness;
-          channel = m->roughness_texture.channel;
-        } else if (kind == MapKind::metallic) {
-          factor = m->metallic;
-          channel = m->metallic_texture.channel;
-        } else {
-          channel = m->opacity_texture.channel;
-        }
-        v[0] = factor * (textured ? texture_channel(texel, channel, alpha) : 1.0f);
+        const bool textured = lookup(s, a, texel);
+        v[0] = a->factor.r * (textured ? texture_channel(texel, a->ref->channel, a->alpha) : 1.0f);
       });
     }
     add("samples with the factor alone (no texture)", static_cast<double>(factor_only.load()));
