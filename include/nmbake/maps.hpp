@@ -301,7 +301,7 @@ class MapSet {
  private:
   std::vector<std::unique_ptr<Module>> modules_;
   MapSettings settings_;
-  int width_, first_row_, last_row_;
+  int first_row_, last_row_;
   // Per sample of the current band, from trace_rays().
   std::vector<float> visibility_, thickness_;
   std::vector<glm::vec3> bent_;

@@ -303,7 +303,7 @@ double MapReport::figure(const std::string& name) const {
 }
 
 MapSet::MapSet(const MapSettings& settings, int width, int first_row, int last_row)
-    : settings_(settings), width_(width), first_row_(first_row), last_row_(last_row) {
+    : settings_(settings), first_row_(first_row), last_row_(last_row) {
   settings_.encode.out_row_begin = first_row;
   for (const MapKind map : settings_.maps) {
     std::unique_ptr<Module> m = make_map_module(map, settings_);
