@@ -32,7 +32,7 @@ BakeOptions scene_bake(const test::TempDir& dir, const scenes::ScenePair& pair, 
   EXPECT_TRUE(save_mesh(dir.file("high.ply"), pair.high).is_ok());
   BakeOptions o;
   o.low_path = dir.file("low.obj");
-  o.high_path = dir.file("high.ply");
+  o.high_paths = {dir.file("high.ply")};
   o.width = width;
   o.height = height;
   o.adaptive = true;

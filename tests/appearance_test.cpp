@@ -80,14 +80,14 @@ void bake_box(BoxBake& b) {
   ASSERT_TRUE(save_mesh(b.dir.file("high.ply"), pair.high).is_ok());
   BakeOptions o;
   o.low_path = b.dir.file("low.obj");
-  o.high_path = b.dir.file("high.ply");
+  o.high_paths = {b.dir.file("high.ply")};
   o.outputs = {{b.dir.file("map.exr"), PixelFormat::exr_float}};
   o.width = o.height = 128;
   o.padding = 4;
   BakeReport report;
   ASSERT_TRUE(bake(o, report).is_ok());
   ASSERT_TRUE(read_image(b.dir.file("map.exr"), b.map).is_ok());
-  ASSERT_TRUE(load_preview_meshes(o.low_path, o.high_path, b.low, b.surface, b.high).is_ok());
+  ASSERT_TRUE(load_preview_meshes(o.low_path, o.high_paths[0], b.low, b.surface, b.high).is_ok());
 }
 
 TEST(Appearance, FlippedGreenIsMuchWorseThanTheRightMap) {

@@ -35,7 +35,7 @@ BakeOptions save_scene(const test::TempDir& dir, const scenes::ScenePair& scene,
   EXPECT_TRUE(save_mesh(dir.file("high.ply"), scene.high).is_ok());
   BakeOptions o;
   o.low_path = dir.file("low.obj");
-  o.high_path = dir.file("high.ply");
+  o.high_paths = {dir.file("high.ply")};
   o.width = o.height = size;
   o.samples = 4;
   return o;

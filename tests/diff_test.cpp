@@ -118,7 +118,7 @@ TEST(Diff, PngAndExrOfOneBakeAgree) {
   ASSERT_TRUE(save_mesh(dir.file("high.ply"), scene.high).is_ok());
   BakeOptions o;
   o.low_path = dir.file("low.obj");
-  o.high_path = dir.file("high.ply");
+  o.high_paths = {dir.file("high.ply")};
   o.outputs = {{dir.file("map.png"), PixelFormat::png16},
                {dir.file("map.exr"), PixelFormat::exr_float},
                {dir.file("map_half.exr"), PixelFormat::exr_half},

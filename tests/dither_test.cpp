@@ -108,7 +108,7 @@ TEST(Dither, BreaksTheBandsOfTheSphereAndKeepsTheMean) {
   ASSERT_TRUE(save_mesh(dir.file("high.ply"), pair.high).is_ok());
   BakeOptions o;
   o.low_path = dir.file("low.obj");
-  o.high_path = dir.file("high.ply");
+  o.high_paths = {dir.file("high.ply")};
   o.width = o.height = 512;
   o.padding = 0;  // background stays background: runs are counted inside the charts
   o.outputs = {{dir.file("float.exr"), PixelFormat::exr_float},
@@ -176,7 +176,7 @@ TEST(Dither, PresetBakeSameBytesWithOneThreadOrAllAndFromTiles) {
   ASSERT_TRUE(save_mesh(dir.file("high.ply"), pair.high).is_ok());
   BakeOptions o;
   o.low_path = dir.file("low.obj");
-  o.high_path = dir.file("high.ply");
+  o.high_paths = {dir.file("high.ply")};
   o.width = 160;
   o.height = 96;
   o.preset = "godot";

@@ -268,7 +268,7 @@ TEST(Height2Normal, CubeSphereTangentSpaceMatchesBake) {
 
   BakeOptions o;
   o.low_path = dir.file("low.obj");
-  o.high_path = dir.file("high.ply");
+  o.high_paths = {dir.file("high.ply")};
   o.outputs = {{dir.file("bake.exr"), PixelFormat::exr_float}};
   o.width = width;
   o.height = height;

@@ -1105,7 +1105,7 @@ TEST(Hostile, SameBytesForEveryThreadCountAndBandSize) {
 
   BakeOptions o;
   o.low_path = s.low;
-  o.high_path = s.high;
+  o.high_paths = {s.high};
   o.width = 96;
   o.height = 80;
   o.samples = 4;

@@ -48,7 +48,7 @@ bvh = "compact"
   EXPECT_EQ(a.rays.back.kind, Distance::Kind::absolute);
   EXPECT_FLOAT_EQ(a.rays.back.value, 0.25f);
   EXPECT_EQ(a.low_path, (dir.path() / "meshes/low.obj").string());
-  EXPECT_EQ(a.high_path, "/abs/high.ply");
+  EXPECT_EQ(a.high_paths, std::vector<std::string>{"/abs/high.ply"});
   ASSERT_EQ(a.outputs.size(), 2u);
   EXPECT_EQ(a.outputs[0].format, PixelFormat::png16);
   EXPECT_EQ(a.outputs[1].format, PixelFormat::exr_half);

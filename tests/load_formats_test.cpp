@@ -1372,5 +1372,74 @@ TEST(LoadFormatsBake, JobFilesTakeTangentsAndUvSet) {
   EXPECT_FALSE(load_job_file(path, jobs).is_ok());
 }
 
+// ------------------------------------------------- several files as one mesh
+
+TEST(LoadMeshes, SeveralFilesAppendInOrder) {
+  TempDir dir;
+  // a.obj: normals and a material; b.obj: neither, a material of the same
+  // name defined otherwise; c.obj: that material as a.obj defines it.
+  write_text(dir.file("a.mtl"), "newmtl paint\nKd 1 0 0\n");
+  write_text(dir.file("b.mtl"), "newmtl paint\nKd 0 0 1\n");
+  write_text(dir.file("a.obj"),
+             "mtllib a.mtl\no body\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nusemtl paint\nf 1//1 2//1 3//1\n");
+  write_text(dir.file("b.obj"), "mtllib b.mtl\nv 0 0 1\nv 1 0 1\nv 0 1 1\nusemtl paint\nf 1 2 3\n");
+  write_text(dir.file("c.obj"), "mtllib a.mtl\nv 0 0 2\nv 1 0 2\nv 0 1 2\nusemtl paint\nf 1 2 3\n");
+  LoadOptions options;
+  options.material_defs = true;
+  Mesh mesh;
+  LoadStats stats;
+  const Status s =
+      load_meshes({dir.file("a.obj"), dir.file("b.obj"), dir.file("c.obj")}, options, mesh, stats);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  ASSERT_EQ(mesh.triangle_count(), 3u);
+  EXPECT_EQ(stats.triangles, 3u);
+  EXPECT_EQ(mesh.indices, (std::vector<std::uint32_t>{0, 1, 2, 3, 4, 5, 6, 7, 8}));
+  EXPECT_EQ(mesh.positions[4], glm::vec3(1, 0, 1));
+  // The files without normals get zero normals (computed and counted when
+  // the bake normalises them).
+  ASSERT_EQ(mesh.normals.size(), 9u);
+  EXPECT_EQ(mesh.normals[0], glm::vec3(0, 0, 1));
+  EXPECT_EQ(mesh.normals[3], glm::vec3(0));
+  ASSERT_EQ(mesh.parts.size(), 3u);
+  EXPECT_EQ(mesh.parts[0].name, "body");
+  EXPECT_EQ(mesh.parts[1].name, "b");
+  EXPECT_EQ(mesh.parts[2].name, "c");
+  EXPECT_EQ(mesh.parts[2].first_triangle, 2u);
+  ASSERT_EQ(mesh.materials.size(), 3u);
+  EXPECT_EQ(mesh.materials[0].name, "paint");
+  EXPECT_EQ(mesh.materials[1].name, "b/paint");
+  EXPECT_EQ(mesh.materials[2].name, "paint");
+  ASSERT_EQ(mesh.material_defs.size(), 2u);
+  EXPECT_EQ(mesh.material_def("b/paint")->base_color, glm::vec4(0, 0, 1, 1));
+  EXPECT_EQ(mesh.material_def("paint")->base_color, glm::vec4(1, 0, 0, 1));
+  // One path is load_mesh() itself: no part named after the file.
+  ASSERT_TRUE(load_meshes({dir.file("b.obj")}, options, mesh, stats).is_ok());
+  EXPECT_TRUE(mesh.parts.empty());
+}
+
+TEST(LoadMeshes, FilesInDifferentUnitsAreRefusedNamingBoth) {
+  TempDir dir;
+  Mesh tri;
+  tri.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  tri.indices = {0, 1, 2};
+  gen::FbxModel model;
+  model.unit_scale_factor = 1.0;  // centimetres
+  ASSERT_TRUE(gen::write_fbx_binary(dir.file("cm.fbx"), tri, model).is_ok());
+  model.unit_scale_factor = 100.0;  // metres
+  ASSERT_TRUE(gen::write_fbx_binary(dir.file("m.fbx"), tri, model).is_ok());
+  ASSERT_TRUE(save_mesh(dir.file("any.obj"), tri).is_ok());
+  Mesh mesh;
+  LoadStats stats;
+  // An OBJ does not say its unit: it goes with either.
+  ASSERT_TRUE(load_meshes({dir.file("cm.fbx"), dir.file("any.obj")}, LoadOptions{}, mesh, stats).is_ok());
+  EXPECT_DOUBLE_EQ(stats.unit_meters, 0.01);
+  const Status s =
+      load_meshes({dir.file("cm.fbx"), dir.file("any.obj"), dir.file("m.fbx")}, LoadOptions{}, mesh, stats);
+  ASSERT_FALSE(s.is_ok());
+  EXPECT_TRUE(contains(s.message(), dir.file("m.fbx"))) << s.message();
+  EXPECT_TRUE(contains(s.message(), dir.file("cm.fbx"))) << s.message();
+  EXPECT_EQ(mesh.triangle_count(), 0u);
+}
+
 }  // namespace
 }  // namespace nmbake

@@ -37,7 +37,7 @@ BakeOptions scene_bake(const test::TempDir& dir, const scenes::ScenePair& scene,
   EXPECT_TRUE(save_mesh(dir.file("high.ply"), scene.high).is_ok());
   BakeOptions o;
   o.low_path = dir.file("low.obj");
-  o.high_path = dir.file("high.ply");
+  o.high_paths = {dir.file("high.ply")};
   o.width = o.height = size;
   o.samples = samples;
   return o;
@@ -676,7 +676,7 @@ TEST(Maps, VertexColorIsTheHighMeshsColourAtTheHit) {
   // read back through the sRGB curve) give the same map.
   test::TempDir glb_dir;
   ASSERT_TRUE(save_mesh(glb_dir.file("high.glb"), pair.high).is_ok());
-  o.high_path = glb_dir.file("high.glb");
+  o.high_paths = {glb_dir.file("high.glb")};
   bake_maps(glb_dir, o, {MapKind::vertex_color});
   const Image from_glb = read_map(glb_dir, MapKind::vertex_color);
   ASSERT_EQ(from_glb.pixels.size(), map.pixels.size());
@@ -700,7 +700,7 @@ TEST(Maps, IdColoursEachPartByName) {
   ASSERT_TRUE(save_mesh(dir.file("high.obj"), wall.high).is_ok());
   BakeOptions o;
   o.low_path = dir.file("low.obj");
-  o.high_path = dir.file("high.obj");
+  o.high_paths = {dir.file("high.obj")};
   o.width = o.height = 16;
   o.rays.front = o.rays.back = {Distance::Kind::absolute, 0.05f};
   o.match.unmatched = Unmatched::all;
@@ -758,7 +758,7 @@ TEST(Maps, IdColoursEachMaterialByName) {
   ASSERT_TRUE(save_mesh(dir.file("high.obj"), pair.high).is_ok());
   BakeOptions o;
   o.low_path = dir.file("low.obj");
-  o.high_path = dir.file("high.obj");
+  o.high_paths = {dir.file("high.obj")};
   o.width = o.height = 32;
   o.padding = 0;
   o.match.mode = MatchMode::off;
@@ -880,7 +880,7 @@ TEST(Maps, VertexColorFromColladaAndObjEqualsPly) {
     } else {
       ASSERT_TRUE(save_mesh(other.file(name), pair.high).is_ok());
     }
-    o.high_path = other.file(name);
+    o.high_paths = {other.file(name)};
     bake_maps(other, o, {MapKind::vertex_color});
     const Image map = read_map(other, MapKind::vertex_color);
     ASSERT_EQ(map.pixels.size(), from_ply.pixels.size());
@@ -1028,7 +1028,7 @@ TEST(Maps, OtherBakeGroupsDoNotShadow) {
   // OBJ keeps the parts as `o` names.
   ASSERT_TRUE(save_mesh(dir.file("low.obj"), low).is_ok());
   ASSERT_TRUE(save_mesh(dir.file("high.obj"), high).is_ok());
-  o.high_path = dir.file("high.obj");
+  o.high_paths = {dir.file("high.obj")};
   for (const MatchMode mode : {MatchMode::automatic, MatchMode::off}) {
     o.match.mode = mode;
     o.match.unmatched = Unmatched::all;

@@ -9,11 +9,13 @@
 #include <fstream>
 #include <functional>
 #include <iterator>
+#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "nmbake/bake.hpp"
 #include "nmbake/diff.hpp"
 #include "nmbake/job.hpp"
+#include "nmbake/load.hpp"
 #include "nmbake/udim.hpp"
 #include "test_util.hpp"
 
@@ -38,12 +40,15 @@ struct Plate {
 
 // OBJ text of several plates, each an `o` object (vertices numbered across
 // the file as OBJ does).
-std::string plates_obj(const std::vector<Plate>& plates) {
+// `materials`: a `usemtl` line for each plate (none when empty).
+std::string plates_obj(const std::vector<Plate>& plates, const std::vector<std::string>& materials = {}) {
   std::ostringstream out;
   out.precision(9);
   std::size_t base = 0;
-  for (const Plate& p : plates) {
+  for (std::size_t plate = 0; plate < plates.size(); ++plate) {
+    const Plate& p = plates[plate];
     out << "o " << p.name << "\n";
+    if (plate < materials.size()) out << "usemtl " << materials[plate] << "\n";
     const bool uv = p.u1 != p.u0;
     for (int j = 0; j <= p.n; ++j) {
       for (int i = 0; i <= p.n; ++i) {
@@ -464,7 +469,7 @@ struct BleedScene {
       o.rays.back = {Distance::Kind::absolute, 0.0005f};
     }
     o.low_path = dir.file(low);
-    o.high_path = dir.file(high);
+    o.high_paths = {dir.file(high)};
     o.outputs = {{dir.file(out), PixelFormat::png16}};
     o.width = o.height = 128;
     o.padding = 0;  // the halves of the map stay apart
@@ -673,6 +678,218 @@ TEST(BakeGroupsEndToEnd, CagePartsAreMatchedByName) {
       << s.message();
 }
 
+// ------------------------------------------------- several high files
+
+// The high split across files (one subtool a file) bakes the same bytes as
+// one file holding the same parts in the same order: matched by name, with
+// every part against everything (--match off), and the id map of parts.
+TEST(SeveralHighFiles, BakeTheSameBytesAsOneFileHoldingTheParts) {
+  BleedScene scene;
+  BakeReport report;
+  for (const bool matched : {true, false}) {
+    SCOPED_TRACE(matched);
+    BakeOptions one = scene.options("low.obj", "high.obj", "one_<MAP>.png");
+    one.maps = {MapKind::normal, MapKind::id};
+    one.id_source = IdSource::part;
+    if (!matched) one.match.mode = MatchMode::off;
+    BakeOptions two = one;
+    two.outputs = {{scene.dir.file("two_<MAP>.png"), PixelFormat::png16}};
+    two.high_paths = {scene.dir.file("a_high.obj"), scene.dir.file("b_high.obj")};
+    Status s = bake(one, report);
+    ASSERT_TRUE(s.is_ok()) << s.message();
+    s = bake(two, report);
+    ASSERT_TRUE(s.is_ok()) << s.message();
+    EXPECT_EQ(report.high_paths, two.high_paths);
+    for (const char* map : {"normal", "id"}) {
+      EXPECT_EQ(read_bytes(scene.dir.file(std::string("one_") + map + ".png")),
+                read_bytes(scene.dir.file(std::string("two_") + map + ".png")))
+          << map;
+    }
+  }
+  // The command line (--high twice) and a job file (high = [...]) the same.
+  const test::CommandResult cli =
+      test::run_command(test::cli_path() + " bake --low " + scene.dir.file("low.obj") + " --high " +
+                        scene.dir.file("a_high.obj") + " --high " + scene.dir.file("b_high.obj") +
+                        " --size 128 --padding 0 --front 0.0015 --back 0.0005 -o " +
+                        scene.dir.file("cli.png") + " --report " + scene.dir.file("cli.json") + " -q 2>&1");
+  ASSERT_EQ(cli.exit_code, 0) << cli.output;
+  ASSERT_TRUE(bake(scene.options("low.obj", "high.obj", "one.png"), report).is_ok());
+  EXPECT_EQ(read_bytes(scene.dir.file("cli.png")), read_bytes(scene.dir.file("one.png")));
+  const nlohmann::json json = nlohmann::json::parse(read_bytes(scene.dir.file("cli.json")));
+  EXPECT_EQ(json["high"], nlohmann::json({scene.dir.file("a_high.obj"), scene.dir.file("b_high.obj")}));
+  test::write_text(scene.dir.file("job.toml"),
+                   "[[bake]]\nlow = \"low.obj\"\nhigh = [\"a_high.obj\", \"b_high.obj\"]\nsize = 128\n"
+                   "padding = 0\nfront = 0.0015\nback = 0.0005\noutputs = [\"job.png\"]\n");
+  const test::CommandResult job =
+      test::run_command(test::cli_path() + " bake " + scene.dir.file("job.toml") + " -q 2>&1");
+  ASSERT_EQ(job.exit_code, 0) << job.output;
+  EXPECT_EQ(read_bytes(scene.dir.file("job.png")), read_bytes(scene.dir.file("one.png")));
+}
+
+// A file without part names is one part named after its stem (ZBrush
+// exports a subtool a file, named after the subtool), so the low's parts
+// match it by name.
+TEST(SeveralHighFiles, AFileWithoutPartNamesIsAPartNamedAfterTheFile) {
+  BleedScene scene;
+  const auto unnamed = [&](const std::string& name) {
+    std::string text = read_bytes(scene.dir.file(name));
+    text.erase(0, text.find('\n') + 1);  // the one "o NAME" line
+    ASSERT_EQ(text.find("o "), std::string::npos);
+    std::filesystem::create_directories(scene.dir.file("unnamed"));
+    test::write_text(scene.dir.file("unnamed/" + name), text);
+  };
+  unnamed("a_high.obj");
+  unnamed("b_high.obj");
+  Mesh mesh;
+  LoadStats stats;
+  ASSERT_TRUE(load_meshes({scene.dir.file("unnamed/a_high.obj"), scene.dir.file("unnamed/b_high.obj")},
+                          LoadOptions{}, mesh, stats)
+                  .is_ok());
+  ASSERT_EQ(mesh.parts.size(), 2u);
+  EXPECT_EQ(mesh.parts[0].name, "a_high");
+  EXPECT_EQ(mesh.parts[1].name, "b_high");
+  BakeReport report;
+  BakeOptions named = scene.options("low.obj", "high.obj", "named.png");
+  BakeOptions stems = scene.options("low.obj", "high.obj", "stems.png");
+  stems.high_paths = {scene.dir.file("unnamed/a_high.obj"), scene.dir.file("unnamed/b_high.obj")};
+  ASSERT_TRUE(bake(named, report).is_ok());
+  const Status s = bake(stems, report);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  EXPECT_EQ(read_bytes(scene.dir.file("named.png")), read_bytes(scene.dir.file("stems.png")));
+}
+
+// A missing or broken second file is exit 2 naming it, before anything is
+// written; so is a group naming a part no file has.
+TEST(SeveralHighFiles, AMistakeInAnyFileNamesThatFileAndWritesNothing) {
+  BleedScene scene;
+  test::write_text(scene.dir.file("broken.obj"), "v 0 0 0\nf 1 2 3\n");
+  for (const std::string& second : {std::string("missing.obj"), std::string("broken.obj")}) {
+    SCOPED_TRACE(second);
+    const test::CommandResult r =
+        test::run_command(test::cli_path() + " bake --low " + scene.dir.file("low.obj") + " --high " +
+                          scene.dir.file("a_high.obj") + " --high " + scene.dir.file(second) +
+                          " --size 64 -o " + scene.dir.file("x.png") + " -q 2>&1");
+    EXPECT_EQ(r.exit_code, 2) << r.output;
+    EXPECT_NE(r.output.find(scene.dir.file(second)), std::string::npos) << r.output;
+    EXPECT_FALSE(std::filesystem::exists(scene.dir.file("x.png")));
+  }
+  // b_low has no b_high among these files: the message names both files.
+  const test::CommandResult r =
+      test::run_command(test::cli_path() + " bake --low " + scene.dir.file("low.obj") + " --high " +
+                        scene.dir.file("a_high.obj") + " --high " + scene.dir.file("a_high.obj") +
+                        " --size 64 -o " + scene.dir.file("x.png") + " -q 2>&1");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("'b_low'"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(scene.dir.file("x.png")));
+}
+
+// ------------------------------------------------------- texture sets
+
+// A low of three plates in two materials ("metal" twice, "rubber/1"), UVs
+// on a grid of 1/64 (exact in float, also shifted by a whole tile), over a
+// bumpy high.
+struct SetScene {
+  test::TempDir dir;
+  std::vector<Plate> low{{"a", 8, 0.0f, 0.1f, 0.0f, 0.1f, 0.0f, 0.0625f, 0.4375f, 0.0625f, 0.4375f, {}, {}},
+                         {"b", 8, 0.2f, 0.3f, 0.0f, 0.1f, 0.0f, 0.5625f, 0.9375f, 0.0625f, 0.4375f, {}, {}},
+                         {"c", 8, 0.4f, 0.5f, 0.0f, 0.1f, 0.0f, 0.0625f, 0.4375f, 0.5625f, 0.9375f, {}, {}}};
+  std::vector<std::string> materials{"metal", "rubber/1", "metal"};
+  SetScene() {
+    Plate high{
+        "high", 150,    -0.05f,
+        0.55f,  -0.05f, 0.15f,
+        0.0f,   0,      0,
+        0,      0,      [](float x, float y) { return 0.002f * std::sin(90.0f * x) * std::cos(70.0f * y); },
+        {}};
+    test::write_text(dir.file("high.obj"), plates_obj({high}));
+    test::write_text(dir.file("hero_low.obj"), plates_obj(low, materials));
+  }
+  BakeOptions options(const std::string& low_file, const std::string& out) const {
+    BakeOptions o;
+    o.low_path = dir.file(low_file);
+    o.high_paths = {dir.file("high.obj")};
+    o.outputs = {{dir.file(out), PixelFormat::png16}};
+    o.maps = {MapKind::normal, MapKind::ao};
+    o.ao_rays = 8;
+    o.width = o.height = 96;
+    o.rays.front = o.rays.back = {Distance::Kind::absolute, 0.01f};
+    return o;
+  }
+};
+
+// Each set's maps equal the maps of the same low with the other set's
+// triangles moved to another UV tile (the <UDIM> bake of that file), and
+// each set gets its packs.
+TEST(TextureSets, EachSetEqualsTheBakeWithTheOtherSetInAnotherTile) {
+  SetScene scene;
+  BakeReport report;
+  BakeOptions sets = scene.options("hero_low.obj", "s_<SET>_<MAP>.png");
+  PackSpec pack;
+  ASSERT_TRUE(parse_pack(scene.dir.file("p_<SET>.png") + "=r:ao,g:ao,b:ao", pack).is_ok());
+  sets.packs = {pack};
+  Status s = bake(sets, report);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  ASSERT_EQ(report.tiles.size(), 2u);
+  EXPECT_EQ(report.tiles[0].set, "metal");
+  EXPECT_EQ(report.tiles[1].set, "rubber/1");
+  EXPECT_TRUE(std::filesystem::exists(scene.dir.file("p_metal.png")));
+  EXPECT_TRUE(std::filesystem::exists(scene.dir.file("p_rubber_1.png")));
+  // metal in tile 1001, rubber in 1002.
+  std::vector<Plate> tiled = scene.low;
+  tiled[1].uv_shift = {-1.0f, 0.0f};
+  test::write_text(scene.dir.file("tiled_low.obj"), plates_obj(tiled, scene.materials));
+  s = bake(scene.options("tiled_low.obj", "t_<UDIM>_<MAP>.png"), report);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  for (const char* map : {"normal", "ao"}) {
+    SCOPED_TRACE(map);
+    const std::string metal = read_bytes(scene.dir.file(std::string("s_metal_") + map + ".png"));
+    const std::string rubber = read_bytes(scene.dir.file(std::string("s_rubber_1_") + map + ".png"));
+    EXPECT_NE(metal, rubber);
+    EXPECT_EQ(metal, read_bytes(scene.dir.file(std::string("t_1001_") + map + ".png")));
+    EXPECT_EQ(rubber, read_bytes(scene.dir.file(std::string("t_1002_") + map + ".png")));
+  }
+  // <LOW> and <SET> from the command line: the low file's stem.
+  const test::CommandResult cli =
+      test::run_command(test::cli_path() + " bake --low " + scene.dir.file("hero_low.obj") + " --high " +
+                        scene.dir.file("high.obj") + " --size 96 --front 0.01 --back 0.01 --map normal -o '" +
+                        scene.dir.file("<LOW>_<SET>.png") + "' -q 2>&1");
+  ASSERT_EQ(cli.exit_code, 0) << cli.output;
+  EXPECT_TRUE(std::filesystem::exists(scene.dir.file("hero_low_metal.png")));
+  EXPECT_TRUE(std::filesystem::exists(scene.dir.file("hero_low_rubber_1.png")));
+}
+
+TEST(TextureSets, MistakesAreExit2AndWriteNothing) {
+  SetScene scene;
+  std::vector<std::string> clash = scene.materials;
+  clash[2] = "rubber_1";
+  test::write_text(scene.dir.file("plain_low.obj"), plates_obj(scene.low));
+  test::write_text(scene.dir.file("clash_low.obj"), plates_obj(scene.low, clash));
+  const auto run = [&](const std::string& low, const std::string& outputs) {
+    return test::run_command(test::cli_path() + " bake --low " + scene.dir.file(low) + " --high " +
+                             scene.dir.file("high.obj") + " --size 32 --front 0.01 --back 0.01 " + outputs +
+                             " -q 2>&1");
+  };
+  const std::string x = scene.dir.file("x_<SET>.png");
+  struct Case {
+    std::string low, outputs, expected;
+  };
+  for (const Case& c :
+       {Case{"plain_low.obj", "-o '" + x + "'", "has no named materials"},
+        Case{"clash_low.obj", "-o '" + x + "'", "'rubber/1' and 'rubber_1'"},
+        Case{"hero_low.obj", "-o '" + x + "' -o " + scene.dir.file("y.png"), "would be written once"},
+        Case{"hero_low.obj", "-o '" + x + "' --tile 1/2 --tile-file " + scene.dir.file("t.nmt"),
+             "cannot be baked in tiles"}}) {
+    SCOPED_TRACE(c.low + " " + c.outputs);
+    const test::CommandResult r = run(c.low, c.outputs);
+    EXPECT_EQ(r.exit_code, 2) << r.output;
+    EXPECT_NE(r.output.find(c.expected), std::string::npos) << r.output;
+    for (const auto& entry : std::filesystem::directory_iterator(scene.dir.path())) {
+      EXPECT_NE(entry.path().extension(), ".png") << entry.path();
+      EXPECT_NE(entry.path().extension(), ".nmt") << entry.path();
+    }
+  }
+}
+
 // -------------------------------------------------------------- UDIM
 
 TEST(Udim, TilePathsAndOffsets) {
@@ -713,7 +930,7 @@ TEST(Udim, EachTileEqualsTheTileBakedAlone) {
   test::write_text(dir.file("high.obj"), plates_obj(high));
   BakeOptions o;
   o.low_path = dir.file("low.obj");
-  o.high_path = dir.file("high.obj");
+  o.high_paths = {dir.file("high.obj")};
   o.width = o.height = 96;
   o.rays.front = {Distance::Kind::absolute, 0.05f};
   o.rays.back = {Distance::Kind::absolute, 0.05f};
@@ -752,7 +969,7 @@ TEST(Udim, UvsOutsideTheUnitSquareNeedTheToken) {
   test::write_text(dir.file("high.obj"), plates_obj({{"b", 4, 0, 1, 0, 1, 0, 0, 0, 0, 0, {}}}));
   BakeOptions o;
   o.low_path = dir.file("low.obj");
-  o.high_path = dir.file("high.obj");
+  o.high_paths = {dir.file("high.obj")};
   o.width = o.height = 32;
   o.outputs = {{dir.file("n.png"), PixelFormat::png16}};
   BakeReport report;

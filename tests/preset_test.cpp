@@ -378,7 +378,7 @@ TEST(EnginePreset, CliFlagsOverrideThePresetAndTheReportSaysSo) {
 
   BakeOptions o;
   o.low_path = dir.file("low.obj");
-  o.high_path = dir.file("high.ply");
+  o.high_paths = {dir.file("high.ply")};
   o.outputs = {{dir.file("m.png"), PixelFormat::png8}};
   BakeKey base_key, k;
   ASSERT_TRUE(bake_key(o, base_key).is_ok());

@@ -67,7 +67,7 @@ class PreviewRender : public ::testing::Test {
     for (const NormalSpace space : {NormalSpace::tangent, NormalSpace::object}) {
       BakeOptions o;
       o.low_path = dir_->file("low.obj");
-      o.high_path = dir_->file("high.ply");
+      o.high_paths = {dir_->file("high.ply")};
       o.outputs = {
           {dir_->file(space == NormalSpace::tangent ? "map.png" : "map_os.png"), PixelFormat::png16}};
       o.width = o.height = 128;
@@ -161,7 +161,7 @@ TEST(PreviewRenderSphere, ObjectSpaceMapDecodesDirectly) {
   ASSERT_TRUE(save_mesh(dir.file("high.ply"), scene.high).is_ok());
   BakeOptions b;
   b.low_path = dir.file("low.obj");
-  b.high_path = dir.file("high.ply");
+  b.high_paths = {dir.file("high.ply")};
   b.outputs = {{dir.file("map_os.png"), PixelFormat::png16}};
   b.width = b.height = 128;
   b.encode.space = NormalSpace::object;

@@ -38,7 +38,7 @@ Baked bake_meshes(const test::TempDir& dir, const Mesh& low, const Mesh& high, B
   EXPECT_TRUE(save_mesh(dir.file("low.obj"), low).is_ok());
   EXPECT_TRUE(save_mesh(dir.file("high.ply"), high).is_ok());
   o.low_path = dir.file("low.obj");
-  o.high_path = dir.file("high.ply");
+  o.high_paths = {dir.file("high.ply")};
   if (cage != nullptr) {
     EXPECT_TRUE(save_mesh(dir.file("cage.obj"), *cage).is_ok());
     o.cage_path = dir.file("cage.obj");

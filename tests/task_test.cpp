@@ -44,7 +44,7 @@ BakeOptions sphere_bake(const test::TempDir& dir, int width, int height) {
   EXPECT_TRUE(save_mesh(dir.file("high.ply"), pair.high).is_ok());
   BakeOptions o;
   o.low_path = dir.file("low.obj");
-  o.high_path = dir.file("high.ply");
+  o.high_paths = {dir.file("high.ply")};
   o.width = width;
   o.height = height;
   o.samples = 4;
@@ -415,7 +415,7 @@ TEST(TaskTiles, HostileMapSetFieldsAreRefused) {
 TEST(TaskTiles, MapSetTilesThroughTheCli) {
   test::TempDir dir;
   const BakeOptions o = sphere_bake(dir, 96, 96);
-  const std::string base = test::cli_path() + " bake -q --low " + o.low_path + " --high " + o.high_path +
+  const std::string base = test::cli_path() + " bake -q --low " + o.low_path + " --high " + o.high_paths[0] +
                            " --size 96 --map normal,height,ao,curvature --ao-rays 8 -o '" +
                            dir.file("w_<MAP>.png") + "' -o '" + dir.file("w_<MAP>.exr") + "'";
   test::CommandResult r = test::run_command(base + " 2>&1");
@@ -473,7 +473,7 @@ TEST(TaskTiles, MergeWritesTheTilesPathsOnlyInsideItsFolders) {
   const auto tile_of = [&](const std::string& output, const std::string& tile) {
     const test::CommandResult r = test::run_command(
         "cd " + dir.file("work") + " && " + test::cli_path() + " bake -q --low " + o.low_path + " --high " +
-        o.high_path + " --size 64 --tile 1/1 --tile-file " + tile + " -o '" + output + "' 2>&1");
+        o.high_paths[0] + " --size 64 --tile 1/1 --tile-file " + tile + " -o '" + output + "' 2>&1");
     EXPECT_EQ(r.exit_code, 0) << r.output;
   };
   const auto merge = [&](const std::string& tile, const std::string& flags = "") {
@@ -522,7 +522,7 @@ TEST(TaskKey, CoversBytesAndOptionsNotPathsOrThreads) {
   // Same bytes elsewhere, other output path, other threads and bands: same key.
   fs::copy_file(dir.file("high.ply"), dir.file("copy.ply"));
   BakeOptions same = o;
-  same.high_path = dir.file("copy.ply");
+  same.high_paths = {dir.file("copy.ply")};
   same.outputs[0].path = dir.file("elsewhere.png");
   same.band_samples = 4096;
   ASSERT_TRUE(bake_key(same, k).is_ok());
@@ -564,7 +564,7 @@ TEST(TaskKey, CoversBytesAndOptionsNotPathsOrThreads) {
 TEST(TaskCache, SecondBakeIsCachedAndConcurrentStoresStayWhole) {
   test::TempDir dir;
   BakeOptions o = sphere_bake(dir, 96, 96);
-  const std::string base = test::cli_path() + " bake --low " + o.low_path + " --high " + o.high_path +
+  const std::string base = test::cli_path() + " bake --low " + o.low_path + " --high " + o.high_paths[0] +
                            " --size 96 --cache " + dir.file("cache");
   test::CommandResult r =
       test::run_command(base + " -o " + dir.file("a.png") + " --report " + dir.file("a.json"));
@@ -580,7 +580,7 @@ TEST(TaskCache, SecondBakeIsCachedAndConcurrentStoresStayWhole) {
   EXPECT_EQ(r.output.find("cached"), std::string::npos) << r.output;
 
   // Four processes at once on a fresh cache folder.
-  const std::string racing = test::cli_path() + " bake --low " + o.low_path + " --high " + o.high_path +
+  const std::string racing = test::cli_path() + " bake --low " + o.low_path + " --high " + o.high_paths[0] +
                              " --size 128 -q --cache " + dir.file("race");
   r = test::run_command("for i in 1 2 3 4; do " + racing + " -o " + dir.file("r$i.png") + " & done; wait");
   EXPECT_EQ(r.exit_code, 0) << r.output;
@@ -606,8 +606,8 @@ TEST(TaskCache, BadEntriesAreRebakedAndReplaced) {
   const std::string cache = dir.file("cache");
   // `timeout`: a fetch that blocks on the FIFO fails the test instead of hanging it.
   const std::string bake_cmd = "timeout 120 " + test::cli_path() + " bake --low " + o.low_path + " --high " +
-                               o.high_path + " --size 64 --cache " + cache + " -o " + dir.file("out.png") +
-                               " 2>&1";
+                               o.high_paths[0] + " --size 64 --cache " + cache + " -o " +
+                               dir.file("out.png") + " 2>&1";
   test::CommandResult r = test::run_command(bake_cmd);
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const std::string good = read_bytes(dir.file("out.png"));
@@ -686,9 +686,10 @@ TEST(TaskCache, UnwritableCacheFolderFailsBeforeTheBake) {
   const BakeOptions o = sphere_bake(dir, 64, 64);
   test::write_text(dir.file("a_file"), "x");
   for (const std::string& cache : {dir.file("a_file"), dir.file("a_file") + "/cache"}) {
-    const test::CommandResult r = test::run_command(
-        test::cli_path() + " bake --low " + o.low_path + " --high " + o.high_path + " --size 64 --cache " +
-        cache + " -o " + dir.file("out.png") + " --report " + dir.file("out.json") + " 2>&1");
+    const test::CommandResult r =
+        test::run_command(test::cli_path() + " bake --low " + o.low_path + " --high " + o.high_paths[0] +
+                          " --size 64 --cache " + cache + " -o " + dir.file("out.png") + " --report " +
+                          dir.file("out.json") + " 2>&1");
     EXPECT_EQ(r.exit_code, 2) << r.output;
     EXPECT_NE(r.output.find(cache + ": the cache folder cannot be written"), std::string::npos) << r.output;
     EXPECT_FALSE(fs::exists(dir.file("out.png")));

@@ -129,7 +129,7 @@ void write_scene(const test::TempDir& dir, const TransferScene& scene, const std
 BakeOptions transfer_bake(const test::TempDir& dir, int size) {
   BakeOptions o;
   o.low_path = dir.file("low.obj");
-  o.high_path = dir.file("high.obj");
+  o.high_paths = {dir.file("high.obj")};
   o.width = o.height = size;
   o.samples = 4;
   o.padding = 0;
@@ -267,7 +267,7 @@ TEST(Transfer, GltfFactorsAndTextureTransform) {
       {"metallicFactor", 0.5}};
   test::write_text(dir.file("high.gltf"), doc.dump());
   BakeOptions o = transfer_bake(dir, 128);
-  o.high_path = dir.file("high.gltf");
+  o.high_paths = {dir.file("high.gltf")};
   o.maps = {MapKind::base_color, MapKind::roughness, MapKind::metallic};
   BakeReport report;
   const Status st = bake(o, report);

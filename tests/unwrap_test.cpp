@@ -335,7 +335,7 @@ TEST(UnwrapEndToEnd, AutoUnwrappedSphereMatchesAnalyticNormals) {
 
   BakeOptions o;
   o.low_path = dir.file("low.obj");
-  o.high_path = dir.file("high.ply");
+  o.high_paths = {dir.file("high.ply")};
   o.outputs = {{dir.file("map.exr"), PixelFormat::exr_float}};
   o.width = o.height = 256;
   o.samples = 4;

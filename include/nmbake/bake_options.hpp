@@ -55,9 +55,14 @@ PixelFormat pack_format(const std::string& path);
 // bounding-box diagonal.
 constexpr float kAutoMapDistancePercent = 10.0f;
 
+// The high files for messages: the one path, or "a.obj + b.obj".
+std::string high_name(const std::vector<std::string>& high_paths);
+
 struct BakeOptions {
   std::string low_path;
-  std::string high_path;
+  // One or more files, loaded as one mesh (load_meshes(), load.hpp): --high
+  // repeated, a job's `high = [...]`.
+  std::vector<std::string> high_paths;
   std::string cage_path;  // empty: averaged cage
   std::vector<OutputSpec> outputs;
   int width = 2048;
@@ -136,6 +141,11 @@ std::vector<MapOutput> map_outputs(const std::vector<OutputSpec>& outputs, const
 // With several maps every output path must name the map (<MAP>): bad_input
 // naming the first that does not.
 Status check_map_tokens(const std::vector<OutputSpec>& outputs, const std::vector<MapKind>& maps);
+
+// <LOW> in the outputs' and packs' paths becomes the low file's stem
+// (sets.hpp); the command line and job files call it once every option is
+// read (validate_options() refuses a path that still holds it).
+void resolve_low_token(BakeOptions& options);
 
 // Checks options that need no file: sizes, sample count, outputs and formats,
 // distances against kMaxDistance (and percentages against

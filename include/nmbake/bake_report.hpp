@@ -24,7 +24,8 @@ struct StageTime {
 };
 
 struct BakeReport {
-  std::string low_path, high_path, cage_path;
+  std::string low_path, cage_path;
+  std::vector<std::string> high_paths;
   std::vector<std::string> outputs;
   int width = 0, height = 0, samples = 0;
   std::uint64_t low_triangles = 0, high_triangles = 0, high_vertices = 0;
@@ -73,6 +74,7 @@ struct BakeReport {
   // UDIM tiles baked, and the maps each wrote (1001 alone without <UDIM>).
   struct Tile {
     int tile = 1001;
+    std::string set;  // the texture set's material (sets.hpp); "" without <SET>
     std::vector<std::string> outputs;
     std::uint64_t covered_texels = 0;
   };

@@ -88,6 +88,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "nmbake/common.hpp"
 #include "nmbake/mesh.hpp"
@@ -154,6 +155,23 @@ struct LoadStats {
 };
 
 Status load_mesh(const std::string& path, const LoadOptions& options, Mesh& out, LoadStats& stats);
+
+// Several files as one mesh, in the order given (the high mesh split across
+// files: one ZBrush subtool a file). One path is load_mesh(). Otherwise each
+// file is loaded by load_mesh() and appended, so the mesh equals one file
+// holding the same parts in the same order: vertices and triangles follow
+// each other, parts and material ranges are kept, and a file without part
+// names becomes one part named after the file's stem (body.obj: "body"), so
+// groups and matching by name can address it. Attributes some files have and
+// others lack: normals are zero on the others (normalize_normals() computes
+// them there and counts them, as for any zero-length normal), colours white
+// (as glTF primitives without COLOR_0); UVs and tangents (low meshes) must be
+// in every file or none. A material whose name an earlier file defined
+// differently is renamed "STEM/NAME" in this file (the id map and the
+// transfer maps read each file's own). Files whose units differ (FBX
+// UnitScaleFactor) are bad_input naming both. `stats` adds the files' figures.
+Status load_meshes(const std::vector<std::string>& paths, const LoadOptions& options, Mesh& out,
+                   LoadStats& stats);
 
 // Whether load_mesh() reads files with this path's extension (case-insensitive),
 // and the list for messages: ".obj, .ply, .gltf, .glb, .fbx, .dae, .3ds or .stl".

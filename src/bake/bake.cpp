@@ -20,6 +20,7 @@
 #include "bake/validate.hpp"
 #include "nmbake/budget.hpp"
 #include "nmbake/maps.hpp"
+#include "nmbake/sets.hpp"
 #include "nmbake/task.hpp"
 #include "nmbake/udim.hpp"
 
@@ -152,8 +153,10 @@ Status check_tile_request(const BakeOptions& o) {
   }
   if (o.tile_path.empty()) return Status::bad_input("a tile bake needs a tile file to write");
   for (const OutputSpec& out : o.outputs) {
-    if (has_udim_token(out.path))
-      return Status::bad_input(out.path + ": <UDIM> maps cannot be baked in tiles yet");
+    if (has_udim_token(out.path) || has_set_token(out.path)) {
+      return Status::bad_input(out.path + ": " + (has_udim_token(out.path) ? kUdimToken : kSetToken) +
+                               " maps cannot be baked in tiles yet");
+    }
   }
   return Status::ok();
 }
@@ -164,22 +167,23 @@ struct Meshes {
   Mesh low, high, cage;
   bool has_cage = false;
   BakeGroups groups;
-  bool udim = false;       // outputs hold <UDIM>: a map per UV tile
-  std::vector<int> tiles;  // the UDIM tiles baked (1001 alone without <UDIM>)
+  bool udim = false;         // outputs hold <UDIM>: a map per UV tile
+  std::vector<int> tiles;    // the UDIM tiles baked (1001 alone without <UDIM>)
+  std::vector<LowSet> sets;  // outputs hold <SET>: a map set per low material (sets.hpp); else empty
 };
 
 // What the high mesh must hold for the map set: vertex colours, named materials.
 Status check_high_for_maps(const BakeOptions& o, const Mesh& high, bool colors_kept) {
   if (colors_kept && !high.has_colors()) {
     return Status::bad_input(
-        o.high_path +
+        high_name(o.high_paths) +
         ": --map vertex-color, but the high mesh has no vertex colours (read from "
         "PLY red/green/blue properties, glTF COLOR_0, FBX and Collada vertex colours, and OBJ "
         "\"v x y z r g b\" lines)");
   }
   const bool id_map = std::find(o.maps.begin(), o.maps.end(), MapKind::id) != o.maps.end();
   if (id_map && o.id_source == IdSource::material && !high.has_named_materials()) {
-    return Status::bad_input(o.high_path +
+    return Status::bad_input(high_name(o.high_paths) +
                              ": --map id with --id-source material, but the high mesh has no named "
                              "materials (OBJ usemtl, glTF primitive materials, FBX and Collada materials)");
   }
@@ -201,7 +205,7 @@ Status load_inputs(const BakeOptions& o, BakeReport& r, StageTimer& timer, Meshe
   high_options.material_defs =
       high_options.corner_uvs ||
       (std::find(o.maps.begin(), o.maps.end(), MapKind::id) != o.maps.end() && o.id_source != IdSource::part);
-  NMBAKE_TRY(load_mesh(o.high_path, high_options, m.high, r.high_load));
+  NMBAKE_TRY(load_meshes(o.high_paths, high_options, m.high, r.high_load));
   NMBAKE_TRY(check_high_for_maps(o, m.high, high_options.keep_colors));
   m.has_cage = !o.cage_path.empty();
   if (m.has_cage) {
@@ -213,7 +217,7 @@ Status load_inputs(const BakeOptions& o, BakeReport& r, StageTimer& timer, Meshe
   // Every derived value (diagonal, normals, ray origins) stays finite only
   // within these bounds; Embree aborts on a ray that is not.
   NMBAKE_TRY(check_coordinate_range(m.low, o.low_path));
-  NMBAKE_TRY(check_coordinate_range(m.high, o.high_path));
+  NMBAKE_TRY(check_coordinate_range(m.high, high_name(o.high_paths)));
   if (m.has_cage) NMBAKE_TRY(check_coordinate_range(m.cage, o.cage_path));
   NMBAKE_TRY(check_bake_memory(o, MeshSize{m.low.vertex_count(), m.low.triangle_count()},
                                MeshSize{m.high.vertex_count(), m.high.triangle_count()}));
@@ -244,7 +248,8 @@ Status unwrap_low(const BakeOptions& o, BakeReport& r, StageTimer& timer, Mesh& 
   const Status s = unwrap_mesh(low, unwrap_options, unwrapped, r.unwrap);
   if (!s) return Status::bad_input(o.low_path + ": the low mesh has no UVs; " + s.message());
   low = std::move(unwrapped);
-  const std::filesystem::path first(udim_path(map_path(o.outputs.front().path, o.maps.front()), 1001));
+  const std::filesystem::path first(
+      replace_token(udim_path(map_path(o.outputs.front().path, o.maps.front()), 1001), kSetToken, "all"));
   detail::report_unwrapped((first.parent_path() / (first.stem().string() + "_low_uv.obj")).string(), r);
   timer.stop();
   return Status::ok();
@@ -254,7 +259,7 @@ Status unwrap_low(const BakeOptions& o, BakeReport& r, StageTimer& timer, Mesh& 
 // a naming mistake is found in a second, not after the unwrap), UVs, the
 // file tangents it was asked to keep, its UDIM tiles.
 Status prepare_low_mesh(const BakeOptions& o, BakeReport& r, StageTimer& timer, Meshes& m) {
-  NMBAKE_TRY(match_parts(m.low, m.high, o.match, o.low_path, o.high_path, m.groups));
+  NMBAKE_TRY(match_parts(m.low, m.high, o.match, o.low_path, high_name(o.high_paths), m.groups));
   m.udim = detail::bakes_udim_tiles(o);
   if (!m.low.has_uvs()) NMBAKE_TRY(unwrap_low(o, r, timer, m.low));
   if (o.tangent_basis == TangentBasis::file && !m.low.has_tangents()) {
@@ -264,6 +269,7 @@ Status prepare_low_mesh(const BakeOptions& o, BakeReport& r, StageTimer& timer, 
                              "tangents on every part, and UVs)");
   }
   NMBAKE_TRY(find_udim_tiles(m.low, o.low_path, m.udim, m.tiles));
+  if (detail::bakes_texture_sets(o)) NMBAKE_TRY(find_low_sets(m.low, o.low_path, m.sets));
   detail::report_mesh_sizes(m.low, m.high, r);
   return Status::ok();
 }
@@ -305,7 +311,7 @@ Status prepare_high_scene(const BakeOptions& o, BakeReport& r, StageTimer& timer
   if (o.encode.high_normals == HighNormals::smooth) prepare_high_normals(m.high, r.high_mesh);
   TextureSet textures;
   if (const TextureNeeds needs = texture_needs(o.maps); needs.any()) {
-    NMBAKE_TRY(load_material_textures(m.high, o.high_path, needs, textures));
+    NMBAKE_TRY(load_material_textures(m.high, high_name(o.high_paths), needs, textures));
   }
   prepare_map_mesh(m.high, o.maps, o.id_source, m.groups, std::move(textures), s.map_mesh);
   detail::report_map_mesh(s.map_mesh, r);
@@ -395,11 +401,12 @@ Status bake_tile_rows(const Prepared& p, const LowSurface& surface, const std::v
 // of the tile shifted into [0, 1]^2 (exact: whole-number shifts; `file_uvs`
 // are the surface's own), then the whole map or the tile of rows asked for.
 Status bake_udim_tile(const Prepared& p, const Meshes& m, const std::vector<glm::vec2>& file_uvs,
-                      LowSurface& surface, int udim_tile, BakeReport& r, StageTimer& timer,
+                      const LowSet* set, LowSurface& surface, int udim_tile, BakeReport& r, StageTimer& timer,
                       const ProgressFn& progress) {
   const BakeOptions& o = p.options;
   BakeReport::Tile done;
   done.tile = udim_tile;
+  if (set != nullptr) done.set = set->name;
   std::vector<MapOutput> outputs = map_outputs(o);
   for (MapOutput& out : outputs) {
     out.path = udim_path(out.path, udim_tile);
@@ -407,11 +414,20 @@ Status bake_udim_tile(const Prepared& p, const Meshes& m, const std::vector<glm:
     r.outputs.push_back(out.path);
   }
   std::string debug_prefix = o.debug_dump_prefix;
-  if (m.udim) {
-    const glm::vec2 offset = udim_offset(udim_tile);
+  if (m.udim || set != nullptr) {
+    const glm::vec2 offset = m.udim ? udim_offset(udim_tile) : glm::vec2(0.0f);
     for (std::size_t i = 0; i < file_uvs.size(); ++i) surface.uv[i] = file_uvs[i] - offset;
     // (Appended in two steps: GCC 12 warns falsely (-Wrestrict) on "." + std::string here.)
-    if (!debug_prefix.empty()) debug_prefix.append(".").append(std::to_string(udim_tile));
+    if (m.udim && !debug_prefix.empty()) debug_prefix.append(".").append(std::to_string(udim_tile));
+  }
+  if (set != nullptr) {
+    // The other sets' triangles to another tile, out of the map (a whole
+    // number: exact; UDIM UVs shifted into any tile stay within [-10, 100]).
+    for (std::size_t t = 0; t < set->triangles.size(); ++t) {
+      if (set->triangles[t]) continue;
+      for (std::size_t k = 3 * t; k < 3 * t + 3; ++k) surface.uv[k].x -= 1024.0f;
+    }
+    if (!debug_prefix.empty()) debug_prefix.append(".").append(set->path_name);
   }
   if (o.tile_count > 0) {
     NMBAKE_TRY(bake_tile_rows(p, surface, outputs, debug_prefix, r, timer, progress, udim_tile, done));
@@ -451,9 +467,24 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   const RayOptions rays = resolve_bake_rays(o, meshes, scene, r, timer);
   const Prepared prepared{o, meshes.high, scene.high, rays, map_settings(o, r.low_diagonal, scene.map_mesh)};
   detail::report_map_set(o, r);
-  const std::vector<glm::vec2> file_uvs = meshes.udim ? scene.surface.uv : std::vector<glm::vec2>{};
-  for (const int tile : meshes.tiles) {
-    NMBAKE_TRY(bake_udim_tile(prepared, meshes, file_uvs, scene.surface, tile, r, timer, progress));
+  const std::vector<glm::vec2> file_uvs =
+      meshes.udim || !meshes.sets.empty() ? scene.surface.uv : std::vector<glm::vec2>{};
+  if (meshes.sets.empty()) {
+    for (const int tile : meshes.tiles) {
+      NMBAKE_TRY(
+          bake_udim_tile(prepared, meshes, file_uvs, nullptr, scene.surface, tile, r, timer, progress));
+    }
+  }
+  for (const LowSet& set : meshes.sets) {
+    // The set's own options: its name in the outputs' and packs' paths.
+    BakeOptions set_options = o;
+    for (OutputSpec& out : set_options.outputs) out.path = replace_token(out.path, kSetToken, set.path_name);
+    for (PackSpec& pack : set_options.packs) pack.path = replace_token(pack.path, kSetToken, set.path_name);
+    const Prepared set_prepared{set_options, prepared.high, prepared.scene, prepared.rays, prepared.maps};
+    for (const int tile : meshes.tiles) {
+      NMBAKE_TRY(
+          bake_udim_tile(set_prepared, meshes, file_uvs, &set, scene.surface, tile, r, timer, progress));
+    }
   }
   if (r.unwrapped) NMBAKE_TRY(write_unwrapped_low(r, timer, meshes.low));
   detail::report_finish(bake_begin, r);

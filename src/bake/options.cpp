@@ -157,13 +157,40 @@ inline constexpr Word<bool> kTangentsWords[] = {
         [](const BakeOptions& o) { return std::string(to_string(field)); }, words_of<E>          \
   }
 
+}  // namespace
+
+std::string high_name(const std::vector<std::string>& high_paths) {
+  std::string name;
+  for (const std::string& path : high_paths) name += (name.empty() ? "" : " + ") + path;
+  return name;
+}
+
+namespace {
+
 const OptionSpec kTable[] = {
     {"low", "PATH", "low-poly mesh with UVs (OBJ, PLY, glTF/GLB, FBX, DAE, 3DS)",
      [](BakeOptions& o, const OptionValue& v) { return read_path(v, o.low_path); },
      [](const BakeOptions& o) { return o.low_path; }, no_words, false, false},
-    {"high", "PATH", "high-poly mesh (OBJ, PLY, glTF/GLB, FBX, DAE, 3DS, STL)",
-     [](BakeOptions& o, const OptionValue& v) { return read_path(v, o.high_path); },
-     [](const BakeOptions& o) { return o.high_path; }, no_words, false, false},
+    {"high", "PATH",
+     "high-poly mesh (OBJ, PLY, glTF/GLB, FBX, DAE, 3DS, STL); repeatable: several files bake as one mesh",
+     [](BakeOptions& o, const OptionValue& v) {
+       std::vector<OptionValue> values;
+       if (v.kind == OptionValue::Kind::list) {
+         for (const std::string& text : v.list) {
+           OptionValue one = OptionValue::of_text(text);
+           one.folder = v.folder;
+           values.push_back(std::move(one));
+         }
+       } else {
+         values.push_back(v);
+       }
+       if (values.empty()) return expected("a path or a list of paths");
+       std::vector<std::string> paths(values.size());
+       for (std::size_t i = 0; i < values.size(); ++i) NMBAKE_TRY(read_path(values[i], paths[i]));
+       o.high_paths = std::move(paths);
+       return Status::ok();
+     },
+     [](const BakeOptions& o) { return high_name(o.high_paths); }, no_words, false, false, false, "", true},
     {"cage", "PATH",
      "cage mesh with the low mesh's topology (default: the pushed-out low surface, --cage-mode)",
      [](BakeOptions& o, const OptionValue& v) { return read_path(v, o.cage_path); },

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstddef>
+#include <filesystem>
 #include <string>
 #include <utility>
 #include <vector>
@@ -13,6 +14,7 @@
 #include "nmbake/bake_options.hpp"
 #include "nmbake/image.hpp"
 #include "nmbake/maps.hpp"
+#include "nmbake/sets.hpp"
 #include "nmbake/textures.hpp"
 #include "nmbake/udim.hpp"
 
@@ -113,6 +115,12 @@ Status check_map_tokens(const std::vector<OutputSpec>& outputs, const std::vecto
     }
   }
   return Status::ok();
+}
+
+void resolve_low_token(BakeOptions& o) {
+  const std::string stem = std::filesystem::path(o.low_path).stem().string();
+  for (OutputSpec& out : o.outputs) out.path = replace_token(out.path, kLowToken, stem);
+  for (PackSpec& pack : o.packs) pack.path = replace_token(pack.path, kLowToken, stem);
 }
 
 std::vector<MapOutput> map_outputs(const BakeOptions& o) { return map_outputs(o.outputs, o.maps); }

@@ -146,7 +146,11 @@ ordered_json rays_json(const BakeReport& r) {
 ordered_json udim_tiles_json(const std::vector<BakeReport::Tile>& tiles) {
   ordered_json tile_json = ordered_json::array();
   for (const BakeReport::Tile& t : tiles) {
-    tile_json.push_back({{"tile", t.tile}, {"outputs", t.outputs}, {"covered_texels", t.covered_texels}});
+    ordered_json one{{"tile", t.tile}};
+    if (!t.set.empty()) one["set"] = t.set;  // a texture set's material (<SET>)
+    one["outputs"] = t.outputs;
+    one["covered_texels"] = t.covered_texels;
+    tile_json.push_back(std::move(one));
   }
   return tile_json;
 }
@@ -173,7 +177,12 @@ std::string BakeReport::to_json() const {
   using nlohmann::ordered_json;
   ordered_json j;
   j["low"] = low_path;
-  j["high"] = high_path;
+  // One file: its path, as ever; several: the list.
+  if (high_paths.size() == 1) {
+    j["high"] = high_paths.front();
+  } else {
+    j["high"] = high_paths;
+  }
   j["cage"] = cage_path;
   j["outputs"] = outputs;
   j["width"] = width;
@@ -325,7 +334,7 @@ namespace nmbake::detail {
 void report_options(const BakeOptions& o, BakeReport& r) {
   r = BakeReport{};
   r.low_path = o.low_path;
-  r.high_path = o.high_path;
+  r.high_paths = o.high_paths;
   r.cage_path = o.cage_path;
   for (const OutputSpec& out : o.outputs) r.outputs.push_back(out.path);
   r.width = o.width;

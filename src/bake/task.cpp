@@ -211,7 +211,7 @@ Status bake_key(const BakeOptions& o, BakeKey& key) {
   const std::string text = bake_key_text(o);
   XXH3_128bits_update(state.get(), text.data(), text.size());
   NMBAKE_TRY(hash_file(state.get(), o.low_path, "low"));
-  NMBAKE_TRY(hash_file(state.get(), o.high_path, "high"));
+  for (const std::string& high : o.high_paths) NMBAKE_TRY(hash_file(state.get(), high, "high"));
   NMBAKE_TRY(hash_file(state.get(), o.cage_path, "cage"));
   const XXH128_hash_t h = XXH3_128bits_digest(state.get());
   key.high = h.high64;

@@ -16,6 +16,7 @@
 #include "nmbake/load.hpp"
 #include "nmbake/maps.hpp"
 #include "nmbake/parts.hpp"
+#include "nmbake/sets.hpp"
 #include "nmbake/udim.hpp"
 
 namespace nmbake {
@@ -75,6 +76,35 @@ Status check_packs(const BakeOptions& o) {
   return Status::ok();
 }
 
+// A path token that makes a file per tile or set must be in every output
+// and pack: one without it would be written once per tile or set, each
+// time over the last. <LOW> must have been resolved (resolve_low_token()).
+Status check_path_tokens(const BakeOptions& o) {
+  std::vector<std::string> paths;
+  for (const OutputSpec& out : o.outputs) paths.push_back(out.path);
+  for (const PackSpec& pack : o.packs) paths.push_back(pack.path);
+  for (const std::string& path : paths) {
+    if (path.find(kLowToken) != std::string::npos) {
+      return Status::bad_input(printable_text(path) +
+                               ": <LOW> is not resolved (the command line and job files " +
+                               "resolve it with the low file's name)");
+    }
+  }
+  for (const char* token : {kUdimToken, kSetToken}) {
+    const auto holds = [&](const std::string& p) { return p.find(token) != std::string::npos; };
+    if (!std::any_of(paths.begin(), paths.end(), holds)) continue;
+    for (const std::string& path : paths) {
+      if (!holds(path)) {
+        return Status::bad_input(printable_text(path) + ": other outputs hold " + token + " (a file per " +
+                                 (std::string(token) == kSetToken ? "texture set" : "UV tile") +
+                                 "), so this one would be written once for each, over the last: add " +
+                                 token);
+      }
+    }
+  }
+  return Status::ok();
+}
+
 Status validate_map_set(const BakeOptions& o) {
   if (o.maps.empty()) return Status::bad_input("no map to bake (--map)");
   for (const MapKind map : o.maps) {
@@ -86,6 +116,7 @@ Status validate_map_set(const BakeOptions& o) {
     if (const Status target = check_output_target(out.path); !target)
       return Status::bad_input(target.message());
   }
+  NMBAKE_TRY(check_path_tokens(o));
   NMBAKE_TRY(check_packs(o));
   const auto check_range = [](const char* name, float value) {
     if (!(value >= 0.0f) || !std::isfinite(value)) {
@@ -217,6 +248,12 @@ LoadOptions low_load_options(const BakeOptions& o) {
   return options;
 }
 
+bool bakes_texture_sets(const BakeOptions& o) {
+  return std::any_of(o.outputs.begin(), o.outputs.end(),
+                     [](const OutputSpec& out) { return has_set_token(out.path); }) ||
+         std::any_of(o.packs.begin(), o.packs.end(), [](const PackSpec& p) { return has_set_token(p.path); });
+}
+
 bool bakes_udim_tiles(const BakeOptions& o) {
   return std::any_of(o.outputs.begin(), o.outputs.end(),
                      [](const OutputSpec& out) { return has_udim_token(out.path); });
@@ -253,7 +290,7 @@ Status validate_option_values(const BakeOptions& o) {
 
 Status validate_options(const BakeOptions& o) {
   if (o.low_path.empty()) return Status::bad_input("no low mesh given (--low)");
-  if (o.high_path.empty()) return Status::bad_input("no high mesh given (--high)");
+  if (o.high_paths.empty()) return Status::bad_input("no high mesh given (--high)");
   if (o.outputs.empty()) return Status::bad_input("no output map given (-o)");
   NMBAKE_TRY(validate_option_values(o));
   for (const OutputSpec& out : o.outputs) NMBAKE_TRY(check_output_spec(out));
@@ -262,7 +299,7 @@ Status validate_options(const BakeOptions& o) {
 
 Status check_bake_inputs(const BakeOptions& o) {
   NMBAKE_TRY(check_mesh_file("low", o.low_path));
-  NMBAKE_TRY(check_mesh_file("high", o.high_path));
+  for (const std::string& high : o.high_paths) NMBAKE_TRY(check_mesh_file("high", high));
   if (!o.cage_path.empty()) NMBAKE_TRY(check_mesh_file("cage", o.cage_path));
   if (o.debug_dump_prefix.find('\0') != std::string::npos) {
     return Status::bad_input(printable_text(o.debug_dump_prefix) + ": the debug-dump path holds a NUL byte");

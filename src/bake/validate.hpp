@@ -18,5 +18,7 @@ Status check_distance(const char* name, const Distance& d, float diagonal);
 LoadOptions low_load_options(const BakeOptions& o);
 // Whether an output path holds <UDIM>: one map per UV tile.
 bool bakes_udim_tiles(const BakeOptions& o);
+// Some output or pack holds <SET>: a map set per low material (sets.hpp).
+bool bakes_texture_sets(const BakeOptions& o);
 
 }  // namespace nmbake::detail

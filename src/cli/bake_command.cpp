@@ -19,6 +19,7 @@
 #include "nmbake/job.hpp"
 #include "nmbake/options.hpp"
 #include "nmbake/preset.hpp"
+#include "nmbake/sets.hpp"
 #include "nmbake/task.hpp"
 #include "progress.hpp"
 
@@ -67,6 +68,7 @@ Status options_from_flags(const BakeFlags& f, BakeOptions& o) {
     }
     o.outputs.push_back(out);
   }
+  resolve_low_token(o);
   return Status::ok();
 }
 
@@ -84,8 +86,11 @@ Status write_text(const std::string& path, const std::string& text) {
 Status bake_or_fetch(const BakeJob& job, const std::string& cache_dir, BakeReport& report,
                      const ProgressFn& listener, bool& cached) {
   cached = false;
-  // Packed files are not stored in cache entries (yet): such a bake is baked.
-  if (cache_dir.empty() || job.options.tile_count > 0 || !job.options.packs.empty())
+  // Packed files and texture sets' maps are not stored in cache entries
+  // (yet): such a bake is baked.
+  const bool sets = std::any_of(job.options.outputs.begin(), job.options.outputs.end(),
+                                [](const OutputSpec& out) { return has_set_token(out.path); });
+  if (cache_dir.empty() || job.options.tile_count > 0 || !job.options.packs.empty() || sets)
     return bake(job.options, report, listener);
   BakeKey key;
   NMBAKE_TRY(validate_options(job.options));

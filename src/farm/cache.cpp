@@ -430,7 +430,11 @@ Status cache_fetch(const std::string& dir, const BakeKey& key, const BakeOptions
     report["key"] = key.hex();
     report["outputs"] = written;
     report["low"] = options.low_path;
-    report["high"] = options.high_path;
+    if (options.high_paths.size() == 1) {
+      report["high"] = options.high_paths.front();
+    } else {
+      report["high"] = options.high_paths;
+    }
     NMBAKE_TRY(write_file_atomically(report_path, {report.dump(2) + "\n"}, "the report"));
   }
   lookup.hit = true;

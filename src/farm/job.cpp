@@ -236,11 +236,12 @@ Status load_job_file(const std::string& path, std::vector<BakeJob>& jobs) {
       NMBAKE_TRY(apply_key(path, folder, std::string(key.str()), value, true, job, given));
     }
     NMBAKE_TRY(apply_options(given, job.options));
+    resolve_low_token(job.options);
     if (const Status s = validate_option_values(job.options); !s) {
       return Status::bad_input(where(path, node) + ": [[bake]] \"" + printable_text(job.name) +
                                "\": " + s.message());
     }
-    if (job.options.low_path.empty() || job.options.high_path.empty() || job.options.outputs.empty()) {
+    if (job.options.low_path.empty() || job.options.high_paths.empty() || job.options.outputs.empty()) {
       return Status::bad_input(where(path, node) + ": [[bake]] \"" + job.name +
                                "\" needs low, high and outputs");
     }

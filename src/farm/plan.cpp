@@ -15,6 +15,7 @@
 #include "base/strings.hpp"
 #include "nmbake/cleanup.hpp"
 #include "nmbake/load.hpp"
+#include "nmbake/sets.hpp"
 #include "nmbake/task.hpp"
 #include "nmbake/udim.hpp"
 
@@ -52,21 +53,37 @@ namespace {
 
 std::string absolute(const std::string& path) { return fs::absolute(path).lexically_normal().string(); }
 
-// The maps a bake writes: each output, per UDIM tile when it has the token
-// (the low mesh is read to find its tiles).
-Status bake_outputs(const BakeJob& job, std::vector<std::string>& outputs) {
+// The maps a bake writes: each output, per UDIM tile and texture set when
+// it has the tokens (the low mesh is read to find its tiles and materials),
+// and its packs that name no UDIM tile.
+Status bake_outputs(const BakeJob& job, std::vector<std::string>& outputs, std::vector<std::string>& packs) {
   std::vector<int> tiles{1001};
-  bool udim = false;
-  for (const OutputSpec& out : job.options.outputs) udim |= has_udim_token(out.path);
-  if (udim) {
+  std::vector<std::string> sets{""};
+  bool udim = false, by_set = false;
+  for (const OutputSpec& out : job.options.outputs) {
+    udim |= has_udim_token(out.path);
+    by_set |= has_set_token(out.path);
+  }
+  if (udim || by_set) {
     Mesh low;
     LoadStats stats;
     NMBAKE_TRY(load_mesh(job.options.low_path, LoadOptions{true, false}, low, stats));
-    if (low.has_uvs()) NMBAKE_TRY(find_udim_tiles(low, job.options.low_path, true, tiles));
+    if (udim && low.has_uvs()) NMBAKE_TRY(find_udim_tiles(low, job.options.low_path, true, tiles));
+    if (by_set) {
+      std::vector<LowSet> low_sets;
+      NMBAKE_TRY(find_low_sets(low, job.options.low_path, low_sets));
+      sets.clear();
+      for (const LowSet& s : low_sets) sets.push_back(s.path_name);
+    }
   }
-  for (const int tile : tiles) {
-    for (const MapOutput& out : map_outputs(job.options))
-      outputs.push_back(absolute(udim_path(out.path, tile)));
+  for (const std::string& set : sets) {
+    for (const int tile : tiles) {
+      for (const MapOutput& out : map_outputs(job.options))
+        outputs.push_back(absolute(udim_path(replace_token(out.path, kSetToken, set), tile)));
+    }
+    for (const PackSpec& pack : job.options.packs) {
+      if (!has_udim_token(pack.path)) packs.push_back(absolute(replace_token(pack.path, kSetToken, set)));
+    }
   }
   return Status::ok();
 }
@@ -168,19 +185,21 @@ Status plan_jobs(const std::vector<BakeJob>& jobs, const PlanOptions& options, s
     BakeKey key;
     NMBAKE_TRY(bake_key(job.options, key));
     std::vector<std::string> inputs;
-    for (const std::string* p : {&job.options.low_path, &job.options.high_path, &job.options.cage_path}) {
+    std::vector<const std::string*> paths{&job.options.low_path, &job.options.cage_path};
+    for (const std::string& high : job.options.high_paths) paths.insert(paths.end() - 1, &high);
+    for (const std::string* p : paths) {
       if (!p->empty()) inputs.push_back(absolute(*p));
     }
     inputs.push_back(options.job_file);
     inputs.push_back(options.nmbake);
-    std::vector<std::string> maps;
-    NMBAKE_TRY(bake_outputs(job, maps));
+    std::vector<std::string> maps, packs;
+    NMBAKE_TRY(bake_outputs(job, maps, packs));
     std::vector<std::string> base{options.nmbake, "bake", options.job_file, "--only", job.name, "-q"};
     const bool udim = maps.size() != map_outputs(job.options).size() ||
                       std::any_of(job.options.outputs.begin(), job.options.outputs.end(),
                                   [](const OutputSpec& o) { return has_udim_token(o.path); });
-    // A tile file carries every map of a map set; <UDIM> outputs are not
-    // tiled, nor bakes with packed outputs (written by whole bakes only).
+    // A tile file carries every map of a map set; <UDIM> and <SET> outputs
+    // are not tiled, nor bakes with packed outputs (written by whole bakes only).
     const bool tiled = options.tiles > 1 && !udim && job.options.packs.empty() &&
                        std::max(job.options.width, job.options.height) >= options.tiles_min_size;
     if (!tiled) {
@@ -195,9 +214,7 @@ Status plan_jobs(const std::vector<BakeJob>& jobs, const PlanOptions& options, s
       }
       t.inputs = inputs;
       t.outputs = maps;
-      for (const PackSpec& pack : job.options.packs) {
-        if (!has_udim_token(pack.path)) t.outputs.push_back(absolute(pack.path));
-      }
+      t.outputs.insert(t.outputs.end(), packs.begin(), packs.end());
       if (!job.report_path.empty()) t.outputs.push_back(absolute(job.report_path));
       t.key = key.hex();
       tasks.push_back(std::move(t));

@@ -16,8 +16,11 @@
 #include <charconv>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <functional>
+#include <limits>
 
 #include "load/parsers.hpp"
 
@@ -347,6 +350,124 @@ Status load_mesh(const std::string& path, const LoadOptions& options, Mesh& out,
   if (!status.is_ok()) out = Mesh{};
   stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
   return status;
+}
+
+namespace {
+
+std::string file_stem(const std::string& path) { return std::filesystem::path(path).stem().string(); }
+
+// Appends `next` (loaded from `path`) to `out`, by load_meshes()'s rules.
+Status append_mesh(const std::string& path, Mesh next, Mesh& out) {
+  const std::size_t base = out.positions.size();
+  if (base + next.positions.size() > std::numeric_limits<std::uint32_t>::max()) {
+    return Status::bad_input(path + ": the high files hold more than 2^32 vertices together");
+  }
+  if (out.has_uvs() != next.has_uvs() || out.has_tangents() != next.has_tangents()) {
+    return Status::bad_input(path + ": " + (out.has_uvs() != next.has_uvs() ? "UVs" : "tangents") +
+                             " are in some of the files and not in others");
+  }
+  const std::size_t out_vertices = out.positions.size(), next_vertices = next.positions.size();
+  if (out.has_normals() != next.has_normals()) {
+    (out.has_normals() ? next.normals : out.normals)
+        .resize(out.has_normals() ? next_vertices : out_vertices, glm::vec3(0.0f));
+  }
+  if (out.has_colors() != next.has_colors()) {
+    (out.has_colors() ? next.colors : out.colors)
+        .resize(out.has_colors() ? next_vertices : out_vertices, glm::vec4(1.0f));
+  }
+  const auto base_triangle = static_cast<std::uint32_t>(out.triangle_count());
+  const std::size_t next_triangles = next.triangle_count();
+  // Material ranges: "" where a file has none; a name an earlier file
+  // defines differently gets the file's stem.
+  if (!out.materials.empty() || !next.materials.empty()) {
+    if (out.materials.empty() && base_triangle > 0) out.materials.push_back({"", 0, base_triangle});
+    if (next.materials.empty()) next.materials.push_back({"", 0, static_cast<std::uint32_t>(next_triangles)});
+  }
+  for (Material& m : next.material_defs) {
+    const Material* earlier = out.material_def(m.name);
+    if (earlier == nullptr || *earlier == m) continue;
+    const std::string renamed = file_stem(path) + "/" + m.name;
+    for (MeshPart& range : next.materials) {
+      if (range.name == m.name) range.name = renamed;
+    }
+    m.name = renamed;
+  }
+  for (Material& m : next.material_defs) {
+    if (out.material_def(m.name) == nullptr) out.material_defs.push_back(std::move(m));
+  }
+  for (MeshPart range : next.materials) {
+    range.first_triangle += base_triangle;
+    out.materials.push_back(std::move(range));
+  }
+  for (MeshPart part : next.parts) {
+    part.first_triangle += base_triangle;
+    out.parts.push_back(std::move(part));
+  }
+  auto append = [](auto& to, auto& from) { to.insert(to.end(), from.begin(), from.end()); };
+  append(out.positions, next.positions);
+  append(out.normals, next.normals);
+  append(out.uvs, next.uvs);
+  append(out.tangents, next.tangents);
+  append(out.colors, next.colors);
+  append(out.corner_uvs, next.corner_uvs);
+  out.indices.reserve(out.indices.size() + next.indices.size());
+  for (const std::uint32_t i : next.indices) out.indices.push_back(i + static_cast<std::uint32_t>(base));
+  return Status::ok();
+}
+
+}  // namespace
+
+Status load_meshes(const std::vector<std::string>& paths, const LoadOptions& options, Mesh& out,
+                   LoadStats& stats) {
+  if (paths.size() == 1) return load_mesh(paths[0], options, out, stats);
+  out = Mesh{};
+  stats = LoadStats{};
+  std::string unit_path;
+  for (const std::string& path : paths) {
+    Mesh mesh;
+    LoadStats file_stats;
+    if (const Status loaded = load_mesh(path, options, mesh, file_stats); !loaded) {
+      out = Mesh{};
+      return loaded;
+    }
+    if (file_stats.unit_meters > 0.0) {
+      if (stats.unit_meters > 0.0 && stats.unit_meters != file_stats.unit_meters) {
+        const auto metres = [](double v) {
+          char text[32];
+          std::snprintf(text, sizeof text, "%g m", v);
+          return std::string(text);
+        };
+        out = Mesh{};
+        return Status::bad_input(path + ": a file unit is " + metres(file_stats.unit_meters) + ", but in " +
+                                 unit_path + " it is " + metres(stats.unit_meters) +
+                                 " (export the files in one unit)");
+      }
+      stats.unit_meters = file_stats.unit_meters;
+      unit_path = path;
+    }
+    if (options.corner_uvs && mesh.corner_uvs.empty()) {
+      mesh.corner_uvs.assign(mesh.indices.size(), glm::vec2(0.0f));
+      file_stats.corners_without_uvs += mesh.indices.size();
+    }
+    if (mesh.parts.empty()) {
+      mesh.parts.push_back({file_stem(path), 0, static_cast<std::uint32_t>(mesh.triangle_count())});
+    }
+    const Status appended = append_mesh(path, std::move(mesh), out);
+    if (!appended) {
+      out = Mesh{};
+      return appended;
+    }
+    stats.bytes += file_stats.bytes;
+    stats.seconds += file_stats.seconds;
+    stats.polygons += file_stats.polygons;
+    stats.triangles += file_stats.triangles;
+    stats.degenerate_faces += file_stats.degenerate_faces;
+    stats.corners_without_uvs += file_stats.corners_without_uvs;
+  }
+  if (!out.has_named_materials()) out.materials.clear();
+  const Status valid = validate_mesh(out, paths.front());
+  if (!valid) out = Mesh{};
+  return valid;
 }
 
 }  // namespace nmbake

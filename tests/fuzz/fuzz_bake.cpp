@@ -71,7 +71,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
                                      high_text.size(), "high.obj");
   nmbake::BakeOptions o;
   o.low_path = low.path();
-  o.high_path = high.path();
+  o.high_paths = {high.path()};
   const std::string map = (nmbake::fuzz::scratch_folder() / "map.png").string();
   o.outputs = {{map, nmbake::PixelFormat::png16}};
   o.width = o.height = 16;

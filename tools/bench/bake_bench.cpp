@@ -94,7 +94,7 @@ int main(int argc, char** argv) {
 
   nmbake::BakeOptions o;
   o.low_path = low;
-  o.high_path = high;
+  o.high_paths = {high};
   o.width = o.height = size;
   o.samples = samples;
   o.band_samples = band_samples;

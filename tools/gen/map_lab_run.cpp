@@ -241,7 +241,7 @@ int run_map_lab(const std::string& out_dir, int size) {
     }
     BakeOptions o = c.options;
     o.low_path = low_path;
-    o.high_path = high_path;
+    o.high_paths = {high_path};
     MapKind map = MapKind::normal;
     parse_word(c.map, map);
     o.maps = {map};
