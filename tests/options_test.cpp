@@ -76,6 +76,7 @@ const std::map<std::string, std::vector<std::string>> kSamples = {
     {"thickness_rays", {"8"}},
     {"thickness_distance", {"0.2"}},
     {"pack", {"PACK"}},
+    {"id_palette", {"PALETTE"}},
 };
 
 TEST(OptionTable, EveryWordAndValueGivesTheSameOptionsAsAFlagAndAsAJobKey) {
@@ -95,6 +96,7 @@ TEST(OptionTable, EveryWordAndValueGivesTheSameOptionsAsAFlagAndAsAJobKey) {
     ASSERT_FALSE(values.empty()) << key << ": neither words nor a sample value in this test";
     for (std::string value : values) {
       if (value == "CAGE" || value == "DUMP") value = dir.file(value == "CAGE" ? "cage.obj" : "dump");
+      if (value == "PALETTE") value = dir.file("palette.toml");
       if (value == "PACK") value = dir.file("orm.png") + "=r:ao,g:0.5,b:1-base-color.g,a:1";
       const std::string flag = spec.is_switch ? flag_of(spec) : flag_of(spec) + " " + squote(value);
       const test::CommandResult by_flag = run_command(base + " " + flag);

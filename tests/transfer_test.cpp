@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <array>
 #include <cmath>
 #include <fstream>
 #include <functional>
@@ -18,6 +19,7 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <numbers>
+#include <set>
 #include <string>
 
 #include "map_lab.hpp"
@@ -326,6 +328,97 @@ TEST(Transfer, IdMapTakesTheMaterialsOwnColours) {
       EXPECT_EQ(color, part_color(name)) << name;
     }
   }
+}
+
+// A palette file gives the artist's colours by name, shared ones included;
+// the names it does not give are coloured as without it. Its mistakes are
+// exit 2 naming the file (and line), before anything is written.
+TEST(Transfer, IdPaletteGivesTheArtistsColours) {
+  TransferScene scene = make_scene();
+  const auto n = static_cast<std::uint32_t>(scene.high.triangle_count());
+  const std::uint32_t q = n / 4;
+  scene.high.materials = {{"red", 0, q}, {"plain", q, q}, {"grey a", 2 * q, q}, {"grey_b", 3 * q, n - 3 * q}};
+  test::TempDir dir;
+  ASSERT_TRUE(save_mesh(dir.file("low.obj"), scene.low).is_ok());
+  ASSERT_TRUE(save_mesh(dir.file("high.obj"), scene.high).is_ok());
+  test::write_text(dir.file("palette.toml"),
+                   "# id colours\nred = \"#00FF00\"\n\"grey a\" = \"#123456\"\ngrey_b = \"#123456\"\n"
+                   "absent = \"#ffffff\"\n");
+  BakeOptions o = transfer_bake(dir, 32);
+  o.maps = {MapKind::id};
+  o.id_palette = dir.file("palette.toml");
+  BakeReport report;
+  Status s = bake(o, report);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  ASSERT_EQ(report.id_names.size(), 4u);
+  const glm::vec3 grey(0x12 / 255.0f, 0x34 / 255.0f, 0x56 / 255.0f);
+  for (const auto& [name, color] : report.id_names) {
+    const glm::vec3 expected = name == "red" ? glm::vec3(0, 1, 0) : name == "plain" ? part_color(name) : grey;
+    EXPECT_EQ(color, expected) << name;
+  }
+  // The map holds exactly those colours (EXR: the values as baked).
+  Image map;
+  ASSERT_TRUE(read_image(dir.file("m_id.exr"), map).is_ok());
+  std::set<std::array<float, 3>> seen;
+  for (std::size_t i = 0; i < map.pixels.size(); i += 3)
+    seen.insert({map.pixels[i], map.pixels[i + 1], map.pixels[i + 2]});
+  EXPECT_TRUE(seen.count({0.0f, 1.0f, 0.0f}));
+  EXPECT_TRUE(seen.count({grey.r, grey.g, grey.b}));
+  // Mistakes, through the command line.
+  const std::string base = test::cli_path() + " bake --low " + dir.file("low.obj") + " --high " +
+                           dir.file("high.obj") + " --size 32 --map id -o " + dir.file("x.png");
+  test::write_text(dir.file("bad.toml"), "red = \"#00FF00\"\nplain = \"green\"\n");
+  test::write_text(dir.file("broken.toml"), "red = \"#00FF00\"\nplain = \n");
+  struct Case {
+    std::string flags, expected;
+  };
+  for (const Case& c : {Case{"--id-palette " + dir.file("bad.toml"), dir.file("bad.toml") + ":2: 'plain'"},
+                        Case{"--id-palette " + dir.file("broken.toml"), dir.file("broken.toml") + ":2"},
+                        Case{"--id-palette " + dir.file("none.toml"), dir.file("none.toml")},
+                        Case{"--id-palette " + dir.file("palette.toml") + " --id-source vertex-color",
+                             "takes the colours as painted"}}) {
+    SCOPED_TRACE(c.flags);
+    const test::CommandResult r = test::run_command(base + " " + c.flags + " -q 2>&1");
+    EXPECT_EQ(r.exit_code, 2) << r.output;
+    EXPECT_NE(r.output.find(c.expected), std::string::npos) << r.output;
+    EXPECT_FALSE(std::filesystem::exists(dir.file("x.png")));
+  }
+}
+
+// --id-source vertex-color: each triangle takes the colour most of its
+// corners have; a high without colours is exit 2.
+TEST(Transfer, IdMapFromVertexColours) {
+  TransferScene scene = make_scene();
+  const Bounds b = compute_bounds(scene.high);
+  const float middle = 0.5f * (b.min.x + b.max.x);
+  for (const glm::vec3& p : scene.high.positions) {
+    scene.high.colors.push_back(p.x < middle ? glm::vec4(1, 0, 0, 1) : glm::vec4(0, 0, 1, 1));
+  }
+  test::TempDir dir;
+  ASSERT_TRUE(save_mesh(dir.file("low.obj"), scene.low).is_ok());
+  ASSERT_TRUE(save_mesh(dir.file("high.ply"), scene.high).is_ok());
+  BakeOptions o = transfer_bake(dir, 32);
+  o.high_paths = {dir.file("high.ply")};
+  o.maps = {MapKind::id};
+  o.id_source = IdSource::vertex_color;
+  BakeReport report;
+  Status s = bake(o, report);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  ASSERT_EQ(report.id_names.size(), 2u);
+  EXPECT_EQ(report.id_names[0].first, "#ff0000");
+  EXPECT_EQ(report.id_names[0].second, glm::vec3(1, 0, 0));
+  EXPECT_EQ(report.id_names[1].first, "#0000ff");
+  Image map;
+  ASSERT_TRUE(read_image(dir.file("m_id.exr"), map).is_ok());
+  std::set<std::array<float, 3>> seen;
+  for (std::size_t i = 0; i < map.pixels.size(); i += 3)
+    seen.insert({map.pixels[i], map.pixels[i + 1], map.pixels[i + 2]});
+  EXPECT_EQ(seen, (std::set<std::array<float, 3>>{{1, 0, 0}, {0, 0, 1}, {0, 0, 0}}));
+  scene.high.colors.clear();
+  ASSERT_TRUE(save_mesh(dir.file("high.ply"), scene.high).is_ok());
+  s = bake(o, report);
+  ASSERT_FALSE(s.is_ok());
+  EXPECT_NE(s.message().find("no vertex colours"), std::string::npos) << s.message();
 }
 
 // Packed outputs: each channel equals the channel of the map's own file at

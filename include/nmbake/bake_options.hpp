@@ -126,6 +126,7 @@ struct BakeOptions {
   int thickness_rays = 16;
   Distance thickness_distance;               // auto: as ao_distance
   IdSource id_source = IdSource::automatic;  // what the id map colours (maps.hpp)
+  std::string id_palette;                    // the id map's colours by name (IdPalette); empty: none
   std::vector<PackSpec> packs;               // packed outputs, written beside the maps
 };
 

@@ -142,16 +142,33 @@ struct SurfaceTransfer {
 // What the id map colours: the high mesh's parts (OBJ o/g, glTF nodes, FBX
 // models) or its materials (OBJ usemtl, glTF primitive materials, FBX and
 // Collada materials); automatic: materials when the high mesh has a named
-// material (Mesh::has_named_materials()), else parts.
-enum class IdSource : std::uint8_t { automatic, part, material };
+// material (Mesh::has_named_materials()), else parts. vertex_color: the
+// high's vertex colours (polypaint): each triangle takes the colour most of
+// its corners have (the first corner's when all three differ), at 8 bits.
+enum class IdSource : std::uint8_t { automatic, part, material, vertex_color };
 inline constexpr Word<IdSource> kIdSourceWords[] = {
     {"auto", IdSource::automatic, "materials when the high mesh names one, else parts"},
     {"part", IdSource::part, "a colour per high part"},
     {"material", IdSource::material, "a colour per high material"},
+    {"vertex-color", IdSource::vertex_color, "the high's vertex colours, one per triangle"},
 };
 NMBAKE_WORDS(IdSource, kIdSourceWords)
-// `requested` for `high`: part or material, never automatic.
+// `requested` for `high`: part, material or vertex_color, never automatic.
 IdSource resolve_id_source(IdSource requested, const Mesh& high);
+
+// The artist's colours for the id map (--id-palette): names of parts or
+// materials with an 8-bit sRGB colour, as a TOML file of `NAME = "#RRGGBB"`
+// lines (quoted names for any characters: `"rubber grip" = "#202020"`).
+// A name the palette gives takes its colour even when another name shares
+// it (two materials one mask, as the artist chose); the names it does not
+// give are coloured as without a palette.
+struct IdPalette {
+  std::vector<std::pair<std::string, glm::vec3>> colors;  // display values in [0, 1]
+  const glm::vec3* find(const std::string& name) const;
+};
+// bad_input naming `path` (and the line) and what is wrong: not TOML, a
+// value that is not "#RRGGBB", a table.
+Status read_id_palette(const std::string& path, IdPalette& out);
 
 // Output paths name maps with a token: `-o asset_<MAP>.png`.
 inline constexpr const char* kMapToken = "<MAP>";
@@ -238,8 +255,10 @@ struct MapMeshData {
 // named materials is the caller's error to report first (all "" then).
 // `textures`: the high's textures the transfer maps read
 // (load_material_textures(); empty without transfer maps), kept in `out`.
+// `palette`: the id map's colours the artist gave (--id-palette).
 void prepare_map_mesh(const Mesh& high, const std::vector<MapKind>& maps, IdSource id_source,
-                      const BakeGroups& groups, TextureSet textures, MapMeshData& out);
+                      const IdPalette& palette, const BakeGroups& groups, TextureSet textures,
+                      MapMeshData& out);
 
 // What the bands of a map set counted: per map (in the set's order) the
 // figures its module added up band by band (fallback counters), and the rays

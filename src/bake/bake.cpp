@@ -170,11 +170,12 @@ struct Meshes {
   bool udim = false;         // outputs hold <UDIM>: a map per UV tile
   std::vector<int> tiles;    // the UDIM tiles baked (1001 alone without <UDIM>)
   std::vector<LowSet> sets;  // outputs hold <SET>: a map set per low material (sets.hpp); else empty
+  IdPalette palette;         // the id map's colours by name (--id-palette)
 };
 
 // What the high mesh must hold for the map set: vertex colours, named materials.
-Status check_high_for_maps(const BakeOptions& o, const Mesh& high, bool colors_kept) {
-  if (colors_kept && !high.has_colors()) {
+Status check_high_for_maps(const BakeOptions& o, const Mesh& high) {
+  if (std::find(o.maps.begin(), o.maps.end(), MapKind::vertex_color) != o.maps.end() && !high.has_colors()) {
     return Status::bad_input(
         high_name(o.high_paths) +
         ": --map vertex-color, but the high mesh has no vertex colours (read from "
@@ -182,6 +183,13 @@ Status check_high_for_maps(const BakeOptions& o, const Mesh& high, bool colors_k
         "\"v x y z r g b\" lines)");
   }
   const bool id_map = std::find(o.maps.begin(), o.maps.end(), MapKind::id) != o.maps.end();
+  if (id_map && o.id_source == IdSource::vertex_color && !high.has_colors()) {
+    return Status::bad_input(
+        high_name(o.high_paths) +
+        ": --map id with --id-source vertex-color, but the high mesh has no vertex colours "
+        "(PLY red/green/blue, glTF COLOR_0, FBX and Collada vertex colours, OBJ \"v x y z r "
+        "g b\")");
+  }
   if (id_map && o.id_source == IdSource::material && !high.has_named_materials()) {
     return Status::bad_input(high_name(o.high_paths) +
                              ": --map id with --id-source material, but the high mesh has no named "
@@ -195,18 +203,20 @@ Status check_high_for_maps(const BakeOptions& o, const Mesh& high, bool colors_k
 // coordinate ranges, memory, distances against the low diagonal.
 Status load_inputs(const BakeOptions& o, BakeReport& r, StageTimer& timer, Meshes& m) {
   timer.start("load");
+  const bool id_map = std::find(o.maps.begin(), o.maps.end(), MapKind::id) != o.maps.end();
+  if (id_map && !o.id_palette.empty()) NMBAKE_TRY(read_id_palette(o.id_palette, m.palette));
   NMBAKE_TRY(load_mesh(o.low_path, detail::low_load_options(o), m.low, r.low_load));
   LoadOptions high_options{false, o.encode.high_normals == HighNormals::smooth};
-  high_options.keep_colors = std::find(o.maps.begin(), o.maps.end(), MapKind::vertex_color) != o.maps.end();
+  high_options.keep_colors = std::find(o.maps.begin(), o.maps.end(), MapKind::vertex_color) != o.maps.end() ||
+                             (id_map && o.id_source == IdSource::vertex_color);
   // The transfer maps read the high's corner UVs and materials; the mesh
   // itself (vertices, triangles, normals) is the same as without them.
   high_options.corner_uvs = texture_needs(o.maps).any();
   // The id map colours materials in their own colours where the file gives them.
-  high_options.material_defs =
-      high_options.corner_uvs ||
-      (std::find(o.maps.begin(), o.maps.end(), MapKind::id) != o.maps.end() && o.id_source != IdSource::part);
+  high_options.material_defs = high_options.corner_uvs || (id_map && o.id_source != IdSource::part &&
+                                                           o.id_source != IdSource::vertex_color);
   NMBAKE_TRY(load_meshes(o.high_paths, high_options, m.high, r.high_load));
-  NMBAKE_TRY(check_high_for_maps(o, m.high, high_options.keep_colors));
+  NMBAKE_TRY(check_high_for_maps(o, m.high));
   m.has_cage = !o.cage_path.empty();
   if (m.has_cage) {
     LoadStats cage_load;
@@ -313,7 +323,7 @@ Status prepare_high_scene(const BakeOptions& o, BakeReport& r, StageTimer& timer
   if (const TextureNeeds needs = texture_needs(o.maps); needs.any()) {
     NMBAKE_TRY(load_material_textures(m.high, high_name(o.high_paths), needs, textures));
   }
-  prepare_map_mesh(m.high, o.maps, o.id_source, m.groups, std::move(textures), s.map_mesh);
+  prepare_map_mesh(m.high, o.maps, o.id_source, m.palette, m.groups, std::move(textures), s.map_mesh);
   detail::report_map_mesh(s.map_mesh, r);
   if (m.groups.grouped()) group_high_mesh(o, m.groups, m.high, s.groups);
   r.high_triangles_used = m.high.triangle_count();

@@ -401,6 +401,9 @@ const OptionSpec kTable[] = {
      [](BakeOptions& o, const OptionValue& v) { return read_distance(v, o.thickness_distance, true); },
      [](const BakeOptions& o) { return to_string(o.thickness_distance); }, no_words},
     NMBAKE_WORD_ROW("id_source", IdSource, o.id_source, "what the id map colours"),
+    {"id_palette", "PATH", "the id map's colours by part or material name: a TOML file of NAME = \"#RRGGBB\"",
+     [](BakeOptions& o, const OptionValue& v) { return read_path(v, o.id_palette); },
+     [](const BakeOptions& o) { return o.id_palette; }, no_words},
     {"pack", "FILE=r:MAP,g:MAP,...",
      "a packed output (repeatable): channels of the baked maps, e.g. orm.png=r:ao,g:roughness,b:metallic; a "
      "channel is MAP, MAP.r|g|b, 1-MAP or a number",

@@ -301,7 +301,8 @@ std::string BakeReport::summary_line() const {
       text += line;
     }
     if (!id_names.empty()) {
-      std::snprintf(line, sizeof line, "; id map of %zu %s%s", id_names.size(), to_string(id_source),
+      std::snprintf(line, sizeof line, "; id map of %zu %s%s", id_names.size(),
+                    id_source == IdSource::vertex_color ? "vertex colour" : to_string(id_source),
                     id_names.size() == 1 ? "" : "s");
       text += line;
     }

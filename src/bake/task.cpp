@@ -213,6 +213,10 @@ Status bake_key(const BakeOptions& o, BakeKey& key) {
   NMBAKE_TRY(hash_file(state.get(), o.low_path, "low"));
   for (const std::string& high : o.high_paths) NMBAKE_TRY(hash_file(state.get(), high, "high"));
   NMBAKE_TRY(hash_file(state.get(), o.cage_path, "cage"));
+  // The palette's bytes make the id map's colours (a bake without an id map
+  // does not read it).
+  if (std::find(o.maps.begin(), o.maps.end(), MapKind::id) != o.maps.end() && !o.id_palette.empty())
+    NMBAKE_TRY(hash_file(state.get(), o.id_palette, "id palette"));
   const XXH128_hash_t h = XXH3_128bits_digest(state.get());
   key.high = h.high64;
   key.low = h.low64;

@@ -150,6 +150,11 @@ Status validate_map_set(const BakeOptions& o) {
                                "% of the low mesh's diagonal");
     }
   }
+  if (!o.id_palette.empty() && o.id_source == IdSource::vertex_color) {
+    return Status::bad_input(
+        "--id-palette colours parts or materials by name; --id-source vertex-color takes "
+        "the colours as painted");
+  }
   if (o.adaptive && (o.maps.size() != 1 || o.maps.front() != MapKind::normal)) {
     return Status::bad_input("--samples adaptive bakes the normal map alone; the map set (" +
                              map_list_text(o.maps) + ") needs a fixed sample count (1, 4, 16 or 64)");
@@ -301,6 +306,10 @@ Status check_bake_inputs(const BakeOptions& o) {
   NMBAKE_TRY(check_mesh_file("low", o.low_path));
   for (const std::string& high : o.high_paths) NMBAKE_TRY(check_mesh_file("high", high));
   if (!o.cage_path.empty()) NMBAKE_TRY(check_mesh_file("cage", o.cage_path));
+  if (!o.id_palette.empty() && std::find(o.maps.begin(), o.maps.end(), MapKind::id) != o.maps.end()) {
+    IdPalette palette;
+    NMBAKE_TRY(read_id_palette(o.id_palette, palette));
+  }
   if (o.debug_dump_prefix.find('\0') != std::string::npos) {
     return Status::bad_input(printable_text(o.debug_dump_prefix) + ": the debug-dump path holds a NUL byte");
   }
@@ -317,6 +326,10 @@ Status check_bake_low_mesh(const BakeOptions& o) {
   if (low.has_uvs()) {
     std::vector<int> tiles;
     NMBAKE_TRY(find_udim_tiles(low, o.low_path, detail::bakes_udim_tiles(o), tiles));
+  }
+  if (detail::bakes_texture_sets(o)) {
+    std::vector<LowSet> sets;
+    NMBAKE_TRY(find_low_sets(low, o.low_path, sets));
   }
   return Status::ok();
 }

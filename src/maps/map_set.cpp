@@ -4,8 +4,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <glm/geometric.hpp>
+#include <unordered_map>
 
 #include "base/huge_pages.hpp"
 #include "maps/modules.hpp"
@@ -191,6 +193,42 @@ glm::vec3 material_id_color(const Mesh& high, IdSource source, const std::string
   return part_color(name);
 }
 
+// The vertex-color id source: each triangle's colour (the one most of its
+// corners have, at 8 bits; the first corner's when all differ), the
+// distinct colours in order of first use, named "#rrggbb".
+void vertex_color_ids(const Mesh& high, std::vector<std::string>& names, std::vector<std::uint32_t>& id,
+                      std::vector<glm::vec3>& colors) {
+  NMBAKE_CHECK(high.has_colors(), "vertex colours loaded for a vertex-color id map");
+  const auto key = [&](std::uint32_t v) {
+    std::uint32_t k = 0;
+    for (int c = 0; c < 3; ++c) {
+      const float x = std::clamp(high.colors[v][c], 0.0f, 1.0f);
+      k = k << 8 | static_cast<std::uint32_t>(std::lround(255.0f * x));
+    }
+    return k;
+  };
+  std::unordered_map<std::uint32_t, std::uint32_t> index;
+  for (std::size_t t = 0; t < high.triangle_count(); ++t) {
+    const std::uint32_t a = key(high.indices[3 * t]), b = key(high.indices[3 * t + 1]),
+                        c = key(high.indices[3 * t + 2]);
+    const std::uint32_t k = (b == c && a != b) ? b : a;
+    auto [it, added] = index.emplace(k, static_cast<std::uint32_t>(colors.size()));
+    if (added) {
+      const glm::vec3 rgb(static_cast<float>(k >> 16) / 255.0f, static_cast<float>((k >> 8) & 255) / 255.0f,
+                          static_cast<float>(k & 255) / 255.0f);
+      colors.push_back(rgb);
+      char name[8];
+      std::snprintf(name, sizeof name, "#%06x", static_cast<unsigned>(k));
+      names.emplace_back(name);
+    }
+    id[t] = it->second;
+  }
+  if (names.empty()) {
+    names.emplace_back("#000000");
+    colors.emplace_back(0.0f);
+  }
+}
+
 // SurfaceTransfer's per-triangle data, in the scene's order.
 void prepare_transfer(const Mesh& high, const BakeGroups& groups, SurfaceTransfer& out) {
   NMBAKE_CHECK(high.has_corner_uvs(), "corner UVs loaded for a transfer map");
@@ -236,7 +274,8 @@ void prepare_transfer(const Mesh& high, const BakeGroups& groups, SurfaceTransfe
 }  // namespace
 
 void prepare_map_mesh(const Mesh& high, const std::vector<MapKind>& maps, IdSource id_source,
-                      const BakeGroups& groups, TextureSet textures, MapMeshData& out) {
+                      const IdPalette& palette, const BakeGroups& groups, TextureSet textures,
+                      MapMeshData& out) {
   const auto wants = [&](MapKind map) { return std::find(maps.begin(), maps.end(), map) != maps.end(); };
   out = MapMeshData{};
   out.transfer.textures = std::move(textures);
@@ -256,29 +295,40 @@ void prepare_map_mesh(const Mesh& high, const std::vector<MapKind>& maps, IdSour
   }
   if (wants(MapKind::id)) {
     out.id_source = resolve_id_source(id_source, high);
-    const std::vector<MeshPart>& ranges = out.id_source == IdSource::material ? high.materials : high.parts;
-    // One unnamed id when the file has none; a name in several ranges is
-    // one id.
     std::vector<std::string> names;
     std::vector<std::uint32_t> id(high.triangle_count(), 0);
-    for (const MeshPart& range : ranges) {
-      const auto at = std::find(names.begin(), names.end(), range.name);
-      const auto index = static_cast<std::uint32_t>(at - names.begin());
-      if (at == names.end()) names.push_back(range.name);
-      std::fill_n(id.begin() + range.first_triangle, range.triangle_count, index);
-    }
-    if (names.empty()) names.emplace_back();
-    for (const std::string& name : names)
-      out.id_colors.push_back(material_id_color(high, out.id_source, name));
-    // A colour two names share would merge them in the mask (Blender writes
-    // Kd 0.8 for every material it was not given one for): those names
-    // take their hues.
-    std::vector<bool> shared(names.size());
-    for (std::size_t i = 0; i < names.size(); ++i) {
-      shared[i] = std::count(out.id_colors.begin(), out.id_colors.end(), out.id_colors[i]) > 1;
-    }
-    for (std::size_t i = 0; i < names.size(); ++i) {
-      if (shared[i]) out.id_colors[i] = part_color(names[i]);
+    if (out.id_source == IdSource::vertex_color) {
+      vertex_color_ids(high, names, id, out.id_colors);
+    } else {
+      const std::vector<MeshPart>& ranges = out.id_source == IdSource::material ? high.materials : high.parts;
+      // One unnamed id when the file has none; a name in several ranges is
+      // one id.
+      for (const MeshPart& range : ranges) {
+        const auto at = std::find(names.begin(), names.end(), range.name);
+        const auto index = static_cast<std::uint32_t>(at - names.begin());
+        if (at == names.end()) names.push_back(range.name);
+        std::fill_n(id.begin() + range.first_triangle, range.triangle_count, index);
+      }
+      if (names.empty()) names.emplace_back();
+      for (const std::string& name : names)
+        out.id_colors.push_back(material_id_color(high, out.id_source, name));
+      // A colour two names share would merge them in the mask (Blender
+      // writes Kd 0.8 for every material it was not given one for): those
+      // names take their hues. The palette's colours are the artist's
+      // choice, shared or not.
+      std::vector<bool> given(names.size()), shared(names.size());
+      for (std::size_t i = 0; i < names.size(); ++i) {
+        if (const glm::vec3* color = palette.find(names[i]); color != nullptr) {
+          out.id_colors[i] = *color;
+          given[i] = true;
+        }
+      }
+      for (std::size_t i = 0; i < names.size(); ++i) {
+        shared[i] = std::count(out.id_colors.begin(), out.id_colors.end(), out.id_colors[i]) > 1;
+      }
+      for (std::size_t i = 0; i < names.size(); ++i) {
+        if (shared[i] && !given[i]) out.id_colors[i] = part_color(names[i]);
+      }
     }
     for (std::size_t i = 0; i < names.size(); ++i) out.ids.emplace_back(names[i], out.id_colors[i]);
     if (groups.grouped()) {
