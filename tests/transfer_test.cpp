@@ -715,6 +715,20 @@ TEST(Transfer, FbxAndColladaMaterialsBakeAsTheirObjTwin) {
     ASSERT_TRUE(read_image(dir.file("m_base-color.exr"), baked).is_ok());
     EXPECT_EQ(largest_difference(from_obj, baked), 0.0f);
   }
+  // A broken embedded texture in the FBX: exit 2 naming the file, the
+  // material and the embedded image, nothing written.
+  model.embedded = png.substr(0, 64) + std::string(64, 'x');
+  ASSERT_TRUE(gen::write_fbx_binary(dir.file("broken.fbx"), scene.high, model).is_ok());
+  std::filesystem::remove(dir.file("m_base-color.exr"));
+  o.high_path = dir.file("broken.fbx");
+  s = bake(o, report);
+  ASSERT_FALSE(s.is_ok());
+  EXPECT_EQ(s.code(), StatusCode::bad_input) << s.message();
+  EXPECT_NE(
+      s.message().find(dir.file("broken.fbx") + ": material 'scan', base colour texture (embedded image 0)"),
+      std::string::npos)
+      << s.message();
+  EXPECT_FALSE(std::filesystem::exists(dir.file("m_base-color.exr")));
 }
 
 // The id map colours an FBX or Collada material in its own diffuse colour,
