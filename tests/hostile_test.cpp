@@ -362,8 +362,9 @@ TEST(Hostile, MalformedChildReplyIsRefusedBeforeItAllocates) {
   }
   // Counts at known places: the colour count after four arrays of a mesh
   // with positions only ('R', 'S', code, empty message: 14 bytes; positions:
-  // 8 + 36; normals, uvs, tangents: 8 each); the materials' count before the
-  // stats (40 bytes) at the end of a reply without parts or materials.
+  // 8 + 36; normals, uvs, tangents: 8 each); the counts of parts, material
+  // ranges, corner UVs, material definitions and embedded images before the
+  // stats (48 bytes) at the end of a reply without any of them.
   const auto count_at = [](const std::string& bytes, std::size_t at) {
     std::uint64_t n = 0;
     std::memcpy(&n, bytes.data() + at, sizeof n);
@@ -374,15 +375,21 @@ TEST(Hostile, MalformedChildReplyIsRefusedBeforeItAllocates) {
   bare.materials.clear();
   const std::string bare_reply = load_detail::encode_child_reply(Status::ok(), bare, stats);
   const std::size_t colors_at = 14 + 8 + 36 + 3 * 8;
-  const std::size_t parts_at = bare_reply.size() - 40 - 16;
-  const std::size_t materials_at = bare_reply.size() - 40 - 8;
+  const std::size_t stats_at = bare_reply.size() - 48;
+  const std::size_t parts_at = stats_at - 40;
+  const std::size_t materials_at = stats_at - 32;
+  const std::size_t corner_uvs_at = stats_at - 24;
+  const std::size_t material_defs_at = stats_at - 16;
+  const std::size_t images_at = stats_at - 8;
   ASSERT_EQ(count_at(bare_reply, colors_at), 3u);
-  ASSERT_EQ(count_at(bare_reply, parts_at), 0u);
-  ASSERT_EQ(count_at(bare_reply, materials_at), 0u);
-  for (const std::size_t at : {colors_at, parts_at, materials_at}) {
+  for (const std::size_t at : {parts_at, materials_at, corner_uvs_at, material_defs_at, images_at}) {
+    ASSERT_EQ(count_at(bare_reply, at), 0u) << at;
+  }
+  for (const std::size_t at :
+       {colors_at, parts_at, materials_at, corner_uvs_at, material_defs_at, images_at}) {
     // One more than the bytes after the count could hold (a colour and the
-    // smallest range take 16 bytes each), and far more.
-    const std::uint64_t just_over = (bare_reply.size() - at - 8) / 16 + 1;
+    // smallest range take 16 bytes each, a corner UV 8), and far more.
+    const std::uint64_t just_over = (bare_reply.size() - at - 8) / (at == corner_uvs_at ? 8 : 16) + 1;
     for (const std::uint64_t count :
          {std::uint64_t{1} << 62, std::uint64_t{1} << 36, std::uint64_t{1} << 20, just_over}) {
       SCOPED_TRACE("count " + std::to_string(count) + " at byte " + std::to_string(at));

@@ -13,6 +13,9 @@
 
 #include <array>
 #include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <iterator>
@@ -22,6 +25,7 @@
 #include <set>
 #include <string>
 
+#include "fbx_write.hpp"
 #include "map_lab.hpp"
 #include "nmbake/bake.hpp"
 #include "nmbake/image.hpp"
@@ -654,6 +658,316 @@ TEST(Transfer, CornerUvsLeaveTheHighMeshAsItWas) {
     EXPECT_FLOAT_EQ(b.material_defs[0].roughness, 0.6f);
     EXPECT_EQ(b.material_defs[0].base_color, glm::vec4(1.0f));  // map_Kd replaces Kd
     EXPECT_EQ(sb.corners_without_uvs, 0u);
+  }
+}
+
+// ------------------------------------------------ FBX / Collada and embedded images
+
+// `mesh` as a Collada file (Y up, metres: Assimp leaves the root as it is)
+// with one material `material` on every triangle, whose diffuse is `diffuse`:
+// a <color> or a <texture> of the file `image`. Reals with 9 significant
+// digits (a float's). (Collada 1.4's <hex> embedded images make Debian's
+// Assimp 5.2.5 abort on an assertion, ColladaParser.cpp:256: not tested.)
+std::string collada_text(const Mesh& mesh, const std::string& material, const std::string& diffuse_color,
+                         const std::string& image) {
+  std::string out;
+  char buffer[64];
+  const auto real = [&](float v) {
+    std::snprintf(buffer, sizeof buffer, "%.9g ", static_cast<double>(v));
+    out += buffer;
+  };
+  out +=
+      "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n"
+      "<COLLADA xmlns=\"http://www.collada.org/2005/11/COLLADASchema\" version=\"1.4.1\">\n"
+      "<asset><unit name=\"meter\" meter=\"1\"/><up_axis>Y_UP</up_axis></asset>\n";
+  const bool textured = !image.empty();
+  if (textured) {
+    out += "<library_images><image id=\"img\" name=\"img\"><init_from>" + image;
+    out += "</init_from></image></library_images>\n";
+  }
+  out += "<library_effects><effect id=\"fx\"><profile_COMMON>\n";
+  if (textured) {
+    out +=
+        "<newparam sid=\"surface\"><surface type=\"2D\"><init_from>img</init_from></surface></newparam>\n"
+        "<newparam sid=\"sampler\"><sampler2D><source>surface</source></sampler2D></newparam>\n";
+  }
+  out += "<technique sid=\"common\"><lambert><diffuse>";
+  out +=
+      textured ? "<texture texture=\"sampler\" texcoord=\"UVMap\"/>" : "<color>" + diffuse_color + "</color>";
+  out += "</diffuse></lambert></technique></profile_COMMON></effect></library_effects>\n";
+  out += "<library_materials><material id=\"mat\" name=\"" + material +
+         "\"><instance_effect url=\"#fx\"/></material></library_materials>\n";
+  const std::size_t n = mesh.positions.size();
+  out +=
+      "<library_geometries><geometry id=\"g\" name=\"g\"><mesh>\n<source id=\"pos\"><float_array "
+      "id=\"pos-a\" "
+      "count=\"" +
+      std::to_string(3 * n) + "\">";
+  for (const glm::vec3& p : mesh.positions) {
+    real(p.x);
+    real(p.y);
+    real(p.z);
+  }
+  out +=
+      "</float_array><technique_common><accessor source=\"#pos-a\" count=\"" + std::to_string(n) +
+      "\" stride=\"3\"><param name=\"X\" type=\"float\"/><param name=\"Y\" type=\"float\"/><param name=\"Z\" "
+      "type=\"float\"/></accessor></technique_common></source>\n";
+  out += "<source id=\"uv\"><float_array id=\"uv-a\" count=\"" + std::to_string(2 * n) + "\">";
+  for (const glm::vec2& uv : mesh.uvs) {
+    real(uv.x);
+    real(uv.y);
+  }
+  out += "</float_array><technique_common><accessor source=\"#uv-a\" count=\"" + std::to_string(n) +
+         "\" stride=\"2\"><param name=\"S\" type=\"float\"/><param name=\"T\" "
+         "type=\"float\"/></accessor></technique_common></source>\n";
+  out += "<vertices id=\"v\"><input semantic=\"POSITION\" source=\"#pos\"/></vertices>\n";
+  out += "<triangles material=\"sym\" count=\"" + std::to_string(mesh.triangle_count()) +
+         "\"><input semantic=\"VERTEX\" source=\"#v\" offset=\"0\"/><input semantic=\"TEXCOORD\" "
+         "source=\"#uv\" offset=\"0\" set=\"0\"/><p>";
+  for (const std::uint32_t i : mesh.indices) out += std::to_string(i) + " ";
+  out +=
+      "</p></triangles>\n</mesh></geometry></library_geometries>\n"
+      "<library_visual_scenes><visual_scene id=\"s\"><node id=\"high\" name=\"high\"><instance_geometry "
+      "url=\"#g\"><bind_material><technique_common><instance_material symbol=\"sym\" target=\"#mat\">"
+      "<bind_vertex_input semantic=\"UVMap\" input_semantic=\"TEXCOORD\" input_set=\"0\"/>"
+      "</instance_material></technique_common></bind_material></instance_geometry></node></visual_scene>"
+      "</library_visual_scenes>\n<scene><instance_visual_scene url=\"#s\"/></scene>\n</COLLADA>\n";
+  return out;
+}
+
+// The largest difference between two images of the same size.
+float largest_difference(const Image& a, const Image& b) {
+  EXPECT_EQ(a.width, b.width);
+  EXPECT_EQ(a.pixels.size(), b.pixels.size());
+  float most = 0.0f;
+  for (std::size_t i = 0; i < std::min(a.pixels.size(), b.pixels.size()); ++i)
+    most = std::max(most, std::abs(a.pixels[i] - b.pixels[i]));
+  return most;
+}
+
+// An FBX or Collada high whose material's diffuse is a texture bakes the
+// base colour its OBJ + MTL twin (map_Kd, the same image) bakes: a texture
+// file beside the .dae; beside the .fbx under an absolute path from the
+// artist's machine (found by its file name), and embedded in the .fbx (a
+// Video's Content: Assimp's embedded texture). Read through the child
+// process (load/isolated.hpp), so materials, corner UVs and the embedded
+// image cross the pipe. Bit for bit: the FBX's coordinates are doubles,
+// each read back to the float the OBJ holds, and the Collada's 9-digit
+// reals read back to the same floats here (Assimp's fast_atoreal_move is
+// not correctly rounded in general, so another file might differ in a
+// last bit).
+TEST(Transfer, FbxAndColladaMaterialsBakeAsTheirObjTwin) {
+  const TransferScene scene = make_scene();
+  test::TempDir dir;
+  ASSERT_TRUE(write_image(texture_image(128, true), dir.file("albedo.png"), PixelFormat::png16).is_ok());
+  write_scene(dir, scene, "albedo.png");
+  BakeOptions o = transfer_bake(dir, 64);
+  o.maps = {MapKind::base_color};
+  BakeReport report;
+  Status s = bake(o, report);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  Image from_obj;
+  ASSERT_TRUE(read_image(dir.file("m_base-color.exr"), from_obj).is_ok());
+
+  const std::string png = read_bytes(dir.file("albedo.png"));
+  test::write_text(dir.file("high.dae"), collada_text(scene.high, "scan", "", "albedo.png"));
+  gen::FbxModel model;
+  model.material = "scan";
+  model.texture = "C:\\Users\\artist\\textures\\albedo.png";
+  ASSERT_TRUE(gen::write_fbx_binary(dir.file("high.fbx"), scene.high, model).is_ok());
+  model.embedded = png;
+  ASSERT_TRUE(gen::write_fbx_binary(dir.file("embedded.fbx"), scene.high, model).is_ok());
+  for (const char* name : {"high.dae", "high.fbx", "embedded.fbx"}) {
+    SCOPED_TRACE(name);
+    const bool embedded = std::string(name) == "embedded.fbx";
+    LoadOptions options{false, true};
+    options.corner_uvs = options.material_defs = true;
+    Mesh high;
+    LoadStats stats;
+    s = load_mesh(dir.file(name), options, high, stats);
+    ASSERT_TRUE(s.is_ok()) << s.message();
+    ASSERT_EQ(high.material_defs.size(), 1u);
+    EXPECT_EQ(high.material_defs[0].name, "scan");
+    EXPECT_EQ(high.corner_uvs.size(), high.indices.size());
+    EXPECT_EQ(stats.corners_without_uvs, 0u);
+    const TextureRef& ref = high.material_defs[0].base_color_texture;
+    EXPECT_EQ(ref.problem, "");
+    if (embedded) {
+      ASSERT_EQ(ref.embedded, 0) << ref.path;
+      ASSERT_EQ(high.embedded_images.size(), 1u);
+      const std::vector<unsigned char>& bytes = high.embedded_images[0].bytes;
+      EXPECT_TRUE(std::string(bytes.begin(), bytes.end()) == png);
+      std::filesystem::rename(dir.file("albedo.png"), dir.file("elsewhere.png"));  // not read from the folder
+    } else {
+      EXPECT_EQ(ref.path, dir.file("albedo.png"));
+    }
+    o.high_path = dir.file(name);
+    s = bake(o, report);
+    ASSERT_TRUE(s.is_ok()) << s.message();
+    Image baked;
+    ASSERT_TRUE(read_image(dir.file("m_base-color.exr"), baked).is_ok());
+    EXPECT_EQ(largest_difference(from_obj, baked), 0.0f);
+  }
+  // A broken embedded texture in the FBX: exit 2 naming the file, the
+  // material and the embedded image, nothing written.
+  model.embedded = png.substr(0, 64) + std::string(64, 'x');
+  ASSERT_TRUE(gen::write_fbx_binary(dir.file("broken.fbx"), scene.high, model).is_ok());
+  std::filesystem::remove(dir.file("m_base-color.exr"));
+  o.high_path = dir.file("broken.fbx");
+  s = bake(o, report);
+  ASSERT_FALSE(s.is_ok());
+  EXPECT_EQ(s.code(), StatusCode::bad_input) << s.message();
+  EXPECT_NE(
+      s.message().find(dir.file("broken.fbx") + ": material 'scan', base colour texture (embedded image 0)"),
+      std::string::npos)
+      << s.message();
+  EXPECT_FALSE(std::filesystem::exists(dir.file("m_base-color.exr")));
+}
+
+// The id map colours an FBX or Collada material in its own diffuse colour,
+// as an MTL's Kd (IdMapTakesTheMaterialsOwnColours).
+TEST(Transfer, IdMapTakesTheFbxAndColladaDiffuseColour) {
+  const TransferScene scene = make_scene();
+  test::TempDir dir;
+  ASSERT_TRUE(save_mesh(dir.file("low.obj"), scene.low).is_ok());
+  test::write_text(dir.file("high.dae"), collada_text(scene.high, "red", "0.5 0.1 0.05 1", ""));
+  gen::FbxModel model;
+  model.material = "red";
+  model.diffuse = glm::dvec3(0.5, 0.1, 0.05);
+  ASSERT_TRUE(gen::write_fbx_binary(dir.file("high.fbx"), scene.high, model).is_ok());
+  for (const char* name : {"high.dae", "high.fbx"}) {
+    SCOPED_TRACE(name);
+    BakeOptions o = transfer_bake(dir, 32);
+    o.high_path = dir.file(name);
+    o.maps = {MapKind::id};
+    BakeReport report;
+    const Status s = bake(o, report);
+    ASSERT_TRUE(s.is_ok()) << s.message();
+    ASSERT_EQ(report.id_names.size(), 1u);
+    EXPECT_EQ(report.id_names[0].first, "red");
+    EXPECT_EQ(report.id_names[0].second,
+              glm::vec3(linear_to_srgb(0.5f), linear_to_srgb(0.1f), linear_to_srgb(0.05f)));
+  }
+}
+
+std::string base64(const std::string& bytes) {
+  static const char* const kTable = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  for (std::size_t i = 0; i < bytes.size(); i += 3) {
+    const std::size_t n = std::min<std::size_t>(3, bytes.size() - i);
+    std::uint32_t v = 0;
+    for (std::size_t k = 0; k < 3; ++k)
+      v = (v << 8) | (k < n ? static_cast<unsigned char>(bytes[i + k]) : 0u);
+    for (std::size_t k = 0; k < 4; ++k) out += k <= n ? kTable[(v >> (18 - 6 * k)) & 63] : '=';
+  }
+  return out;
+}
+
+// A .glb of the glTF `doc` whose buffer 0 is `bin` plus `image` (4-byte
+// aligned), image 0 then a buffer view of those bytes.
+std::string glb_with_image(nlohmann::json doc, std::string bin, const std::string& image) {
+  while (bin.size() % 4 != 0) bin += '\0';
+  const std::size_t offset = bin.size();
+  bin += image;
+  while (bin.size() % 4 != 0) bin += '\0';
+  doc["buffers"] = {{{"byteLength", bin.size()}}};
+  doc["bufferViews"].push_back({{"buffer", 0}, {"byteOffset", offset}, {"byteLength", image.size()}});
+  doc["images"] = {{{"bufferView", doc["bufferViews"].size() - 1}, {"mimeType", "image/png"}}};
+  std::string json = doc.dump();
+  while (json.size() % 4 != 0) json += ' ';
+  std::string out = "glTF";
+  const auto u32 = [&](std::uint32_t v) {
+    char b[4];
+    std::memcpy(b, &v, 4);
+    out.append(b, 4);
+  };
+  u32(2);
+  u32(static_cast<std::uint32_t>(12 + 8 + json.size() + 8 + bin.size()));
+  u32(static_cast<std::uint32_t>(json.size()));
+  u32(0x4E4F534Au);  // JSON
+  out += json;
+  u32(static_cast<std::uint32_t>(bin.size()));
+  u32(0x004E4942u);  // BIN
+  out += bin;
+  return out;
+}
+
+// The CRC-32 of PNG chunks (ISO 3309), to write a well-formed hostile header.
+std::uint32_t crc32(const std::string& bytes) {
+  std::uint32_t c = 0xffffffffu;
+  for (const unsigned char b : bytes) {
+    c ^= b;
+    for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0xedb88320u & (0u - (c & 1u)));
+  }
+  return ~c;
+}
+
+// A glTF image embedded in a .glb (a buffer view) or in a data: URI bakes
+// the same bytes as the same PNG beside the .gltf.
+TEST(Transfer, EmbeddedGltfImagesBakeAsTheirFiles) {
+  const TransferScene scene = make_scene();
+  test::TempDir dir;
+  ASSERT_TRUE(save_mesh(dir.file("low.obj"), scene.low).is_ok());
+  ASSERT_TRUE(save_mesh(dir.file("high.gltf"), scene.high).is_ok());
+  ASSERT_TRUE(write_image(texture_image(128, true), dir.file("albedo.png"), PixelFormat::png8).is_ok());
+  nlohmann::json doc = nlohmann::json::parse(read_bytes(dir.file("high.gltf")));
+  doc["textures"] = {{{"source", 0}}};
+  doc["materials"][0]["pbrMetallicRoughness"] = {{"baseColorTexture", {{"index", 0}}}};
+  nlohmann::json beside = doc;
+  beside["images"] = {{{"uri", "albedo.png"}}};
+  test::write_text(dir.file("high.gltf"), beside.dump());
+  BakeOptions o = transfer_bake(dir, 64);
+  o.maps = {MapKind::base_color};
+  o.outputs = {{dir.file("m_<MAP>.png"), PixelFormat::png8}};
+  o.high_path = dir.file("high.gltf");
+  BakeReport report;
+  Status s = bake(o, report);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  const std::string from_file = read_bytes(dir.file("m_base-color.png"));
+  ASSERT_FALSE(from_file.empty());
+
+  const std::string png = read_bytes(dir.file("albedo.png"));
+  const std::string bin = read_bytes(dir.file(doc["buffers"][0]["uri"].get<std::string>()));
+  test::write_text(dir.file("high.glb"), glb_with_image(doc, bin, png));
+  nlohmann::json data_uri = doc;
+  data_uri["images"] = {{{"uri", "data:image/png;base64," + base64(png)}}};
+  test::write_text(dir.file("inline.gltf"), data_uri.dump());
+  std::filesystem::rename(dir.file("albedo.png"), dir.file("elsewhere.png"));  // not read from the folder
+  for (const char* high : {"high.glb", "inline.gltf"}) {
+    SCOPED_TRACE(high);
+    std::filesystem::remove(dir.file("m_base-color.png"));
+    o.high_path = dir.file(high);
+    s = bake(o, report);
+    ASSERT_TRUE(s.is_ok()) << s.message();
+    EXPECT_TRUE(read_bytes(dir.file("m_base-color.png")) == from_file);
+  }
+
+  // A broken embedded image, and one whose header claims 100000 x 100000
+  // (its CRC right, so the PNG reader takes the header): exit 2 naming the
+  // file, the material and the embedded image, before anything is
+  // allocated for the pixels or written.
+  std::string huge = png;
+  const auto put_u32 = [](std::string& bytes, std::size_t at, std::uint32_t v) {
+    for (int k = 0; k < 4; ++k)
+      bytes[at + static_cast<std::size_t>(k)] = static_cast<char>(v >> (24 - 8 * k));
+  };
+  put_u32(huge, 16, 100000);
+  put_u32(huge, 20, 100000);
+  put_u32(huge, 29, crc32(huge.substr(12, 17)));
+  std::string broken = png.substr(0, 60) + std::string(40, 'x');
+  for (const auto& [image, reason] :
+       {std::pair{huge, std::string("65536 pixels a side")}, std::pair{broken, std::string()}}) {
+    test::write_text(dir.file("high.glb"), glb_with_image(doc, bin, image));
+    std::filesystem::remove(dir.file("m_base-color.png"));
+    o.high_path = dir.file("high.glb");
+    s = bake(o, report);
+    ASSERT_FALSE(s.is_ok());
+    EXPECT_EQ(s.code(), StatusCode::bad_input) << s.message();
+    EXPECT_NE(s.message().find(dir.file("high.glb")), std::string::npos) << s.message();
+    EXPECT_NE(s.message().find("material '"), std::string::npos) << s.message();
+    EXPECT_NE(s.message().find("embedded image 0"), std::string::npos) << s.message();
+    EXPECT_NE(s.message().find(reason), std::string::npos) << s.message();
+    EXPECT_FALSE(std::filesystem::exists(dir.file("m_base-color.png")));
   }
 }
 

@@ -105,6 +105,13 @@ constexpr int kMaxReadSide = 65536;
 // memory (RELIABILITY.md).
 Status read_image(const std::string& path, Image& out);
 
+// read_image() of an image file held in memory (`size` bytes: an image
+// embedded in a mesh file, material.hpp), with the same checks; `name`
+// stands for the path in messages, `format_hint` (the file's mime type or
+// Assimp's hint, may be empty) only tells a Targa, which has no signature.
+Status read_image_memory(const std::string& name, const unsigned char* bytes, std::size_t size,
+                         const std::string& format_hint, Image& out);
+
 // What a file holds, without reading its pixels: lets `nmbake diff` pick a
 // tolerance from the quantisation step, and tests check what was written.
 // (Added to the lead's contract by the image stage.)

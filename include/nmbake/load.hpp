@@ -115,17 +115,22 @@ struct LoadOptions {
   // Texture transfer (maps.hpp): every triangle corner's UV (uv_set) into
   // Mesh::corner_uvs without splitting vertices, so the high mesh's
   // triangles, vertices and normals are exactly those of a load without it;
-  // corners without a UV get (0, 0), counted. OBJ and glTF only (FBX,
-  // Collada: bad_input saying so).
+  // corners without a UV get (0, 0), counted. OBJ, glTF and the Assimp
+  // formats (FBX, Collada, 3DS; STL has no UVs: all counted); PLY:
+  // bad_input saying so.
   bool corner_uvs = false;
   // Material definitions into Mesh::material_defs: OBJ `mtllib` files
   // (MTL: Kd, d, Ke, Pr, Pm, map_Kd, map_d, map_Ke, map_Pr, map_Pm,
   // norm / map_Bump / bump with -bm, options -o -s -clamp -imfchan; Tr as
   // 1 - d), glTF materials (pbrMetallicRoughness factors and textures,
   // normalTexture + scale, emissiveTexture + factor, samplers' wrap modes,
-  // KHR_texture_transform). A library or image path is resolved against the
-  // mesh's folder; a missing MTL file is bad_input naming it. PLY, FBX,
-  // Collada, 3DS, STL: none (not read yet from Assimp's materials).
+  // KHR_texture_transform; images in buffer views and data: URIs into
+  // Mesh::embedded_images), FBX and Collada (and 3DS) through Assimp's
+  // aiMaterial (assimp.cpp: diffuse / base colour, opacity, emissive,
+  // roughness and metallic factors, their textures, wrap modes, embedded
+  // textures into Mesh::embedded_images). A library or image path is
+  // resolved against the mesh's folder; a missing MTL file is bad_input
+  // naming it. PLY, STL: none.
   bool material_defs = false;
   // Tuning of the parallel parsers, for tests and benchmarks; the loaded mesh
   // and every error are the same whatever they are set to.

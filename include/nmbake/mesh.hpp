@@ -67,6 +67,9 @@ struct Mesh {
   // most one per name in `materials`, in order of first use; a range whose
   // name has none here has no definition (factors as Material{}).
   std::vector<Material> material_defs;
+  // Images stored in the file that a TextureRef of `material_defs` points at
+  // (TextureRef::embedded indexes here; material.hpp). Empty otherwise.
+  std::vector<EmbeddedImage> embedded_images;
 
   std::size_t vertex_count() const { return positions.size(); }
   std::size_t triangle_count() const { return indices.size() / 3; }

@@ -72,9 +72,12 @@ struct MipTexture {
 };
 
 // A texture file in memory; a <UDIM> path holds one image per tile found
-// (tile number -> image), read from the files that exist.
+// (tile number -> image), read from the files that exist. An image embedded
+// in the mesh file (`embedded` >= 0, Mesh::embedded_images) has no path and
+// one tile.
 struct LoadedTexture {
   std::string path;
+  int embedded = -1;
   bool color = false;               // sRGB-decoded
   std::map<int, MipTexture> tiles;  // a plain path: one entry, tile 0
   bool udim() const { return tiles.empty() || tiles.begin()->first != 0; }
@@ -106,7 +109,11 @@ struct TextureNeeds {
 // for, read once each (`textures`), and per material definition the index
 // of each attribute's texture there (-1: none). A texture that is missing
 // or unreadable, or that the loader could not point at (TextureRef::problem),
-// is bad_input naming `high_path`, the material, the attribute and the path.
+// is bad_input naming `high_path`, the material, the attribute and the path
+// (for an embedded image: "embedded image N", N its index in
+// Mesh::embedded_images). Embedded images are decoded from memory with the
+// same checks as files (sides, size against the bytes, memory, NaN); raw
+// RGBA8 ones (Assimp's uncompressed textures) are taken as 8-bit texels.
 struct MaterialTextures {
   int base_color = -1, roughness = -1, metallic = -1, emissive = -1, opacity = -1;
 };

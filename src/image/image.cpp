@@ -165,13 +165,9 @@ Status check_regular_file(const std::string& path) {
 //    over the compression's lines a chunk, or tiles) against the file, which
 //    holds an 8-byte offset a chunk (OpenEXR allocates the offset table in
 //    open()).
-Status check_exr_header(const std::string& path) {
-  std::FILE* f = std::fopen(path.c_str(), "rb");
-  if (!f) return Status::io("cannot read '" + path + "': " + std::strerror(errno));
-  const std::unique_ptr<std::FILE, int (*)(std::FILE*)> closer(f, &std::fclose);
-  std::error_code ec;
-  const std::uintmax_t file_bytes = fs::file_size(path, ec);
-  if (ec) return Status::io("cannot read '" + path + "': " + ec.message());
+// `f` holds `file_bytes` bytes (a file, or an embedded image through
+// fmemopen); `path` names it in messages.
+Status check_exr_header(const std::string& path, std::FILE* f, std::uintmax_t file_bytes) {
   const auto broken = [&](const std::string& why) {
     return Status::bad_input("cannot read '" + path + "': a broken EXR header: " + why);
   };
@@ -264,25 +260,29 @@ Status check_exr_header(const std::string& path) {
   return Status::ok();
 }
 
+Status check_exr_header(const std::string& path) {
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) return Status::io("cannot read '" + path + "': " + std::strerror(errno));
+  const std::unique_ptr<std::FILE, int (*)(std::FILE*)> closer(f, &std::fclose);
+  std::error_code ec;
+  const std::uintmax_t file_bytes = fs::file_size(path, ec);
+  if (ec) return Status::io("cannot read '" + path + "': " + ec.message());
+  return check_exr_header(path, f, file_bytes);
+}
+
 // The OpenImageIO reader for the formats nmbake reads, picked from the
 // file's first bytes (a Targa, which has no signature, from its extension),
 // so that no other reader sees the file: OpenImageIO's open() offers a file
 // to every plugin in turn, and some allocate the whole image from the header
 // inside open(), before check_image_header() can run (a 30-byte WebP
 // claiming 12546 x 13317 took 670 MB there; found by tests/fuzz).
-Status pick_reader(const std::string& path, std::string& reader) {
-  unsigned char head[12] = {};
-  std::size_t got = 0;
-  if (std::FILE* f = std::fopen(path.c_str(), "rb")) {
-    got = std::fread(head, 1, sizeof head, f);
-    std::fclose(f);
-  } else {
-    return Status::io("cannot read '" + path + "': " + std::strerror(errno));
-  }
+// `head`: the first `got` (up to 12) bytes; `extension` (".tga") names a
+// Targa, which has no signature.
+Status pick_reader(const std::string& path, const unsigned char* head, std::size_t got, std::string extension,
+                   std::string& reader) {
   const auto starts = [&](const char* magic, std::size_t n) {
     return got >= n && std::memcmp(head, magic, n) == 0;
   };
-  std::string extension = fs::path(path).extension().string();
   for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   if (starts("\x89PNG\r\n\x1a\n", 8)) {
     reader = "png";
@@ -308,6 +308,18 @@ Status pick_reader(const std::string& path, std::string& reader) {
                              "its first bytes are none of theirs)");
   }
   return Status::ok();
+}
+
+Status pick_reader(const std::string& path, std::string& reader) {
+  unsigned char head[12] = {};
+  std::size_t got = 0;
+  if (std::FILE* f = std::fopen(path.c_str(), "rb")) {
+    got = std::fread(head, 1, sizeof head, f);
+    std::fclose(f);
+  } else {
+    return Status::io("cannot read '" + path + "': " + std::strerror(errno));
+  }
+  return pick_reader(path, head, got, fs::path(path).extension().string(), reader);
 }
 
 // Bytes of one sample as the file stores it (OpenImageIO's type names).
@@ -342,7 +354,8 @@ double exr_largest_ratio(const std::string& compression) {
 // 19789 x 15104 took 1.2 GB and seconds; a 422-byte ZIP EXR of 18743296 x 9
 // made OpenEXR's chunk buffers ask for 1.8 GB each, 28.7 GB in all under the
 // fuzzer; both found by tests/fuzz.)
-Status check_image_header(const std::string& path, const ImageFileInfo& info) {
+Status check_image_header(const std::string& path, const ImageFileInfo& info, std::uintmax_t file_bytes,
+                          bool size_known) {
   const std::uint64_t width = static_cast<std::uint64_t>(std::max(0, info.width));
   const std::uint64_t height = static_cast<std::uint64_t>(std::max(0, info.height));
   const std::uint64_t channels = static_cast<std::uint64_t>(std::max(0, info.channels));
@@ -351,8 +364,6 @@ Status check_image_header(const std::string& path, const ImageFileInfo& info) {
                              std::to_string(height) + "; nmbake reads images of at most " +
                              std::to_string(kMaxReadSide) + " pixels a side");
   }
-  std::error_code ec;
-  const std::uintmax_t file_bytes = fs::file_size(path, ec);
   const double file = static_cast<double>(file_bytes);
   const double pixels = static_cast<double>(width) * static_cast<double>(height);
   const double samples = pixels * static_cast<double>(channels);
@@ -375,12 +386,31 @@ Status check_image_header(const std::string& path, const ImageFileInfo& info) {
   } else if (info.file_format == "pnm") {
     most = 8.0 * file;
   }
-  if (!ec && most >= 0.0 && needed > most + 65536.0) {
+  if (size_known && most >= 0.0 && needed > most + 65536.0) {
     return Status::bad_input("cannot read '" + path + "': its header says " + std::to_string(width) + "x" +
                              std::to_string(height) + ", which " + std::to_string(file_bytes) + " bytes of " +
                              info.file_format + " cannot hold: a broken or truncated file");
   }
   return check_image_memory(path, width, height, channels);
+}
+
+Status check_image_header(const std::string& path, const ImageFileInfo& info) {
+  std::error_code ec;
+  const std::uintmax_t file_bytes = fs::file_size(path, ec);
+  return check_image_header(path, info, file_bytes, !ec);
+}
+
+// No NaN enters the program.
+Status check_no_nan(const std::string& path, const Image& image) {
+  for (std::size_t i = 0; i < image.pixels.size(); ++i) {
+    if (std::isnan(image.pixels[i])) {
+      const std::size_t texel = i / image.channels;
+      return Status::bad_input(
+          "cannot read '" + path + "': NaN at pixel (" + std::to_string(texel % image.width) + ", " +
+          std::to_string(texel / image.width) + ") channel " + std::to_string(i % image.channels));
+    }
+  }
+  return Status::ok();
 }
 
 }  // namespace
@@ -582,7 +612,7 @@ Status read_image_info(const std::string& path, ImageFileInfo& out) {
   std::string reader;
   NMBAKE_TRY(pick_reader(path, reader));
   if (reader == "openexr") NMBAKE_TRY(check_exr_header(path));
-  const oiio_module::Outcome outcome = api->read_info(path, reader, out, reason);
+  const oiio_module::Outcome outcome = api->read_info(path, reader, nullptr, 0, out, reason);
   return module_status(outcome, "cannot read '" + path + "': " + reason);
 }
 
@@ -598,22 +628,50 @@ Status read_image(const std::string& path, Image& out) {
   NMBAKE_TRY(pick_reader(path, reader));
   if (reader == "openexr") NMBAKE_TRY(check_exr_header(path));
   ImageFileInfo info;
-  const oiio_module::Outcome header = api->read_info(path, reader, info, reason);
+  const oiio_module::Outcome header = api->read_info(path, reader, nullptr, 0, info, reason);
   if (header != oiio_module::Outcome::ok)
     return module_status(header, "cannot read '" + path + "': " + reason);
   NMBAKE_TRY(check_image_header(path, info));
   Image image;
-  const oiio_module::Outcome outcome = api->read(path, reader, image, reason);
+  const oiio_module::Outcome outcome = api->read(path, reader, nullptr, 0, image, reason);
   if (outcome != oiio_module::Outcome::ok)
     return module_status(outcome, "cannot read '" + path + "': " + reason);
-  for (std::size_t i = 0; i < image.pixels.size(); ++i) {
-    if (std::isnan(image.pixels[i])) {
-      const std::size_t texel = i / image.channels;
-      return Status::bad_input(
-          "cannot read '" + path + "': NaN at pixel (" + std::to_string(texel % image.width) + ", " +
-          std::to_string(texel / image.width) + ") channel " + std::to_string(i % image.channels));
-    }
+  NMBAKE_TRY(check_no_nan(path, image));
+  out = std::move(image);
+  return Status::ok();
+}
+
+Status read_image_memory(const std::string& name, const unsigned char* bytes, std::size_t size,
+                         const std::string& format_hint, Image& out) {
+  std::string reason;
+  const oiio_module::Api* api = image_module(reason);
+  if (!api) return Status::internal("cannot read '" + name + "': " + reason);
+  if (size == 0) return Status::bad_input("cannot read '" + name + "': it holds no bytes");
+  // The same checks as for a file, on the bytes: the reader from the first
+  // bytes (a Targa from the hint: "tga", "image/x-tga"), the EXR header
+  // walked through fmemopen, the header against the size and memory.
+  std::string extension;
+  if (format_hint.find("tga") != std::string::npos || format_hint.find("targa") != std::string::npos) {
+    extension = ".tga";
   }
+  std::string reader;
+  NMBAKE_TRY(pick_reader(name, bytes, std::min<std::size_t>(size, 12), extension, reader));
+  if (reader == "openexr") {
+    std::FILE* f = ::fmemopen(const_cast<unsigned char*>(bytes), size, "rb");
+    if (!f) return Status::io("cannot read '" + name + "': " + std::strerror(errno));
+    const std::unique_ptr<std::FILE, int (*)(std::FILE*)> closer(f, &std::fclose);
+    NMBAKE_TRY(check_exr_header(name, f, size));
+  }
+  ImageFileInfo info;
+  const oiio_module::Outcome header = api->read_info(name, reader, bytes, size, info, reason);
+  if (header != oiio_module::Outcome::ok)
+    return module_status(header, "cannot read '" + name + "': " + reason);
+  NMBAKE_TRY(check_image_header(name, info, size, true));
+  Image image;
+  const oiio_module::Outcome outcome = api->read(name, reader, bytes, size, image, reason);
+  if (outcome != oiio_module::Outcome::ok)
+    return module_status(outcome, "cannot read '" + name + "': " + reason);
+  NMBAKE_TRY(check_no_nan(name, image));
   out = std::move(image);
   return Status::ok();
 }

@@ -12,6 +12,7 @@
 //    data already in the file's type and converts nothing.
 #include "image/oiio.hpp"
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
@@ -123,11 +124,17 @@ Outcome write(const Image& image, const std::string& file, PixelFormat format, b
 
 // The reader named `reader`, opened on `path`; never another reader (open()
 // alone tries every plugin in turn until one takes the file).
+// `memory` non-null: the reader reads it instead of a file (it must outlive `in`).
 std::unique_ptr<OIIO::ImageInput> open_with(const std::string& path, const std::string& reader,
-                                            const OIIO::ImageSpec* config, std::string& reason) {
+                                            const OIIO::ImageSpec* config, OIIO::Filesystem::IOProxy* memory,
+                                            std::string& reason) {
   std::unique_ptr<OIIO::ImageInput> in = OIIO::ImageInput::create(reader);
   if (!in) {
     reason = "no OpenImageIO reader for " + reader + ": " + error_text(OIIO::geterror());
+    return nullptr;
+  }
+  if (memory != nullptr && (!in->supports("ioproxy") || !in->set_ioproxy(memory))) {
+    reason = "OpenImageIO's " + reader + " reader cannot read an image held in memory";
     return nullptr;
   }
   OIIO::ImageSpec spec;
@@ -139,9 +146,11 @@ std::unique_ptr<OIIO::ImageInput> open_with(const std::string& path, const std::
   return in;
 }
 
-Outcome read_info(const std::string& path, const std::string& reader, ImageFileInfo& out,
-                  std::string& reason) {
-  std::unique_ptr<OIIO::ImageInput> in = open_with(path, reader, nullptr, reason);
+Outcome read_info(const std::string& path, const std::string& reader, const unsigned char* bytes,
+                  std::size_t size, ImageFileInfo& out, std::string& reason) {
+  std::unique_ptr<OIIO::Filesystem::IOMemReader> memory;
+  if (bytes != nullptr) memory = std::make_unique<OIIO::Filesystem::IOMemReader>(bytes, size);
+  std::unique_ptr<OIIO::ImageInput> in = open_with(path, reader, nullptr, memory.get(), reason);
   if (!in) return Outcome::bad_input;  // image.cpp has read its first bytes: the file is there
   const OIIO::ImageSpec& spec = in->spec();
   out.width = spec.width;
@@ -157,10 +166,17 @@ Outcome read_info(const std::string& path, const std::string& reader, ImageFileI
   return Outcome::ok;
 }
 
-Outcome read(const std::string& path, const std::string& reader, Image& out, std::string& reason) {
+Outcome read(const std::string& path, const std::string& reader, const unsigned char* bytes, std::size_t size,
+             Image& out, std::string& reason) {
   OIIO::ImageSpec config;
   config.attribute("oiio:UnassociatedAlpha", 1);
-  std::unique_ptr<OIIO::ImageInput> in = open_with(path, reader, &config, reason);
+  std::unique_ptr<OIIO::Filesystem::IOMemReader> memory;
+  if (bytes != nullptr) {
+    memory = std::make_unique<OIIO::Filesystem::IOMemReader>(bytes, size);
+    void* proxy = memory.get();
+    config.attribute("oiio:ioproxy", OIIO::TypeDesc::PTR, &proxy);
+  }
+  std::unique_ptr<OIIO::ImageInput> in = open_with(path, reader, &config, memory.get(), reason);
   if (!in) return Outcome::bad_input;
   const OIIO::ImageSpec spec = in->spec();
   if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 || spec.depth > 1) {

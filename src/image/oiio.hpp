@@ -9,13 +9,14 @@
 // library, so C++ types cross the boundary; kAbiVersion guards a stale file.
 #pragma once
 
+#include <cstddef>
 #include <string>
 
 #include "nmbake/image.hpp"
 
 namespace nmbake::oiio_module {
 
-constexpr int kAbiVersion = 3;
+constexpr int kAbiVersion = 4;
 constexpr const char* kFileName = "libnmbake_oiio.so";
 constexpr const char* kEntryPoint = "nmbake_oiio_module_api";
 
@@ -31,10 +32,13 @@ struct Api {
                    std::string& reason);
   // `reader` is the OpenImageIO format name image.cpp picked from the file's
   // first bytes ("png", "openexr", ...): only that reader sees the file.
-  Outcome (*read_info)(const std::string& path, const std::string& reader, ImageFileInfo& out,
-                       std::string& reason);
+  // `bytes` non-null: the file is those `size` bytes in memory (read through
+  // Filesystem::IOMemReader; `path` only names it), not the file `path`.
+  Outcome (*read_info)(const std::string& path, const std::string& reader, const unsigned char* bytes,
+                       std::size_t size, ImageFileInfo& out, std::string& reason);
   // Float pixels, 0..1 for integer formats, alpha as stored.
-  Outcome (*read)(const std::string& path, const std::string& reader, Image& out, std::string& reason);
+  Outcome (*read)(const std::string& path, const std::string& reader, const unsigned char* bytes,
+                  std::size_t size, Image& out, std::string& reason);
 };
 
 }  // namespace nmbake::oiio_module

@@ -19,6 +19,28 @@
 // material on import), named by AI_MATKEY_NAME; the names Assimp invents
 // for meshes without one (AI_DEFAULT_MATERIAL_NAME "DefaultMaterial", the
 // 3DS importer's "%%%DEFAULT") read as "" (no material).
+// Material definitions (LoadOptions::material_defs), for every material a
+// mesh uses, from the aiMaterial: base colour AI_MATKEY_BASE_COLOR (PBR
+// materials), else AI_MATKEY_COLOR_DIFFUSE (has_color when either is there);
+// AI_MATKEY_OPACITY into its alpha; AI_MATKEY_COLOR_EMISSIVE;
+// AI_MATKEY_ROUGHNESS_FACTOR and AI_MATKEY_METALLIC_FACTOR; the first
+// texture of BASE_COLOR (else DIFFUSE), EMISSIVE, OPACITY (its alpha, or its
+// luminance without one, as MTL's map_d), NORMALS, DIFFUSE_ROUGHNESS and
+// METALNESS (their luminance), with their wrap modes (Decal, "nothing
+// outside", reads as clamp). A texture replaces its factor, as for MTL
+// (Blender's FBX exporter writes a diffuse colour of 0.8 beside the image
+// it connects; Blender's importer shows the image alone). A texture on a UV
+// channel other than 0 is refused when a bake needs it (only set 0 is
+// read: Mesh::corner_uvs). Texture paths follow the MTL rule (mtl.cpp): a
+// path that exists is read as given (FBX stores absolute paths from the
+// artist's machine; any DCC opening the file reads them too), else relative
+// to the mesh file's folder, else its file name in that folder; a path
+// naming one of Assimp's embedded textures ("*N", or the file name of one,
+// aiScene::GetEmbeddedTextureAndIndex) is that image, copied into
+// Mesh::embedded_images (compressed as stored; Assimp's raw BGRA texels as
+// RGBA).
+// Corner UVs (LoadOptions::corner_uvs): UV channel uv_set of every triangle
+// corner, (0, 0) and counted on meshes without it.
 // Vertex colours (keep_colors): aiMesh::mColors[0] as Assimp hands them
 // over, which is as the file stores them: neither the FBX nor the Collada
 // importer converts a colour space (FBX LayerElementColor and Collada COLOR
@@ -28,14 +50,17 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
+#include <algorithm>
 #include <array>
 #include <assimp/Importer.hpp>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <functional>
 #include <glm/gtc/matrix_inverse.hpp>
 #include <glm/mat3x3.hpp>
 #include <glm/mat4x4.hpp>
+#include <map>
 #include <set>
 #include <string>
 #include <vector>
@@ -176,11 +201,165 @@ class AssimpReader {
     if (!all_tangents_) out_.tangents.clear();
     // White where a mesh had no colours, none at all when no mesh had them.
     if (!any_colors_) out_.colors.clear();
+    if (options_.material_defs) read_material_defs();
     stats_.triangles = out_.triangle_count();
     return Status::ok();
   }
 
  private:
+  // ------------------------------------------------------------ materials
+
+  // Mesh::material_defs for every material a mesh used (see the top of the file).
+  void read_material_defs() {
+    for (const unsigned index : used_materials_) {
+      const aiMaterial& source = *scene_.mMaterials[index];
+      Material def;
+      def.name = material_name(index);
+      if (def.name.empty() || out_.material_def(def.name) != nullptr) continue;
+      aiColor4D color4;
+      aiColor3D color3;
+      if (source.Get(AI_MATKEY_BASE_COLOR, color4) == AI_SUCCESS) {
+        def.base_color = glm::vec4(color4.r, color4.g, color4.b, 1.0f);
+        def.has_color = true;
+      } else if (source.Get(AI_MATKEY_COLOR_DIFFUSE, color3) == AI_SUCCESS) {
+        def.base_color = glm::vec4(color3.r, color3.g, color3.b, 1.0f);
+        def.has_color = true;
+      }
+      ai_real value = 0;
+      if (source.Get(AI_MATKEY_OPACITY, value) == AI_SUCCESS) def.base_color.a = static_cast<float>(value);
+      if (source.Get(AI_MATKEY_COLOR_EMISSIVE, color3) == AI_SUCCESS) {
+        def.emissive = glm::vec3(color3.r, color3.g, color3.b);
+      }
+      if (source.Get(AI_MATKEY_ROUGHNESS_FACTOR, value) == AI_SUCCESS)
+        def.roughness = static_cast<float>(value);
+      if (source.Get(AI_MATKEY_METALLIC_FACTOR, value) == AI_SUCCESS)
+        def.metallic = static_cast<float>(value);
+      const bool finite = std::isfinite(def.base_color.r) && std::isfinite(def.base_color.g) &&
+                          std::isfinite(def.base_color.b) && std::isfinite(def.base_color.a) &&
+                          std::isfinite(def.roughness) && std::isfinite(def.metallic) &&
+                          std::isfinite(def.emissive.r) && std::isfinite(def.emissive.g) &&
+                          std::isfinite(def.emissive.b);
+      if (!finite) {
+        const bool has_color = def.has_color;
+        def = Material{};
+        def.name = material_name(index);
+        def.has_color = has_color;
+      }
+      def.base_color_texture =
+          texture_ref(source, source.GetTextureCount(aiTextureType_BASE_COLOR) > 0 ? aiTextureType_BASE_COLOR
+                                                                                   : aiTextureType_DIFFUSE);
+      def.emissive_texture = texture_ref(source, aiTextureType_EMISSIVE);
+      def.opacity_texture = texture_ref(source, aiTextureType_OPACITY);
+      def.opacity_texture.channel = 3;  // alpha, or the luminance of an image without one
+      def.normal_texture = texture_ref(source, aiTextureType_NORMALS);
+      def.roughness_texture = texture_ref(source, aiTextureType_DIFFUSE_ROUGHNESS);
+      def.metallic_texture = texture_ref(source, aiTextureType_METALNESS);
+      // A texture replaces its factor (see the top of the file).
+      if (!def.base_color_texture.empty()) def.base_color = glm::vec4(1.0f, 1.0f, 1.0f, def.base_color.a);
+      if (!def.opacity_texture.empty()) def.base_color.a = 1.0f;
+      if (!def.emissive_texture.empty()) def.emissive = glm::vec3(1.0f);
+      if (!def.roughness_texture.empty()) def.roughness = 1.0f;
+      if (!def.metallic_texture.empty()) def.metallic = 1.0f;
+      out_.material_defs.push_back(std::move(def));
+    }
+  }
+
+  // The first texture of `type`, or an empty ref.
+  TextureRef texture_ref(const aiMaterial& source, aiTextureType type) {
+    TextureRef ref;
+    aiString file;
+    unsigned uv_index = 0;
+    std::array<aiTextureMapMode, 3> modes{aiTextureMapMode_Wrap, aiTextureMapMode_Wrap,
+                                          aiTextureMapMode_Wrap};
+    if (source.GetTextureCount(type) == 0 ||
+        source.GetTexture(type, 0, &file, nullptr, &uv_index, nullptr, nullptr, modes.data()) != AI_SUCCESS) {
+      return ref;
+    }
+    const auto wrap = [](aiTextureMapMode mode) {
+      return mode == aiTextureMapMode_Clamp || mode == aiTextureMapMode_Decal ? TextureWrap::clamp
+             : mode == aiTextureMapMode_Mirror                                ? TextureWrap::mirror
+                                                                              : TextureWrap::repeat;
+    };
+    ref.wrap_u = wrap(modes[0]);
+    ref.wrap_v = wrap(modes[1]);
+    ref.texcoord = static_cast<int>(uv_index);
+    const std::string name(file.C_Str(), file.length);
+    if (name.empty()) {
+      ref.problem = "the texture has an empty path";
+      return ref;
+    }
+    if (name.find('\0') != std::string::npos) {
+      ref.problem = "the texture path holds a NUL byte";
+      return ref;
+    }
+    if (uv_index != 0) {
+      ref.problem = "the texture reads UV channel " + std::to_string(uv_index) + "; only channel 0 is read";
+      return ref;
+    }
+    const auto [texture, texture_index] = scene_.GetEmbeddedTextureAndIndex(name.c_str());
+    if (texture != nullptr) {
+      ref.embedded = embedded_image(*texture, static_cast<unsigned>(texture_index));
+      if (ref.embedded < 0) {
+        ref.problem = "embedded image " + std::to_string(texture_index) + " is larger than " +
+                      std::to_string(kMaxEmbeddedSide) + " pixels a side";
+      }
+      return ref;
+    }
+    if (name.front() == '*') {
+      ref.problem = "embedded image " + printable_text(name.substr(1)) + " does not exist (the file holds " +
+                    std::to_string(scene_.mNumTextures) + ")";
+      return ref;
+    }
+    ref.path = resolve_texture_path(name);
+    return ref;
+  }
+
+  // The MTL rule (mtl.cpp): as given if it exists, else beside the mesh
+  // file, else its file name beside the mesh file.
+  std::string resolve_texture_path(std::string name) const {
+    namespace fs = std::filesystem;
+    if (name.rfind("file://", 0) == 0) name.erase(0, 7);
+    std::replace(name.begin(), name.end(), '\\', '/');
+    const fs::path folder = fs::path(path_).parent_path();
+    const fs::path given(name);
+    const fs::path beside = given.is_absolute() ? given : folder / given;
+    std::error_code ec;
+    if (fs::exists(beside, ec) || name.find("<UDIM>") != std::string::npos) return beside.string();
+    const fs::path by_name = folder / given.filename();
+    if (given.has_parent_path() && fs::exists(by_name, ec)) return by_name.string();
+    return beside.string();  // missing: the bake that needs it says so
+  }
+
+  // Assimp's texture `index` as Mesh::embedded_images[result], copied once;
+  // -1 for raw texels larger than a texture may be.
+  static constexpr unsigned kMaxEmbeddedSide = 65536;
+  int embedded_image(const aiTexture& texture, unsigned index) {
+    if (const auto it = embedded_.find(index); it != embedded_.end()) return it->second;
+    EmbeddedImage image;
+    if (texture.mHeight == 0) {
+      image.format = std::string(texture.achFormatHint, strnlen(texture.achFormatHint, HINTMAXTEXTURELEN));
+      const auto* bytes = reinterpret_cast<const unsigned char*>(texture.pcData);
+      if (bytes != nullptr) image.bytes.assign(bytes, bytes + texture.mWidth);
+    } else {
+      if (texture.mWidth > kMaxEmbeddedSide || texture.mHeight > kMaxEmbeddedSide) return -1;
+      image.width = static_cast<int>(texture.mWidth);
+      image.height = static_cast<int>(texture.mHeight);
+      const std::size_t texels = std::size_t{texture.mWidth} * texture.mHeight;
+      image.bytes.resize(texels * 4);
+      for (std::size_t t = 0; t < texels && texture.pcData != nullptr; ++t) {
+        const aiTexel& texel = texture.pcData[t];
+        image.bytes[4 * t + 0] = texel.r;
+        image.bytes[4 * t + 1] = texel.g;
+        image.bytes[4 * t + 2] = texel.b;
+        image.bytes[4 * t + 3] = texel.a;
+      }
+    }
+    const int result = static_cast<int>(out_.embedded_images.size());
+    out_.embedded_images.push_back(std::move(image));
+    embedded_.emplace(index, result);
+    return result;
+  }
+
   Status error(const std::string& part, const std::string& reason) const {
     return Status::bad_input(path_ + ": part '" + part + "': " + reason);
   }
@@ -215,11 +394,17 @@ class AssimpReader {
   }
 
   // The mesh's material name; "" for none and for the names Assimp invents.
-  std::string material_name(const aiMesh& mesh) const {
+  std::string material_name(const aiMesh& mesh) {
     if (mesh.mMaterialIndex >= scene_.mNumMaterials || scene_.mMaterials[mesh.mMaterialIndex] == nullptr)
       return {};
+    if (std::find(used_materials_.begin(), used_materials_.end(), mesh.mMaterialIndex) ==
+        used_materials_.end())
+      used_materials_.push_back(mesh.mMaterialIndex);
+    return material_name(mesh.mMaterialIndex);
+  }
+  std::string material_name(unsigned index) const {
     aiString name;
-    if (scene_.mMaterials[mesh.mMaterialIndex]->Get(AI_MATKEY_NAME, name) != AI_SUCCESS) return {};
+    if (scene_.mMaterials[index]->Get(AI_MATKEY_NAME, name) != AI_SUCCESS) return {};
     const std::string text(name.C_Str(), name.length);
     return text == AI_DEFAULT_MATERIAL_NAME || text == "%%%DEFAULT" ? std::string() : text;
   }
@@ -331,6 +516,11 @@ class AssimpReader {
       }
     }
 
+    // Corner UVs: the UV set of every corner, v = 0 at the bottom as above.
+    const auto corner_set = static_cast<unsigned>(options_.uv_set);
+    const aiVector3D* corner_uv = options_.corner_uvs && corner_set < AI_MAX_NUMBER_OF_TEXTURECOORDS
+                                      ? mesh.mTextureCoords[corner_set]
+                                      : nullptr;
     for (unsigned f = 0; f < mesh.mNumFaces; ++f) {
       const aiFace& face = mesh.mFaces[f];
       if (face.mNumIndices < 3) continue;
@@ -349,6 +539,13 @@ class AssimpReader {
         out_.indices.push_back(base + remap[face.mIndices[0]]);
         out_.indices.push_back(base + remap[b]);
         out_.indices.push_back(base + remap[d]);
+        if (options_.corner_uvs) {
+          for (const std::uint32_t v : {face.mIndices[0], b, d}) {
+            if (corner_uv == nullptr) ++stats_.corners_without_uvs;
+            out_.corner_uvs.push_back(corner_uv == nullptr ? glm::vec2(0.0f)
+                                                           : glm::vec2(corner_uv[v].x, corner_uv[v].y));
+          }
+        }
       }
     }
     return Status::ok();
@@ -366,6 +563,8 @@ class AssimpReader {
   bool all_tangents_ = true;
   bool tangents_seen_ = false;
   bool any_colors_ = false;
+  std::vector<unsigned> used_materials_;  // scene material indices, in order of first use
+  std::map<unsigned, int> embedded_;      // Assimp texture index -> Mesh::embedded_images
 };
 
 // Reads in this process; `read_done` is called when Assimp has returned.
@@ -382,10 +581,10 @@ Status load_assimp_here(const std::string& path, const LoadOptions& options, Mes
   // carries its own name (not "$AssimpFbx$" helper nodes around it).
   importer.SetPropertyBool(AI_CONFIG_IMPORT_FBX_PRESERVE_PIVOTS, false);
   // What the bake does not keep is not even copied out of Assimp's scene.
-  int removed = aiComponent_BONEWEIGHTS | aiComponent_ANIMATIONS | aiComponent_LIGHTS | aiComponent_CAMERAS |
-                aiComponent_TEXTURES;
+  int removed = aiComponent_BONEWEIGHTS | aiComponent_ANIMATIONS | aiComponent_LIGHTS | aiComponent_CAMERAS;
+  if (!options.material_defs) removed |= aiComponent_TEXTURES;  // the embedded images
   if (!options.keep_colors) removed |= aiComponent_COLORS;
-  if (!options.keep_uvs) removed |= aiComponent_TEXCOORDS;
+  if (!options.keep_uvs && !options.corner_uvs) removed |= aiComponent_TEXCOORDS;
   if (!options.keep_normals) removed |= aiComponent_NORMALS;
   if (!options.keep_tangents) removed |= aiComponent_TANGENTS_AND_BITANGENTS;
   importer.SetPropertyInteger(AI_CONFIG_PP_RVC_FLAGS, removed);

@@ -599,7 +599,7 @@ class GltfReader {
 
   // The texture of a textureInfo: its image's file (under the glTF's folder,
   // as buffers), sampler wrap modes and KHR_texture_transform.
-  TextureRef texture_ref(int texture_index, int tex_coord, const tinygltf::ExtensionMap& extensions) const {
+  TextureRef texture_ref(int texture_index, int tex_coord, const tinygltf::ExtensionMap& extensions) {
     TextureRef ref;
     ref.texcoord = tex_coord;
     if (texture_index < 0 || static_cast<std::size_t>(texture_index) >= model_.textures.size()) {
@@ -644,10 +644,10 @@ class GltfReader {
       return ref;
     }
     const tinygltf::Image& image = model_.images[static_cast<std::size_t>(source)];
-    if (image.bufferView >= 0 || image.uri.rfind("data:", 0) == 0) {
-      ref.problem = "image " + std::to_string(source) +
-                    " is embedded in the file (a buffer view or data: URI); only image files beside the "
-                    "glTF are read";
+    if (image.bufferView >= 0 || !image.image.empty()) {
+      std::string problem;
+      ref.embedded = embedded_image(static_cast<std::size_t>(source), problem);
+      if (ref.embedded < 0) ref.problem = "image " + std::to_string(source) + ": " + problem;
       return ref;
     }
     const std::string relative = decode_uri(image.uri);
@@ -660,6 +660,43 @@ class GltfReader {
         (std::filesystem::path(path_).parent_path() / std::filesystem::path(relative).lexically_normal())
             .string();
     return ref;
+  }
+
+  // Image `source` (a buffer view's bytes, or a data: URI's that
+  // keep_image_bytes kept) as Mesh::embedded_images[result], copied once;
+  // -1 and `problem` when its buffer view does not lie inside its buffer.
+  int embedded_image(std::size_t source, std::string& problem) {
+    if (const auto it = embedded_.find(source); it != embedded_.end()) return it->second;
+    const tinygltf::Image& image = model_.images[source];
+    EmbeddedImage embedded;
+    embedded.format = image.mimeType;
+    if (image.bufferView >= 0) {
+      const auto view_index = static_cast<std::size_t>(image.bufferView);
+      if (view_index >= model_.bufferViews.size()) {
+        problem = "bufferView " + std::to_string(view_index) + " does not exist";
+        return -1;
+      }
+      const tinygltf::BufferView& view = model_.bufferViews[view_index];
+      if (view.buffer < 0 || static_cast<std::size_t>(view.buffer) >= model_.buffers.size()) {
+        problem = "bufferView " + std::to_string(view_index) + " names no buffer";
+        return -1;
+      }
+      const std::vector<unsigned char>& data = model_.buffers[static_cast<std::size_t>(view.buffer)].data;
+      if (view.byteOffset > data.size() || view.byteLength > data.size() - view.byteOffset) {
+        problem = "bufferView " + std::to_string(view_index) + " (" + std::to_string(view.byteLength) +
+                  " bytes at " + std::to_string(view.byteOffset) + ") lies outside its buffer of " +
+                  std::to_string(data.size()) + " bytes";
+        return -1;
+      }
+      const auto first = data.begin() + static_cast<std::ptrdiff_t>(view.byteOffset);
+      embedded.bytes.assign(first, first + static_cast<std::ptrdiff_t>(view.byteLength));
+    } else {
+      embedded.bytes = image.image;
+    }
+    const int result = static_cast<int>(out_.embedded_images.size());
+    out_.embedded_images.push_back(std::move(embedded));
+    embedded_.emplace(source, result);
+    return result;
   }
 
   // Mesh::material_defs for every material a primitive used.
@@ -1002,12 +1039,24 @@ class GltfReader {
   bool any_tangents_ = false;
   bool any_without_tangents_ = false;
   bool any_colors_ = false;
+  std::map<std::size_t, int> embedded_;  // image index -> Mesh::embedded_images
 };
 
 // Geometry only: images are neither decoded nor, being external, read
-// (TINYGLTF_NO_EXTERNAL_IMAGE); an embedded one is skipped unread.
+// (TINYGLTF_NO_EXTERNAL_IMAGE); an embedded one is skipped unread, unless
+// materials are read (keep_image_bytes).
 bool skip_image(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int,
                 void*) {
+  return true;
+}
+
+// With material definitions, a data: URI image's bytes (decoded from base64
+// by tinygltf) are kept, still compressed, in Image::image for
+// texture_ref(); a buffer view's are taken from the buffer there, with its
+// range checked (tinygltf hands over a pointer into the buffer unchecked).
+bool keep_image_bytes(tinygltf::Image* image, const int, std::string*, std::string*, int, int,
+                      const unsigned char* bytes, int size, void*) {
+  if (image->bufferView < 0 && bytes != nullptr && size > 0) image->image.assign(bytes, bytes + size);
   return true;
 }
 
@@ -1367,7 +1416,7 @@ Status load_gltf(const std::string& path, const LoadOptions& options, Mesh& out,
   if (!scan.problem().empty()) return Status::bad_input(path + ": " + scan.problem());
 
   tinygltf::TinyGLTF parser;
-  parser.SetImageLoader(skip_image, nullptr);
+  parser.SetImageLoader(options.material_defs ? keep_image_bytes : skip_image, nullptr);
   parser.SetFsCallbacks(
       tinygltf::FsCallbacks{buffer_file_exists, keep_path, read_buffer_file, write_nothing, &buffer_files});
   tinygltf::Model model;

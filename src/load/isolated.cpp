@@ -65,6 +65,30 @@ class Writer {
     }
     return true;
   }
+  bool texture(const TextureRef& t) {
+    return text(t.path) && value(t.embedded) && value(t.texcoord) && value(t.channel) && value(t.wrap_u) &&
+           value(t.wrap_v) && value(t.offset) && value(t.scale) && value(t.rotation) && text(t.problem);
+  }
+  bool materials(const std::vector<Material>& v) {
+    if (!value(static_cast<std::uint64_t>(v.size()))) return false;
+    for (const Material& m : v) {
+      if (!(text(m.name) && value(m.base_color) && texture(m.base_color_texture) && value(m.has_color) &&
+            value(m.roughness) && texture(m.roughness_texture) && value(m.metallic) &&
+            texture(m.metallic_texture) && value(m.emissive) && texture(m.emissive_texture) &&
+            texture(m.opacity_texture) && texture(m.normal_texture) && value(m.normal_scale))) {
+        return false;
+      }
+    }
+    return true;
+  }
+  bool images(const std::vector<EmbeddedImage>& v) {
+    if (!value(static_cast<std::uint64_t>(v.size()))) return false;
+    for (const EmbeddedImage& image : v) {
+      if (!text(image.format) || !value(image.width) || !value(image.height) || !array(image.bytes))
+        return false;
+    }
+    return true;
+  }
 
  private:
   int fd_ = -1;
@@ -113,6 +137,52 @@ class Reader {
     }
     return true;
   }
+  // A bool or an enum read as its byte and checked, so a broken reply
+  // cannot make a value its type does not have.
+  bool flag(bool& b) {
+    std::uint8_t byte = 0;
+    if (!value(byte) || byte > 1) return false;
+    b = byte == 1;
+    return true;
+  }
+  bool wrap(TextureWrap& w) {
+    std::uint8_t byte = 0;
+    if (!value(byte) || byte > static_cast<std::uint8_t>(TextureWrap::mirror)) return false;
+    w = static_cast<TextureWrap>(byte);
+    return true;
+  }
+  bool texture(TextureRef& t) {
+    return text(t.path) && value(t.embedded) && value(t.texcoord) && value(t.channel) && wrap(t.wrap_u) &&
+           wrap(t.wrap_v) && value(t.offset) && value(t.scale) && value(t.rotation) && text(t.problem);
+  }
+  // Counts checked as for ranges: a material takes at least its name's and
+  // six textures' two string lengths, an image its format's and bytes' lengths.
+  bool materials(std::vector<Material>& v) {
+    constexpr std::size_t kMaterialBytes = 13 * sizeof(std::uint64_t);
+    std::uint64_t n = 0;
+    if (!value(n) || n > (data_.size() - at_) / kMaterialBytes) return false;
+    v.resize(n);
+    for (Material& m : v) {
+      if (!(text(m.name) && value(m.base_color) && texture(m.base_color_texture) && flag(m.has_color) &&
+            value(m.roughness) && texture(m.roughness_texture) && value(m.metallic) &&
+            texture(m.metallic_texture) && value(m.emissive) && texture(m.emissive_texture) &&
+            texture(m.opacity_texture) && texture(m.normal_texture) && value(m.normal_scale))) {
+        return false;
+      }
+    }
+    return true;
+  }
+  bool images(std::vector<EmbeddedImage>& v) {
+    constexpr std::size_t kImageBytes = 2 * sizeof(std::uint64_t);
+    std::uint64_t n = 0;
+    if (!value(n) || n > (data_.size() - at_) / kImageBytes) return false;
+    v.resize(n);
+    for (EmbeddedImage& image : v) {
+      if (!text(image.format) || !value(image.width) || !value(image.height) || !array(image.bytes))
+        return false;
+    }
+    return true;
+  }
 
  private:
   const std::string& data_;
@@ -124,8 +194,9 @@ bool send_result(Writer& w, const Status& status, const Mesh& mesh, const LoadSt
   if (!status.is_ok()) return true;
   return w.array(mesh.positions) && w.array(mesh.normals) && w.array(mesh.uvs) && w.array(mesh.tangents) &&
          w.array(mesh.colors) && w.array(mesh.indices) && w.ranges(mesh.parts) && w.ranges(mesh.materials) &&
+         w.array(mesh.corner_uvs) && w.materials(mesh.material_defs) && w.images(mesh.embedded_images) &&
          w.value(stats.bytes) && w.value(stats.polygons) && w.value(stats.triangles) &&
-         w.value(stats.degenerate_faces) && w.value(stats.unit_meters);
+         w.value(stats.degenerate_faces) && w.value(stats.corners_without_uvs) && w.value(stats.unit_meters);
 }
 
 }  // namespace
@@ -153,8 +224,10 @@ bool decode_child_reply(const std::string& data, Status& status, Mesh& mesh, Loa
   }
   if (!(r.array(mesh.positions) && r.array(mesh.normals) && r.array(mesh.uvs) && r.array(mesh.tangents) &&
         r.array(mesh.colors) && r.array(mesh.indices) && r.ranges(mesh.parts) && r.ranges(mesh.materials) &&
+        r.array(mesh.corner_uvs) && r.materials(mesh.material_defs) && r.images(mesh.embedded_images) &&
         r.value(stats.bytes) && r.value(stats.polygons) && r.value(stats.triangles) &&
-        r.value(stats.degenerate_faces) && r.value(stats.unit_meters))) {
+        r.value(stats.degenerate_faces) && r.value(stats.corners_without_uvs) &&
+        r.value(stats.unit_meters))) {
     return false;
   }
   status = Status::ok();

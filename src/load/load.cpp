@@ -319,10 +319,10 @@ Status load_mesh(const std::string& path, const LoadOptions& options, Mesh& out,
     return Status::bad_input(path + ": UV set " + std::to_string(options.uv_set) + " asked for, but " +
                              (extension == ".obj" ? "an OBJ" : "a PLY") + " file has one UV set (0)");
   }
-  if (options.corner_uvs && !gltf && extension != ".obj") {
+  if (options.corner_uvs && !gltf && !assimp && extension != ".obj") {
     return Status::bad_input(path +
-                             ": textures and materials of the high mesh are read from OBJ (+ MTL) and "
-                             "glTF files only, not yet from '" +
+                             ": textures and materials of the high mesh are read from OBJ (+ MTL), glTF, "
+                             "FBX and Collada files, not from '" +
                              extension + "' files");
   }
   Status status;

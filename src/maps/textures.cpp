@@ -144,8 +144,36 @@ std::vector<std::pair<int, std::string>> udim_files(const std::string& pattern) 
   return out;
 }
 
-Status read_texture_image(const std::string& path, bool color, Image& image) {
-  NMBAKE_TRY(read_image(path, image));
+// Raw 8-bit RGBA texels (EmbeddedImage with a width) as an image; rows
+// from the top, as files have them.
+Status raw_texels(const EmbeddedImage& embedded, Image& image) {
+  const std::size_t texels =
+      static_cast<std::size_t>(embedded.width) * static_cast<std::size_t>(embedded.height);
+  if (embedded.width <= 0 || embedded.height <= 0 || embedded.width > kMaxReadSide ||
+      embedded.height > kMaxReadSide || embedded.bytes.size() != texels * 4) {
+    return Status::bad_input("its " + std::to_string(embedded.width) + "x" + std::to_string(embedded.height) +
+                             " texels do not match its " + std::to_string(embedded.bytes.size()) + " bytes");
+  }
+  image.width = embedded.width;
+  image.height = embedded.height;
+  image.channels = 4;
+  image.pixels.resize(texels * 4);
+  for (std::size_t i = 0; i < texels * 4; ++i)
+    image.pixels[i] = static_cast<float>(embedded.bytes[i]) / 255.0f;
+  return Status::ok();
+}
+
+// The image of a file, or of an embedded image (`embedded` non-null), with
+// colour decoded to linear light when `color`.
+Status read_texture_image(const std::string& path, const EmbeddedImage* embedded, bool color, Image& image) {
+  if (embedded == nullptr) {
+    NMBAKE_TRY(read_image(path, image));
+  } else if (embedded->width > 0) {
+    NMBAKE_TRY(raw_texels(*embedded, image));
+  } else {
+    NMBAKE_TRY(
+        read_image_memory(path, embedded->bytes.data(), embedded->bytes.size(), embedded->format, image));
+  }
   if (color) {
     const int c = image.channels;
     const int color_channels = c >= 3 ? 3 : (c == 2 ? 1 : c);
@@ -244,6 +272,7 @@ Status load_material_textures(const Mesh& high, const std::string& high_path, co
     std::size_t texture;
     int tile;
     std::string path, where;
+    const EmbeddedImage* embedded;  // or null: the file `path`
   };
   std::vector<Read> reads;
   const auto plan = [&](const Material& m, const char* attribute, const TextureRef& ref, bool color,
@@ -252,12 +281,28 @@ Status load_material_textures(const Mesh& high, const std::string& high_path, co
     const std::string where =
         high_path + ": material '" + printable_text(m.name) + "', " + attribute + " texture";
     if (!ref.problem.empty()) return Status::bad_input(where + ": " + ref.problem);
+    if (ref.embedded >= 0 && static_cast<std::size_t>(ref.embedded) >= high.embedded_images.size()) {
+      return Status::internal(where + ": embedded image " + std::to_string(ref.embedded) +
+                              " is not among the mesh's " + std::to_string(high.embedded_images.size()));
+    }
     for (std::size_t i = 0; i < out.textures.size(); ++i) {
       const bool alpha_only = !color && ref.channel == 3;
-      if (out.textures[i].path == ref.path && (out.textures[i].color == color || alpha_only)) {
+      if (out.textures[i].path == ref.path && out.textures[i].embedded == ref.embedded &&
+          (out.textures[i].color == color || alpha_only)) {
         index = static_cast<int>(i);
         return Status::ok();
       }
+    }
+    if (ref.embedded >= 0) {
+      // An embedded image: one tile, named by its index in messages.
+      index = static_cast<int>(out.textures.size());
+      out.textures.emplace_back();
+      out.textures.back().embedded = ref.embedded;
+      out.textures.back().color = color;
+      reads.push_back(Read{static_cast<std::size_t>(index), 0,
+                           "embedded image " + std::to_string(ref.embedded), where,
+                           &high.embedded_images[static_cast<std::size_t>(ref.embedded)]});
+      return Status::ok();
     }
     std::vector<std::pair<int, std::string>> files;
     if (has_udim_token(ref.path)) {
@@ -274,7 +319,7 @@ Status load_material_textures(const Mesh& high, const std::string& high_path, co
     out.textures.back().path = ref.path;
     out.textures.back().color = color;
     for (auto& [tile, path] : files)
-      reads.push_back(Read{static_cast<std::size_t>(index), tile, path, where});
+      reads.push_back(Read{static_cast<std::size_t>(index), tile, path, where, nullptr});
     return Status::ok();
   };
   for (std::size_t i = 0; i < high.material_defs.size(); ++i) {
@@ -293,8 +338,12 @@ Status load_material_textures(const Mesh& high, const std::string& high_path, co
   tbb::parallel_for(std::size_t{0}, reads.size(), [&](std::size_t r) {
     Image image;
     const Read& read = reads[r];
-    if (Status s = read_texture_image(read.path, out.textures[read.texture].color, image); !s.is_ok()) {
-      status[r] = Status::bad_input(read.where + " '" + printable_text(read.path) + "': " + s.message());
+    if (Status s = read_texture_image(read.path, read.embedded, out.textures[read.texture].color, image);
+        !s.is_ok()) {
+      status[r] = Status::bad_input(
+          read.where +
+          (read.embedded != nullptr ? " (" + read.path + "): " : " '" + printable_text(read.path) + "': ") +
+          s.message());
       return;
     }
     mips[r] = make_mip_texture(std::move(image));

@@ -5,7 +5,9 @@
 // crash in our conversion code is internal, which aborts here. When the
 // file loads, it is loaded again in this process (coverage for libFuzzer),
 // which must give the same mesh (parts, materials and colours included).
-// The first byte's next bit asks for vertex colours. Seeds:
+// The first byte's next bit asks for vertex colours, the one after for
+// materials, corner UVs and embedded textures (as a texture bake loads the
+// high mesh), which must cross from the child whole too. Seeds:
 // tests/fuzz/corpus/assimp/ and, at run time, the small models of
 // assimp-testmodels (tools/fuzz).
 #include "fuzz_util.hpp"
@@ -16,6 +18,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const nmbake::fuzz::InputFile file(data + 1, size - 1, kNames[data[0] % 4]);
   nmbake::LoadOptions options;
   options.keep_colors = (data[0] / 4) % 2 == 1;
+  options.material_defs = options.corner_uvs = (data[0] / 8) % 2 == 1;
   nmbake::Mesh isolated;
   nmbake::LoadStats stats;
   const nmbake::Status status = nmbake::load_mesh(file.path(), options, isolated, stats);
@@ -27,7 +30,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const nmbake::Status again = nmbake::load_mesh(file.path(), here, mesh, stats);
   if (!again.is_ok() || mesh.positions != isolated.positions || mesh.indices != isolated.indices ||
       mesh.uvs != isolated.uvs || mesh.normals != isolated.normals || mesh.colors != isolated.colors ||
-      mesh.parts != isolated.parts || mesh.materials != isolated.materials) {
+      mesh.parts != isolated.parts || mesh.materials != isolated.materials ||
+      mesh.corner_uvs != isolated.corner_uvs || mesh.material_defs != isolated.material_defs ||
+      mesh.embedded_images != isolated.embedded_images) {
     std::abort();
   }
   (void)nmbake::check_coordinate_range(mesh, file.path());

@@ -1,7 +1,10 @@
 // glTF 2.0 through load_mesh() (tinygltf and our accessor checks, the same
 // entry `nmbake bake --low x.glb` uses). The first byte picks .gltf (JSON,
-// data: URIs) or .glb, its next bits ask for vertex colours (COLOR_0) and
-// tangents; the rest is the file. Seeds: tests/fuzz/corpus/gltf/
+// data: URIs) or .glb, its next bits ask for vertex colours (COLOR_0),
+// tangents, and materials with corner UVs (as a texture bake loads the
+// high mesh; the embedded images, buffer views and data: URIs, are then
+// decoded as the bake would: a hostile header must be refused, not
+// allocated); the rest is the file. Seeds: tests/fuzz/corpus/gltf/
 // and, at run time, the small glTF models of assimp-testmodels (tools/fuzz).
 //
 // Byte mutations rarely keep a JSON document valid, so most of them only
@@ -23,6 +26,7 @@
 #include <vector>
 
 #include "fuzz_util.hpp"
+#include "nmbake/textures.hpp"
 
 extern "C" std::size_t LLVMFuzzerMutate(std::uint8_t* data, std::size_t size, std::size_t max_size);
 
@@ -234,9 +238,19 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   nmbake::LoadOptions options;
   options.keep_colors = (data[0] & 2) != 0;
   options.keep_tangents = (data[0] & 4) != 0;
+  options.material_defs = options.corner_uvs = (data[0] & 8) != 0;
   const nmbake::Status status = nmbake::load_mesh(file.path(), options, mesh, stats);
   // What the loader returns holds together (one colour and tangent a vertex).
   if (status.is_ok() && !nmbake::validate_mesh(mesh, file.path())) __builtin_trap();
   if (status.is_ok()) (void)nmbake::check_coordinate_range(mesh, file.path());
+  if (status.is_ok() && !mesh.embedded_images.empty()) {
+    nmbake::TextureNeeds needs;
+    needs.base_color = needs.roughness = needs.metallic = needs.emissive = needs.opacity = true;
+    nmbake::TextureSet textures;
+    if (nmbake::load_material_textures(mesh, file.path(), needs, textures).code() ==
+        nmbake::StatusCode::internal) {
+      std::abort();
+    }
+  }
   return 0;
 }

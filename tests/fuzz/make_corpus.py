@@ -220,6 +220,57 @@ def gltf_json_seed():
     put("gltf", "quad_data_uri.gltf", bytes([0]) + json.dumps(doc).encode())
 
 
+def tiny_png():
+    # A 2x2 RGB PNG (an embedded texture's bytes).
+    import zlib
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xffffffff)
+    rows = b"\0\xff\0\0\0\xff\0" + b"\0\0\0\xff\xff\xff\xff"
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 2, 2, 8, 2, 0, 0, 0)) +
+            chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
+
+
+def material_seeds():
+    # glTF: the quad with a material whose base colour texture is a data: URI
+    # PNG (flag 8: materials, corner UVs, embedded images decoded).
+    with open(os.path.join(HERE, "corpus", "gltf", "quad_data_uri.gltf"), "rb") as f:
+        doc = json.loads(f.read()[1:])
+    doc["meshes"][0]["primitives"][0]["material"] = 0
+    doc["materials"] = [{"name": "albedo", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]
+    doc["textures"] = [{"source": 0}]
+    doc["images"] = [{"uri": "data:image/png;base64," + base64.b64encode(tiny_png()).decode()}]
+    put("gltf", "quad_material.gltf", bytes([8]) + json.dumps(doc).encode())
+    # Collada: the quad with an emission colour and a diffuse texture file (a <hex>
+    # embedded image makes Assimp 5.2.5 abort on an assertion).
+    pos = " ".join("%g %g %g" % p for p in QUAD)
+    dae = ('<?xml version="1.0"?><COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">'
+           '<asset><up_axis>Y_UP</up_axis></asset>'
+           '<library_images><image id="img"><init_from>albedo.png</init_from></image></library_images>'
+           '<library_effects><effect id="fx"><profile_COMMON>'
+           '<newparam sid="s"><surface type="2D"><init_from>img</init_from></surface></newparam>'
+           '<newparam sid="t"><sampler2D><source>s</source></sampler2D></newparam>'
+           '<technique sid="c"><lambert><emission><color>0.1 0.2 0.3 1</color></emission>'
+           '<diffuse><texture texture="t" texcoord="UV"/></diffuse></lambert></technique>'
+           '</profile_COMMON></effect></library_effects>'
+           '<library_materials><material id="m" name="paint"><instance_effect url="#fx"/></material></library_materials>'
+           '<library_geometries><geometry id="g"><mesh>'
+           '<source id="p"><float_array id="pa" count="12">' + pos + '</float_array><technique_common>'
+           '<accessor source="#pa" count="4" stride="3"><param name="X" type="float"/><param name="Y" type="float"/>'
+           '<param name="Z" type="float"/></accessor></technique_common></source>'
+           '<source id="u"><float_array id="ua" count="8">0 0 1 0 1 1 0 1</float_array><technique_common>'
+           '<accessor source="#ua" count="4" stride="2"><param name="S" type="float"/><param name="T" type="float"/>'
+           '</accessor></technique_common></source>'
+           '<vertices id="v"><input semantic="POSITION" source="#p"/></vertices>'
+           '<triangles material="sym" count="2"><input semantic="VERTEX" source="#v" offset="0"/>'
+           '<input semantic="TEXCOORD" source="#u" offset="0" set="0"/><p>0 1 2 0 2 3</p></triangles>'
+           '</mesh></geometry></library_geometries>'
+           '<library_visual_scenes><visual_scene id="vs"><node id="quad" name="quad"><instance_geometry url="#g">'
+           '<bind_material><technique_common><instance_material symbol="sym" target="#m"/></technique_common>'
+           '</bind_material></instance_geometry></node></visual_scene></library_visual_scenes>'
+           '<scene><instance_visual_scene url="#vs"/></scene></COLLADA>')
+    put("assimp", "quad_material.dae", bytes([1 | 8]) + dae.encode())
+
+
 def assimp_text_seeds():
     stl = "solid quad\n"
     for tri in ((0, 1, 2), (0, 2, 3)):
@@ -256,6 +307,7 @@ if __name__ == "__main__":
     bake_seeds()
     gltf_json_seed()
     assimp_text_seeds()
+    material_seeds()
     if len(sys.argv) > 1:
         build = sys.argv[1]
         if os.path.isfile(build):  # the old form: the nmbake binary

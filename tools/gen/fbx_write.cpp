@@ -49,6 +49,12 @@ class FbxWriter {
     put<std::uint32_t>(static_cast<std::uint32_t>(s.size()));
     out_ += s;
   }
+  void raw(const std::string& s) {
+    ++property_count_;
+    out_.push_back('R');
+    put<std::uint32_t>(static_cast<std::uint32_t>(s.size()));
+    out_ += s;
+  }
   void f64_array(const std::vector<double>& values) { array('d', values); }
   void i32_array(const std::vector<std::int32_t>& values) { array('i', values); }
 
@@ -130,6 +136,9 @@ Status write_fbx_binary(const std::string& path, const Mesh& mesh, const FbxMode
 
   constexpr std::int64_t kGeometryId = 1000;
   constexpr std::int64_t kModelId = 2000;
+  constexpr std::int64_t kMaterialId = 3000;
+  constexpr std::int64_t kTextureId = 4000;
+  constexpr std::int64_t kVideoId = 5000;
   std::vector<double> vertices;
   vertices.reserve(mesh.vertex_count() * 3);
   for (const glm::vec3& p : mesh.positions) vertices.insert(vertices.end(), {p.x, p.y, p.z});
@@ -184,10 +193,27 @@ Status write_fbx_binary(const std::string& path, const Mesh& mesh, const FbxMode
                   w.node("UV", [&] { w.f64_array(uvs); });
                 });
           }
+          if (!model.material.empty()) {
+            w.node(
+                "LayerElementMaterial", [&] { w.i32(0); },
+                [&] {
+                  w.node("Version", [&] { w.i32(101); });
+                  w.node("Name", [&] { w.str(""); });
+                  w.node("MappingInformationType", [&] { w.str("AllSame"); });
+                  w.node("ReferenceInformationType", [&] { w.str("IndexToDirect"); });
+                  w.node("Materials", [&] { w.i32_array({0}); });
+                });
+          }
           w.node(
               "Layer", [&] { w.i32(0); },
               [&] {
                 w.node("Version", [&] { w.i32(100); });
+                if (!model.material.empty()) {
+                  w.node("LayerElement", {}, [&] {
+                    w.node("Type", [&] { w.str("LayerElementMaterial"); });
+                    w.node("TypedIndex", [&] { w.i32(0); });
+                  });
+                }
                 if (mesh.has_normals()) {
                   w.node("LayerElement", {}, [&] {
                     w.node("Type", [&] { w.str("LayerElementNormal"); });
@@ -217,6 +243,61 @@ Status write_fbx_binary(const std::string& path, const Mesh& mesh, const FbxMode
             vector_property(w, "Lcl Scaling", model.scaling);
           });
         });
+    if (!model.material.empty()) {
+      w.node(
+          "Material",
+          [&] {
+            w.i64(kMaterialId);
+            w.str(model.material + std::string("\0\1Material", 10));
+            w.str("");
+          },
+          [&] {
+            w.node("Version", [&] { w.i32(102); });
+            w.node("ShadingModel", [&] { w.str("lambert"); });
+            w.node("Properties70", {}, [&] {
+              w.node("P", [&] {
+                w.str("DiffuseColor");
+                w.str("Color");
+                w.str("");
+                w.str("A");
+                w.f64(model.diffuse.x);
+                w.f64(model.diffuse.y);
+                w.f64(model.diffuse.z);
+              });
+            });
+          });
+    }
+    if (!model.material.empty() && !model.texture.empty()) {
+      w.node(
+          "Texture",
+          [&] {
+            w.i64(kTextureId);
+            w.str(std::string("diffuse\0\1Texture", 16));
+            w.str("");
+          },
+          [&] {
+            w.node("Type", [&] { w.str("TextureVideoClip"); });
+            w.node("Version", [&] { w.i32(202); });
+            w.node("TextureName", [&] { w.str(std::string("diffuse\0\1Texture", 16)); });
+            w.node("FileName", [&] { w.str(model.texture); });
+            w.node("RelativeFilename", [&] { w.str(model.texture); });
+          });
+      if (!model.embedded.empty()) {
+        w.node(
+            "Video",
+            [&] {
+              w.i64(kVideoId);
+              w.str(std::string("diffuse\0\1Video", 14));
+              w.str("Clip");
+            },
+            [&] {
+              w.node("Type", [&] { w.str("Clip"); });
+              w.node("FileName", [&] { w.str(model.texture); });
+              w.node("RelativeFilename", [&] { w.str(model.texture); });
+              w.node("Content", [&] { w.raw(model.embedded); });
+            });
+      }
+    }
   });
   w.node("Connections", {}, [&] {
     w.node("C", [&] {
@@ -229,6 +310,28 @@ Status write_fbx_binary(const std::string& path, const Mesh& mesh, const FbxMode
       w.i64(kModelId);
       w.i64(0);
     });
+    if (!model.material.empty()) {
+      w.node("C", [&] {
+        w.str("OO");
+        w.i64(kMaterialId);
+        w.i64(kModelId);
+      });
+    }
+    if (!model.material.empty() && !model.texture.empty()) {
+      w.node("C", [&] {
+        w.str("OP");
+        w.i64(kTextureId);
+        w.i64(kMaterialId);
+        w.str("DiffuseColor");
+      });
+      if (!model.embedded.empty()) {
+        w.node("C", [&] {
+          w.str("OO");
+          w.i64(kVideoId);
+          w.i64(kTextureId);
+        });
+      }
+    }
   });
   out.append(13, '\0');  // the null record that ends the top level
 

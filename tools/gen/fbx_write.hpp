@@ -5,7 +5,7 @@
 // FBX exporter writes files that its importer refuses (nested node lists
 // without their closing null record), so the binary FBX files of the tests
 // and benchmarks come from here. It writes what Assimp's importer reads; it
-// is not a general FBX exporter (no materials, definitions or footer).
+// is not a general FBX exporter (one material, no definitions or footer).
 #pragma once
 
 #include <cstdint>
@@ -24,6 +24,13 @@ struct FbxModel {
   glm::dvec3 rotation_degrees{0.0};  // Euler XYZ (FBX's default order: x applied first)
   glm::dvec3 scaling{1.0};
   double unit_scale_factor = 1.0;  // centimetres per file unit (FBX: 1 = cm, 100 = m)
+  // A material on every polygon (none when `material` is empty): its
+  // DiffuseColor, and a diffuse texture when `texture` names a file; with
+  // `embedded` bytes that file is embedded (a Video's Content).
+  std::string material;
+  glm::dvec3 diffuse{0.8};
+  std::string texture;
+  std::string embedded;
 };
 
 // `polygon_sizes` empty: every polygon is a triangle of mesh.indices;
