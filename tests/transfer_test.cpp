@@ -801,7 +801,7 @@ TEST(Transfer, FbxAndColladaMaterialsBakeAsTheirObjTwin) {
     } else {
       EXPECT_EQ(ref.path, dir.file("albedo.png"));
     }
-    o.high_path = dir.file(name);
+    o.high_paths = {dir.file(name)};
     s = bake(o, report);
     ASSERT_TRUE(s.is_ok()) << s.message();
     Image baked;
@@ -813,7 +813,7 @@ TEST(Transfer, FbxAndColladaMaterialsBakeAsTheirObjTwin) {
   model.embedded = png.substr(0, 64) + std::string(64, 'x');
   ASSERT_TRUE(gen::write_fbx_binary(dir.file("broken.fbx"), scene.high, model).is_ok());
   std::filesystem::remove(dir.file("m_base-color.exr"));
-  o.high_path = dir.file("broken.fbx");
+  o.high_paths = {dir.file("broken.fbx")};
   s = bake(o, report);
   ASSERT_FALSE(s.is_ok());
   EXPECT_EQ(s.code(), StatusCode::bad_input) << s.message();
@@ -838,7 +838,7 @@ TEST(Transfer, IdMapTakesTheFbxAndColladaDiffuseColour) {
   for (const char* name : {"high.dae", "high.fbx"}) {
     SCOPED_TRACE(name);
     BakeOptions o = transfer_bake(dir, 32);
-    o.high_path = dir.file(name);
+    o.high_paths = {dir.file(name)};
     o.maps = {MapKind::id};
     BakeReport report;
     const Status s = bake(o, report);
@@ -919,7 +919,7 @@ TEST(Transfer, EmbeddedGltfImagesBakeAsTheirFiles) {
   BakeOptions o = transfer_bake(dir, 64);
   o.maps = {MapKind::base_color};
   o.outputs = {{dir.file("m_<MAP>.png"), PixelFormat::png8}};
-  o.high_path = dir.file("high.gltf");
+  o.high_paths = {dir.file("high.gltf")};
   BakeReport report;
   Status s = bake(o, report);
   ASSERT_TRUE(s.is_ok()) << s.message();
@@ -936,11 +936,23 @@ TEST(Transfer, EmbeddedGltfImagesBakeAsTheirFiles) {
   for (const char* high : {"high.glb", "inline.gltf"}) {
     SCOPED_TRACE(high);
     std::filesystem::remove(dir.file("m_base-color.png"));
-    o.high_path = dir.file(high);
+    o.high_paths = {dir.file(high)};
     s = bake(o, report);
     ASSERT_TRUE(s.is_ok()) << s.message();
     EXPECT_TRUE(read_bytes(dir.file("m_base-color.png")) == from_file);
   }
+  // Two files with embedded images (several highs): the second file's
+  // texture points at its own image, after the first file's.
+  Mesh both;
+  LoadStats both_stats;
+  LoadOptions both_options;
+  both_options.material_defs = both_options.corner_uvs = true;
+  s = load_meshes({dir.file("high.glb"), dir.file("inline.gltf")}, both_options, both, both_stats);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  ASSERT_EQ(both.embedded_images.size(), 2u);
+  ASSERT_EQ(both.material_defs.size(), 2u);
+  EXPECT_EQ(both.material_defs[0].base_color_texture.embedded, 0);
+  EXPECT_EQ(both.material_defs[1].base_color_texture.embedded, 1);
 
   // A broken embedded image, and one whose header claims 100000 x 100000
   // (its CRC right, so the PNG reader takes the header): exit 2 naming the
@@ -959,7 +971,7 @@ TEST(Transfer, EmbeddedGltfImagesBakeAsTheirFiles) {
        {std::pair{huge, std::string("65536 pixels a side")}, std::pair{broken, std::string()}}) {
     test::write_text(dir.file("high.glb"), glb_with_image(doc, bin, image));
     std::filesystem::remove(dir.file("m_base-color.png"));
-    o.high_path = dir.file("high.glb");
+    o.high_paths = {dir.file("high.glb")};
     s = bake(o, report);
     ASSERT_FALSE(s.is_ok());
     EXPECT_EQ(s.code(), StatusCode::bad_input) << s.message();

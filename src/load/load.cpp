@@ -383,6 +383,15 @@ Status append_mesh(const std::string& path, Mesh next, Mesh& out) {
     if (out.materials.empty() && base_triangle > 0) out.materials.push_back({"", 0, base_triangle});
     if (next.materials.empty()) next.materials.push_back({"", 0, static_cast<std::uint32_t>(next_triangles)});
   }
+  // Embedded images follow the earlier files' (TextureRef::embedded).
+  const auto image_base = static_cast<int>(out.embedded_images.size());
+  for (Material& m : next.material_defs) {
+    for (TextureRef* t : {&m.base_color_texture, &m.roughness_texture, &m.metallic_texture, &m.emissive_texture,
+                          &m.opacity_texture, &m.normal_texture}) {
+      if (t->embedded >= 0) t->embedded += image_base;
+    }
+  }
+  for (EmbeddedImage& image : next.embedded_images) out.embedded_images.push_back(std::move(image));
   for (Material& m : next.material_defs) {
     const Material* earlier = out.material_def(m.name);
     if (earlier == nullptr || *earlier == m) continue;
