@@ -433,4 +433,44 @@ void compute_tangents(const Mesh& mesh, std::vector<glm::vec4>& corner_tangents,
   }
 }
 
+void compute_corner_uv_tangents(const Mesh& mesh, const std::vector<std::uint8_t>& selected,
+                                std::vector<glm::vec4>& corner_tangents, TangentStats& stats) {
+  NMBAKE_CHECK(mesh.corner_uvs.size() == 3 * mesh.triangle_count(), "corner UVs for every triangle");
+  NMBAKE_CHECK(selected.empty() || selected.size() == mesh.triangle_count(), "one flag per triangle");
+  // One vertex per corner of the selected triangles; compute_tangents()
+  // welds them back by position, normal and UV, which is the topology a
+  // renderer sees (vertices split where the UVs or normals are).
+  Mesh corners;
+  std::vector<std::uint32_t> source;
+  for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
+    if (!selected.empty() && selected[t] == 0) continue;
+    source.push_back(static_cast<std::uint32_t>(t));
+  }
+  corners.positions.resize(3 * source.size());
+  corners.normals.resize(3 * source.size());
+  corners.uvs.resize(3 * source.size());
+  corners.indices.resize(3 * source.size());
+  for (std::size_t i = 0; i < source.size(); ++i) {
+    const std::uint32_t* v = &mesh.indices[3 * static_cast<std::size_t>(source[i])];
+    glm::vec3 face =
+        glm::cross(mesh.positions[v[1]] - mesh.positions[v[0]], mesh.positions[v[2]] - mesh.positions[v[0]]);
+    const float l = glm::length(face);
+    face = l > 0.0f && std::isfinite(l) ? face / l : glm::vec3(0.0f, 0.0f, 1.0f);
+    for (std::size_t k = 0; k < 3; ++k) {
+      const std::size_t c = 3 * i + k;
+      corners.positions[c] = mesh.positions[v[k]];
+      corners.normals[c] = mesh.has_normals() ? mesh.normals[v[k]] : face;
+      corners.uvs[c] = mesh.corner_uvs[3 * static_cast<std::size_t>(source[i]) + k];
+      corners.indices[c] = static_cast<std::uint32_t>(c);
+    }
+  }
+  std::vector<glm::vec4> tangents;
+  compute_tangents(corners, tangents, stats);
+  corner_tangents.assign(3 * mesh.triangle_count(), glm::vec4(0.0f));
+  for (std::size_t i = 0; i < source.size(); ++i) {
+    for (std::size_t k = 0; k < 3; ++k)
+      corner_tangents[3 * static_cast<std::size_t>(source[i]) + k] = tangents[3 * i + k];
+  }
+}
+
 }  // namespace nmbake
