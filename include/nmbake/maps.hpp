@@ -59,6 +59,7 @@
 #include "nmbake/parts.hpp"
 #include "nmbake/raster.hpp"
 #include "nmbake/surface.hpp"
+#include "nmbake/tangents.hpp"
 #include "nmbake/textures.hpp"
 #include "nmbake/trace.hpp"
 
@@ -130,6 +131,9 @@ TextureNeeds texture_needs(const std::vector<MapKind>& maps);
 // entry is the default for triangles without a definition), the corners'
 // high UVs, and how much UV one scene unit covers (sqrt(UV area / area), 0
 // for a degenerate triangle: the finest mip level); the textures read.
+// With the high's normal textures (HighNormalMaps): the high's MikkTSpace
+// tangents from its corner UVs, 3 per triangle in the scene's order, on the
+// triangles whose material has a normal texture ((0, 0, 0, 0) elsewhere).
 struct SurfaceTransfer {
   std::vector<Material> materials;
   std::vector<MaterialTextures> material_textures;  // parallel to materials
@@ -137,6 +141,10 @@ struct SurfaceTransfer {
   std::vector<glm::vec2> corner_uv;
   std::vector<float> uv_density;
   TextureSet textures;
+  std::vector<glm::vec4> corner_tangent;  // empty without the high's normal textures
+  TangentStats tangent_stats;             // of corner_tangent
+  double tangent_seconds = 0.0;
+  bool normal_maps() const { return !corner_tangent.empty(); }
 };
 
 // What the id map colours: the high mesh's parts (OBJ o/g, glTF nodes, FBX
@@ -238,8 +246,12 @@ struct MapMeshData {
 // named materials is the caller's error to report first (all "" then).
 // `textures`: the high's textures the transfer maps read
 // (load_material_textures(); empty without transfer maps), kept in `out`.
+// `normal_maps`: the normal bake reads the high's normal textures (the
+// textures hold them: load_material_textures() with TextureNeeds::normal);
+// the high's tangents are computed on the triangles that wear one.
 void prepare_map_mesh(const Mesh& high, const std::vector<MapKind>& maps, IdSource id_source,
-                      const BakeGroups& groups, TextureSet textures, MapMeshData& out);
+                      const BakeGroups& groups, TextureSet textures, MapMeshData& out,
+                      bool normal_maps = false);
 
 // What the bands of a map set counted: per map (in the set's order) the
 // figures its module added up band by band (fallback counters), and the rays
