@@ -370,6 +370,8 @@ Status prepare_high_scene(const BakeOptions& o, BakeReport& r, StageTimer& timer
   if (needs.any()) NMBAKE_TRY(load_material_textures(m.high, o.high_path, needs, textures));
   prepare_map_mesh(m.high, o.maps, o.id_source, m.groups, std::move(textures), s.map_mesh,
                    m.high_normal_maps);
+  // The map set holds its own copy, in the scene's order.
+  std::vector<glm::vec2>().swap(m.high.corner_uvs);
   detail::report_map_mesh(s.map_mesh, r);
   if (m.groups.grouped()) group_high_mesh(o, m.groups, m.high, s.groups);
   r.high_triangles_used = m.high.triangle_count();

@@ -15,6 +15,9 @@
 // normal interpolated (not normalised), B = sign cross(N, T). The result is
 // then encoded in the low's frame as any hit normal. Every sample that
 // cannot be perturbed keeps the high normal of a bake without, counted.
+#include <tbb/enumerable_thread_specific.h>
+
+#include <algorithm>
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <mutex>
@@ -47,14 +50,17 @@ glm::vec3 perturbed_normal(const BandInputs& in, const MapSettings& settings, co
   }
   const glm::vec2 hb = in.hits.bary[s];
   const std::uint32_t* h = &in.high.indices[3 * tri];
-  const glm::vec3 face = glm::cross(in.high.positions[h[1]] - in.high.positions[h[0]],
-                                    in.high.positions[h[2]] - in.high.positions[h[0]]);
-  glm::vec3 N = face;
+  glm::vec3 N(0.0f);
+  bool smooth = false;
   if (settings.encode.high_normals == HighNormals::smooth && in.high.has_normals()) {
-    const glm::vec3 smooth = in.high.normals[h[0]] * (1.0f - hb.x - hb.y) + in.high.normals[h[1]] * hb.x +
-                             in.high.normals[h[2]] * hb.y;
-    const float l2 = glm::dot(smooth, smooth);
-    if (l2 > 1e-24f && std::isfinite(l2)) N = smooth;  // else the face normal, as the encode does
+    N = in.high.normals[h[0]] * (1.0f - hb.x - hb.y) + in.high.normals[h[1]] * hb.x +
+        in.high.normals[h[2]] * hb.y;
+    const float l2 = glm::dot(N, N);
+    smooth = l2 > 1e-24f && std::isfinite(l2);
+  }
+  if (!smooth) {  // the face normal, as the encode takes it
+    N = glm::cross(in.high.positions[h[1]] - in.high.positions[h[0]],
+                   in.high.positions[h[2]] - in.high.positions[h[0]]);
   }
   const glm::vec4 tw = interpolate(transfer.corner_tangent, 3 * tri, hb);
   const glm::vec3 T(tw);
@@ -94,6 +100,9 @@ struct NormalModule final : MapSet::Module {
   bool object;
   std::once_flag sides_once;
   std::vector<float> sides;  // low_sample_sides(), for the normal textures' footprint
+  // Per thread, the hit normals of a block of rows (allocated once: a
+  // block's 200 KB freed and mapped again each time was page faults).
+  tbb::enumerable_thread_specific<std::vector<glm::vec3>> hit_normal_buffers;
   NormalModule(MapKind map, bool object_space) : Module(map), object(object_space) {}
   void encode_band(const BandInputs&, const MapSettings&, EncodeStats&) override {}
   bool by_rows() const override { return true; }
@@ -104,7 +113,7 @@ struct NormalModule final : MapSet::Module {
       options.space = NormalSpace::object;
       options.green = GreenChannel::up;
     }
-    std::vector<glm::vec3> hit_normals;
+    const glm::vec3* given = nullptr;
     if (settings.transfer != nullptr && settings.transfer->normal_maps()) {
       std::call_once(sides_once, [&] {
         sides = maps_detail::low_sample_sides(in.surface, in.samples.width, settings.map_height,
@@ -112,12 +121,15 @@ struct NormalModule final : MapSet::Module {
       });
       const std::size_t row_samples = static_cast<std::size_t>(in.samples.width) * in.samples.samples;
       const std::size_t first = static_cast<std::size_t>(row_begin) * row_samples;
-      hit_normals.resize(static_cast<std::size_t>(row_end - row_begin) * row_samples);
-      for (std::size_t i = 0; i < hit_normals.size(); ++i)
+      std::vector<glm::vec3>& hit_normals = hit_normal_buffers.local();
+      hit_normals.resize(
+          std::max(hit_normals.size(), static_cast<std::size_t>(row_end - row_begin) * row_samples));
+      for (std::size_t i = 0; i < static_cast<std::size_t>(row_end - row_begin) * row_samples; ++i)
         hit_normals[i] = perturbed_normal(in, settings, sides, first + i, stats);
+      given = hit_normals.data();
     }
     nmbake::encode_rows(in.surface, in.samples, in.high, in.hits, options, image, stats, row_begin, row_end,
-                        hit_normals.empty() ? nullptr : hit_normals.data());
+                        given);
   }
   void rows_encoded(const EncodeStats& band, EncodeStats& normal_stats) override {
     if (!object) {
