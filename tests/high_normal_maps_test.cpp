@@ -298,5 +298,25 @@ TEST(HighNormalMaps, MissingNormalTextureIsExitTwoNamingMaterialAndPath) {
   EXPECT_EQ(off.exit_code, 0) << off.output;
 }
 
+// Adaptive sampling encodes outside the map set and does not read them
+// yet: auto bakes the geometry and says how many it left out; on is refused.
+TEST(HighNormalMaps, AdaptiveSamplingLeavesThemOutOrRefusesOn) {
+  test::TempDir dir;
+  write_scene(dir, "norm bump.png\n");
+  BakeOptions o = normal_bake(dir, "textured.obj", "adaptive.png");
+  o.adaptive = true;
+  BakeReport report;
+  Status s = bake_to(o, report);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  EXPECT_FALSE(report.high_normal_maps);
+  EXPECT_EQ(report.high_normal_textures_skipped, 1u);
+  EXPECT_NE(report.summary_line().find("1 high normal texture not read"), std::string::npos);
+  o.high_normal_maps = HighNormalMaps::on;
+  s = bake_to(o, report);
+  ASSERT_FALSE(s.is_ok());
+  EXPECT_EQ(s.code(), StatusCode::bad_input);
+  EXPECT_NE(s.message().find("adaptive"), std::string::npos) << s.message();
+}
+
 }  // namespace
 }  // namespace nmbake

@@ -186,7 +186,8 @@ bool reads_high_normal_maps(const BakeOptions& o) {
 // Whether the normal maps read the high's normal textures: `on`, or `auto`
 // and a material the high's triangles use names one. auto leaves out, and
 // counts, a texture the loader could not point at (an image embedded in a
-// .glb: TextureRef::problem), which `on` refuses (load_material_textures()).
+// .glb: TextureRef::problem), which `on` refuses (load_material_textures()),
+// and every one under --samples adaptive (which `on` refuses too).
 // Without them, corner UVs read for them alone are dropped before the BVH is built.
 void resolve_high_normal_maps(const BakeOptions& o, Mesh& high, BakeReport& r, bool& on) {
   on = false;
@@ -198,7 +199,10 @@ void resolve_high_normal_maps(const BakeOptions& o, Mesh& high, BakeReport& r, b
       return range.name == m.name && range.triangle_count > 0;
     });
     if (!used) continue;
-    if (o.high_normal_maps == HighNormalMaps::automatic && !m.normal_texture.problem.empty()) {
+    // Adaptive sampling encodes outside the map set, without them (`on` is
+    // refused by validate_options()).
+    if (o.high_normal_maps == HighNormalMaps::automatic &&
+        (!m.normal_texture.problem.empty() || o.adaptive)) {
       ++r.high_normal_textures_skipped;
       m.normal_texture = TextureRef{};
       continue;

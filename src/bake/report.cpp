@@ -341,7 +341,8 @@ std::string BakeReport::summary_line() const {
   }
   if (high_normal_textures_skipped > 0) {
     std::snprintf(line, sizeof line,
-                  "; %llu high normal texture%s not read (embedded: --high-normal-maps on refuses)",
+                  "; %llu high normal texture%s not read (embedded in the file, or --samples adaptive; "
+                  "--high-normal-maps on refuses)",
                   static_cast<unsigned long long>(high_normal_textures_skipped),
                   high_normal_textures_skipped == 1 ? "" : "s");
     text += line;
