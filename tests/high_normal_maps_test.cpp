@@ -298,6 +298,49 @@ TEST(HighNormalMaps, MissingNormalTextureIsExitTwoNamingMaterialAndPath) {
   EXPECT_EQ(off.exit_code, 0) << off.output;
 }
 
+// Triangles without UV area (their corners' UVs collapsed): counted, and
+// their texels keep the geometry's normal, bit for bit the texels of off
+// (encoded one sample at a time beside perturbed ones, against the SIMD lanes).
+TEST(HighNormalMaps, TrianglesWithoutUvsKeepTheGeometrysNormalAndAreCounted) {
+  test::TempDir dir;
+  write_scene(dir, "norm bump.png\n");
+  Mesh high = grid(16, true, 0.0f);
+  for (std::size_t v = 0; v < high.positions.size(); ++v) {
+    if (high.positions[v].x < 0.45f) high.uvs[v] = glm::vec2(0.25f, 0.25f);
+  }
+  ASSERT_TRUE(save_mesh(dir.file("collapsed.obj"), high).is_ok());
+  test::write_text(dir.file("collapsed.obj"),
+                   "mtllib textured.mtl\n" + read_bytes(dir.file("collapsed.obj")));
+  BakeReport report;
+  ASSERT_TRUE(bake_to(normal_bake(dir, "collapsed.obj", "on.exr"), report).is_ok());
+  EXPECT_TRUE(report.high_normal_maps);
+  EXPECT_GT(report.encode.high_normal_map_no_uv, 128u * 40u * 4u);
+  EXPECT_LT(report.encode.high_normal_map_no_uv, report.encode.high_normal_map_samples);
+  EXPECT_GT(report.high_tangents.degenerate_uv_triangles, 0u);
+  const nlohmann::json j = nlohmann::json::parse(report.to_json());
+  EXPECT_EQ(j["fallbacks"]["high_normal_map_no_uv"].get<std::uint64_t>(),
+            report.encode.high_normal_map_no_uv);
+  EXPECT_NE(report.summary_line().find("high normal maps of 1 material"), std::string::npos);
+  BakeOptions o = normal_bake(dir, "collapsed.obj", "off.exr");
+  o.high_normal_maps = HighNormalMaps::off;
+  ASSERT_TRUE(bake_to(o, report).is_ok());
+  Image on, off;
+  ASSERT_TRUE(read_image(dir.file("on.exr"), on).is_ok());
+  ASSERT_TRUE(read_image(dir.file("off.exr"), off).is_ok());
+  std::size_t same = 0, differ = 0;
+  for (int y = 0; y < 128; ++y) {
+    for (int x = 0; x < 128; ++x) {
+      const bool equal = std::equal(on.at(x, y), on.at(x, y) + 3, off.at(x, y));
+      if (x < 40) {
+        EXPECT_TRUE(equal) << x << " " << y;  // x < 0.31: every sample on a collapsed triangle
+      }
+      (equal ? same : differ) += 1;
+    }
+  }
+  EXPECT_GT(differ, 128u * 60u);  // the textured half is perturbed
+  EXPECT_GE(same, 128u * 40u);
+}
+
 // Adaptive sampling encodes outside the map set and does not read them
 // yet: auto bakes the geometry and says how many it left out; on is refused.
 TEST(HighNormalMaps, AdaptiveSamplingLeavesThemOutOrRefusesOn) {
