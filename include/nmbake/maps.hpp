@@ -246,12 +246,22 @@ struct MapMeshData {
 // named materials is the caller's error to report first (all "" then).
 // `textures`: the high's textures the transfer maps read
 // (load_material_textures(); empty without transfer maps), kept in `out`.
-// `normal_maps`: the normal bake reads the high's normal textures (the
-// textures hold them: load_material_textures() with TextureNeeds::normal);
-// the high's tangents are computed on the triangles that wear one.
+// `high_tangents` (compute_high_tangents(); empty: none): the normal bake
+// reads the high's normal textures (the textures hold them:
+// load_material_textures() with TextureNeeds::normal).
+struct HighTangents {
+  std::vector<glm::vec4> corner;  // 3 per triangle of the high, in the file's order
+  TangentStats stats;
+  double seconds = 0.0;
+};
 void prepare_map_mesh(const Mesh& high, const std::vector<MapKind>& maps, IdSource id_source,
                       const BakeGroups& groups, TextureSet textures, MapMeshData& out,
-                      bool normal_maps = false);
+                      HighTangents high_tangents = {});
+// The high's MikkTSpace tangents from its corner UVs on the triangles whose
+// material names a normal texture (compute_corner_uv_tangents()); none when
+// no triangle's does. Independent of the textures' reading: a bake runs the
+// two side by side (a PNG decodes on one core, the tangents run on one).
+HighTangents compute_high_tangents(const Mesh& high);
 
 // What the bands of a map set counted: per map (in the set's order) the
 // figures its module added up band by band (fallback counters), and the rays

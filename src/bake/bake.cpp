@@ -4,6 +4,8 @@
 // hands their counters to the report (report_fill.hpp).
 #include "nmbake/bake.hpp"
 
+#include <tbb/parallel_invoke.h>
+
 #include <algorithm>
 #include <cctype>
 #include <chrono>
@@ -371,9 +373,19 @@ Status prepare_high_scene(const BakeOptions& o, BakeReport& r, StageTimer& timer
   TextureSet textures;
   TextureNeeds needs = texture_needs(o.maps);
   needs.normal = m.high_normal_maps;
-  if (needs.any()) NMBAKE_TRY(load_material_textures(m.high, o.high_path, needs, textures));
+  // The textures' reading and the high's tangents side by side (each mostly on one core).
+  Status textures_read;
+  HighTangents high_tangents;
+  tbb::parallel_invoke(
+      [&] {
+        if (needs.any()) textures_read = load_material_textures(m.high, o.high_path, needs, textures);
+      },
+      [&] {
+        if (m.high_normal_maps) high_tangents = compute_high_tangents(m.high);
+      });
+  NMBAKE_TRY(textures_read);
   prepare_map_mesh(m.high, o.maps, o.id_source, m.groups, std::move(textures), s.map_mesh,
-                   m.high_normal_maps);
+                   std::move(high_tangents));
   // The map set holds its own copy, in the scene's order.
   std::vector<glm::vec2>().swap(m.high.corner_uvs);
   detail::report_map_mesh(s.map_mesh, r);
