@@ -488,6 +488,43 @@ TEST(TangentsExact, EmptyMesh) {
   EXPECT_EQ(stats.fallback_tangents, 0u);
 }
 
+// Per-corner UVs (the high's: vertices not split at seams) give the frames
+// of the same mesh with per-vertex UVs, corner for corner; triangles left
+// out get zeros, and those kept the frames of the mesh they form alone.
+TEST(TangentsExact, CornerUvsGiveThePerVertexFrames) {
+  for (const Mesh& mesh : {make_sphere(12, 8), make_noisy(), make_degenerate()}) {
+    std::vector<glm::vec4> expected, got;
+    TangentStats expected_stats, got_stats;
+    nmbake::compute_tangents(mesh, expected, expected_stats);
+    Mesh corners = mesh;
+    for (const std::uint32_t v : mesh.indices) corners.corner_uvs.push_back(mesh.uvs[v]);
+    corners.uvs.clear();
+    nmbake::compute_corner_uv_tangents(corners, {}, got, got_stats);
+    ASSERT_EQ(got.size(), expected.size());
+    for (std::size_t c = 0; c < got.size(); ++c) EXPECT_EQ(got[c], expected[c]) << c;
+    EXPECT_EQ(got_stats.fallback_tangents, expected_stats.fallback_tangents);
+    // Every other triangle: the others' corners are zero, the kept ones as
+    // computed on the kept triangles alone.
+    std::vector<std::uint8_t> selected(mesh.triangle_count());
+    Mesh half = mesh;
+    half.indices.clear();
+    for (std::size_t t = 0; t < selected.size(); ++t) {
+      selected[t] = t % 2 == 0;
+      if (selected[t])
+        half.indices.insert(half.indices.end(), &mesh.indices[3 * t], &mesh.indices[3 * t + 3]);
+    }
+    std::vector<glm::vec4> half_expected;
+    nmbake::compute_tangents(half, half_expected, expected_stats);
+    nmbake::compute_corner_uv_tangents(corners, selected, got, got_stats);
+    for (std::size_t t = 0; t < selected.size(); ++t) {
+      for (std::size_t k = 0; k < 3; ++k) {
+        const glm::vec4 want = selected[t] ? half_expected[3 * (t / 2) + k] : glm::vec4(0.0f);
+        EXPECT_EQ(got[3 * t + k], want) << t;
+      }
+    }
+  }
+}
+
 // ---------------------------------------------------------------------------
 // Against the reference.
 

@@ -80,6 +80,12 @@ struct BakeOptions {
   // normals, tangent encode, and how the engine decodes (`decode`, see
   // `preset` below). out_row_begin is the bake's own (set per tile of rows).
   EncodeOptions encode;
+  // The high's normal textures in the normal maps (encode.hpp). auto, the
+  // default: on when a material the high's triangles use names one (read
+  // from OBJ + MTL and glTF highs); an artist who put a detail normal map on
+  // the high expects it in the bake, and a high without one bakes the bytes
+  // it always did.
+  HighNormalMaps high_normal_maps = HighNormalMaps::automatic;
   TangentBasis tangent_basis =
       TangentBasis::mikktspace;  // file: the low mesh's own tangents; others: comparison only
   int uv_set = 0;                // the low mesh's UV set (glTF TEXCOORD_N, FBX UV channel N)

@@ -89,6 +89,13 @@ struct BakeReport {
   std::vector<MapReport> map_reports;
   std::uint64_t curvature_degenerate_triangles = 0;  // vertex_mean_curvature(): no weight
   std::uint64_t curvature_isolated_vertices = 0;     // no weighted triangle: H = 0
+  // The high's normal textures (--high-normal-maps): whether the normal maps
+  // read them, the used materials with one, those auto left out (an image
+  // the loader cannot point at), and the high's tangents for them.
+  bool high_normal_maps = false;
+  std::uint64_t high_normal_textures = 0, high_normal_textures_skipped = 0;
+  TangentStats high_tangents;
+  double high_tangent_seconds = 0.0;
   // The id map: what it coloured (part or material) and each name's colour.
   IdSource id_source = IdSource::part;
   std::vector<std::pair<std::string, glm::vec3>> id_names;

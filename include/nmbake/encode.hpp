@@ -61,6 +61,23 @@ inline constexpr Word<HighNormals> kHighNormalsWords[] = {
 };
 NMBAKE_WORDS(HighNormals, kHighNormalsWords)
 
+// Whether the hit normal carries the high's own normal textures (Material::
+// normal_texture: OBJ + MTL `norm` / `map_Bump -bm`, glTF `normalTexture`):
+// the high's shading normal perturbed in the high's MikkTSpace frame (from
+// its corner UVs), as a renderer of the high would show it. `auto` (the
+// default): on when a material the high's triangles use names a normal
+// texture; an artist who put a detail normal map on the high expects it in
+// the bake. (xNormal, Marmoset Toolbag and Substance bake the high's
+// geometry alone unless told otherwise; a high without normal textures
+// bakes the same bytes either way.)
+enum class HighNormalMaps : std::uint8_t { automatic, on, off };
+inline constexpr Word<HighNormalMaps> kHighNormalMapsWords[] = {
+    {"auto", HighNormalMaps::automatic, "on when a high material names a normal texture"},
+    {"on", HighNormalMaps::on, "the high's normal textures perturb its normals"},
+    {"off", HighNormalMaps::off, "the high's geometry alone"},
+};
+NMBAKE_WORDS(HighNormalMaps, kHighNormalMapsWords)
+
 enum class TangentEncode : std::uint8_t { inverse, transpose };  // transpose: for the method comparison only
 inline constexpr Word<TangentEncode> kTangentEncodeWords[] = {
     {"inverse", TangentEncode::inverse, "the exact inverse of the decode"},
@@ -111,7 +128,19 @@ struct EncodeStats {
   std::uint64_t zero_high_normals = 0;  // interpolated high normal of length ~0: face normal used
   std::uint64_t zero_results = 0;       // averaged texel normal of length ~0: low normal kept
   std::uint64_t below_horizon = 0;      // rebuild_blue: texels with t.z < 0 stored on the horizon
+  // The high's normal textures (HighNormalMaps), per sample: perturbed,
+  // and the fallbacks that kept the unperturbed high normal.
+  std::uint64_t high_normal_map_samples = 0;             // hits whose material has a normal texture
+  std::uint64_t high_normal_map_no_uv = 0;               // hit triangle without UV area: unperturbed
+  std::uint64_t high_normal_map_degenerate_tangent = 0;  // high frame singular: unperturbed
+  std::uint64_t high_normal_map_zero_normal = 0;         // texture or perturbed normal of length ~0
+  std::uint64_t high_normal_map_tile_missing = 0;        // UV in a UDIM tile the texture lacks
   void add(const EncodeStats& more) {
+    high_normal_map_samples += more.high_normal_map_samples;
+    high_normal_map_no_uv += more.high_normal_map_no_uv;
+    high_normal_map_degenerate_tangent += more.high_normal_map_degenerate_tangent;
+    high_normal_map_zero_normal += more.high_normal_map_zero_normal;
+    high_normal_map_tile_missing += more.high_normal_map_tile_missing;
     singular_frames += more.singular_frames;
     zero_high_normals += more.zero_high_normals;
     zero_results += more.zero_results;
@@ -132,8 +161,14 @@ void encode(const LowSurface& surface, const TexelSamples& samples, const Mesh& 
 // several maps over a block of rows at a time (MapSet), so each reads the
 // block's samples and hits while they are in cache. `out` must hold the
 // band's rows already (encode() sizes it; blocks in parallel must not).
+// `hit_normals` (optional): per sample of rows [row_begin, row_end), from
+// the first sample of row_begin, a unit world-space high normal that
+// replaces the interpolated one (the high's normal textures applied), or
+// (0, 0, 0) where the sample keeps it; samples with one are encoded one by
+// one (the reference path), the others exactly as without it.
 void encode_rows(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
-                 const EncodeOptions& options, Image& out, EncodeStats& stats, int row_begin, int row_end);
+                 const EncodeOptions& options, Image& out, EncodeStats& stats, int row_begin, int row_end,
+                 const glm::vec3* hit_normals = nullptr);
 
 // One tangent-space vector for a world normal, given the un-normalised frame
 // at a point: the function the image encoder uses, exposed for tests and the

@@ -132,6 +132,11 @@ struct LoadOptions {
   // resolved against the mesh's folder; a missing MTL file is bad_input
   // naming it. PLY, STL: none.
   bool material_defs = false;
+  // A material library that cannot be read (missing, unreadable, malformed)
+  // is skipped and counted (LoadStats::unread_material_libraries) instead
+  // of bad_input: for a bake that only looks whether the high's materials
+  // carry something (--high-normal-maps auto).
+  bool material_libraries_optional = false;
   // Tuning of the parallel parsers, for tests and benchmarks; the loaded mesh
   // and every error are the same whatever they are set to.
   std::size_t block_bytes = 0;  // bytes read and decoded at a time; 0: 4 MiB
@@ -144,12 +149,13 @@ struct LoadOptions {
 };
 
 struct LoadStats {
-  std::uint64_t bytes = 0;                // file size (for glTF: the .gltf plus its external buffers)
-  double seconds = 0.0;                   // wall time of load_mesh
-  std::uint64_t polygons = 0;             // faces in the file before triangulation
-  std::uint64_t triangles = 0;            // after triangulation
-  std::uint64_t degenerate_faces = 0;     // faces with fewer than 3 corners: skipped
-  std::uint64_t corners_without_uvs = 0;  // LoadOptions::corner_uvs: corners the file gave no UV
+  std::uint64_t bytes = 0;                      // file size (for glTF: the .gltf plus its external buffers)
+  double seconds = 0.0;                         // wall time of load_mesh
+  std::uint64_t polygons = 0;                   // faces in the file before triangulation
+  std::uint64_t triangles = 0;                  // after triangulation
+  std::uint64_t degenerate_faces = 0;           // faces with fewer than 3 corners: skipped
+  std::uint64_t corners_without_uvs = 0;        // LoadOptions::corner_uvs: corners the file gave no UV
+  std::uint64_t unread_material_libraries = 0;  // LoadOptions::material_libraries_optional: skipped
   // Length of one file unit in metres when the file says (FBX UnitScaleFactor:
   // 0.01 for centimetres; glTF: 1); 0 when the format does not say (OBJ, PLY).
   // Positions are kept in file units; the report shows this note.

@@ -59,6 +59,7 @@
 #include "nmbake/parts.hpp"
 #include "nmbake/raster.hpp"
 #include "nmbake/surface.hpp"
+#include "nmbake/tangents.hpp"
 #include "nmbake/textures.hpp"
 #include "nmbake/trace.hpp"
 
@@ -130,6 +131,9 @@ TextureNeeds texture_needs(const std::vector<MapKind>& maps);
 // entry is the default for triangles without a definition), the corners'
 // high UVs, and how much UV one scene unit covers (sqrt(UV area / area), 0
 // for a degenerate triangle: the finest mip level); the textures read.
+// With the high's normal textures (HighNormalMaps): the high's MikkTSpace
+// tangents from its corner UVs, 3 per triangle in the scene's order, on the
+// triangles whose material has a normal texture ((0, 0, 0, 0) elsewhere).
 struct SurfaceTransfer {
   std::vector<Material> materials;
   std::vector<MaterialTextures> material_textures;  // parallel to materials
@@ -137,6 +141,10 @@ struct SurfaceTransfer {
   std::vector<glm::vec2> corner_uv;
   std::vector<float> uv_density;
   TextureSet textures;
+  std::vector<glm::vec4> corner_tangent;  // empty without the high's normal textures
+  TangentStats tangent_stats;             // of corner_tangent
+  double tangent_seconds = 0.0;
+  bool normal_maps() const { return !corner_tangent.empty(); }
 };
 
 // What the id map colours: the high mesh's parts (OBJ o/g, glTF nodes, FBX
@@ -256,9 +264,22 @@ struct MapMeshData {
 // `textures`: the high's textures the transfer maps read
 // (load_material_textures(); empty without transfer maps), kept in `out`.
 // `palette`: the id map's colours the artist gave (--id-palette).
+// `high_tangents` (compute_high_tangents(); empty: none): the normal bake
+// reads the high's normal textures (the textures hold them:
+// load_material_textures() with TextureNeeds::normal).
+struct HighTangents {
+  std::vector<glm::vec4> corner;  // 3 per triangle of the high, in the file's order
+  TangentStats stats;
+  double seconds = 0.0;
+};
 void prepare_map_mesh(const Mesh& high, const std::vector<MapKind>& maps, IdSource id_source,
                       const IdPalette& palette, const BakeGroups& groups, TextureSet textures,
-                      MapMeshData& out);
+                      MapMeshData& out, HighTangents high_tangents = {});
+// The high's MikkTSpace tangents from its corner UVs on the triangles whose
+// material names a normal texture (compute_corner_uv_tangents()); none when
+// no triangle's does. Independent of the textures' reading: a bake runs the
+// two side by side (a PNG decodes on one core, the tangents run on one).
+HighTangents compute_high_tangents(const Mesh& high);
 
 // What the bands of a map set counted: per map (in the set's order) the
 // figures its module added up band by band (fallback counters), and the rays

@@ -45,6 +45,18 @@ struct TangentStats {
 // collinear positions (the reference still groups those).
 void compute_tangents(const Mesh& mesh, std::vector<glm::vec4>& corner_tangents, TangentStats& stats);
 
+// MikkTSpace tangents of a mesh whose UVs are per corner (Mesh::corner_uvs:
+// the high mesh, loaded without splitting its vertices at UV seams), for the
+// high's normal textures (encode.hpp, HighNormalMaps). Only the triangles
+// with `selected[t]` non-zero take part (all of them when `selected` is
+// empty): the frame a renderer computes for the part of the mesh that wears
+// a normal texture. Writes 3 * triangle_count tangents, (0, 0, 0, 0) for the
+// other triangles' corners. Normals: the mesh's unit vertex normals, or each
+// triangle's own when it has none (--high-normals face). The corners are
+// compute_tangents()'s vertices (welded there by position, normal and UV).
+void compute_corner_uv_tangents(const Mesh& mesh, const std::vector<std::uint8_t>& selected,
+                                std::vector<glm::vec4>& corner_tangents, TangentStats& stats);
+
 // Tangent bases other than MikkTSpace, for the accuracy lab (src/mesh/tangents_alt.cpp):
 // what a baker that does not follow the renderer's basis stores. A renderer
 // decodes with MikkTSpace, so a map baked in another basis is wrong by the

@@ -99,10 +99,12 @@ glm::vec4 sample_texture(const LoadedTexture& texture, const TextureRef& ref, gl
 // sample_texture gives as 1: opacity maps read alpha only where it exists).
 float texture_channel(const glm::vec4& value, int channel, bool has_alpha);
 
-// Which attributes a bake reads (the transfer maps it bakes).
+// Which attributes a bake reads (the transfer maps it bakes; `normal`: the
+// high's normal textures in the normal bake, encode.hpp HighNormalMaps).
 struct TextureNeeds {
   bool base_color = false, roughness = false, metallic = false, emissive = false, opacity = false;
-  bool any() const { return base_color || roughness || metallic || emissive || opacity; }
+  bool normal = false;
+  bool any() const { return base_color || roughness || metallic || emissive || opacity || normal; }
 };
 
 // Every texture the materials of `high` name for an attribute `needs` asks
@@ -115,7 +117,7 @@ struct TextureNeeds {
 // same checks as files (sides, size against the bytes, memory, NaN); raw
 // RGBA8 ones (Assimp's uncompressed textures) are taken as 8-bit texels.
 struct MaterialTextures {
-  int base_color = -1, roughness = -1, metallic = -1, emissive = -1, opacity = -1;
+  int base_color = -1, roughness = -1, metallic = -1, emissive = -1, opacity = -1, normal = -1;
 };
 struct TextureSet {
   std::vector<LoadedTexture> textures;

@@ -4,7 +4,10 @@
 // hands their counters to the report (report_fill.hpp).
 #include "nmbake/bake.hpp"
 
+#include <tbb/parallel_invoke.h>
+
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -167,11 +170,58 @@ struct Meshes {
   Mesh low, high, cage;
   bool has_cage = false;
   BakeGroups groups;
-  bool udim = false;         // outputs hold <UDIM>: a map per UV tile
-  std::vector<int> tiles;    // the UDIM tiles baked (1001 alone without <UDIM>)
-  std::vector<LowSet> sets;  // outputs hold <SET>: a map set per low material (sets.hpp); else empty
-  IdPalette palette;         // the id map's colours by name (--id-palette)
+  bool udim = false;              // outputs hold <UDIM>: a map per UV tile
+  std::vector<int> tiles;         // the UDIM tiles baked (1001 alone without <UDIM>)
+  std::vector<LowSet> sets;       // outputs hold <SET>: a map set per low material (sets.hpp); else empty
+  IdPalette palette;              // the id map's colours by name (--id-palette)
+  bool high_normal_maps = false;  // resolved: the normal maps read the high's normal textures
 };
+
+// The high's normal textures (--high-normal-maps): its materials and corner
+// UVs are read from the files that carry them (OBJ + MTL, glTF) when the
+// option may be on and a normal map is baked.
+bool reads_high_normal_maps(const BakeOptions& o) {
+  const bool normal_map = std::find(o.maps.begin(), o.maps.end(), MapKind::normal) != o.maps.end() ||
+                          std::find(o.maps.begin(), o.maps.end(), MapKind::object_normal) != o.maps.end();
+  if (!normal_map || o.high_normal_maps == HighNormalMaps::off) return false;
+  if (o.high_normal_maps == HighNormalMaps::on) return true;
+  return std::any_of(o.high_paths.begin(), o.high_paths.end(), [](const std::string& path) {
+    std::string extension = std::filesystem::path(path).extension().string();
+    for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    return extension == ".obj" || extension == ".gltf" || extension == ".glb";
+  });
+}
+
+// Whether the normal maps read the high's normal textures: `on`, or `auto`
+// and a material the high's triangles use names one. auto leaves out, and
+// counts, a texture the loader could not point at (an image embedded in a
+// .glb: TextureRef::problem), which `on` refuses (load_material_textures()),
+// and every one under --samples adaptive (which `on` refuses too).
+// Without them, corner UVs read for them alone are dropped before the BVH is built.
+void resolve_high_normal_maps(const BakeOptions& o, Mesh& high, BakeReport& r, bool& on) {
+  on = false;
+  r.high_normal_textures = r.high_normal_textures_skipped = 0;
+  if (!reads_high_normal_maps(o)) return;
+  for (Material& m : high.material_defs) {
+    if (m.normal_texture.empty()) continue;
+    const bool used = std::any_of(high.materials.begin(), high.materials.end(), [&](const MeshPart& range) {
+      return range.name == m.name && range.triangle_count > 0;
+    });
+    if (!used) continue;
+    // Adaptive sampling encodes outside the map set, without them (`on` is
+    // refused by validate_options()).
+    if (o.high_normal_maps == HighNormalMaps::automatic &&
+        (!m.normal_texture.problem.empty() || o.adaptive)) {
+      ++r.high_normal_textures_skipped;
+      m.normal_texture = TextureRef{};
+      continue;
+    }
+    ++r.high_normal_textures;
+    on = true;
+  }
+  r.high_normal_maps = on;
+  if (!on && !texture_needs(o.maps).any()) std::vector<glm::vec2>().swap(high.corner_uvs);
+}
 
 // What the high mesh must hold for the map set: vertex colours, named materials.
 Status check_high_for_maps(const BakeOptions& o, const Mesh& high) {
@@ -215,7 +265,26 @@ Status load_inputs(const BakeOptions& o, BakeReport& r, StageTimer& timer, Meshe
   // The id map colours materials in their own colours where the file gives them.
   high_options.material_defs = high_options.corner_uvs || (id_map && o.id_source != IdSource::part &&
                                                            o.id_source != IdSource::vertex_color);
+  if (reads_high_normal_maps(o)) {
+    // auto only looks: an MTL it cannot read is no normal texture (counted),
+    // not a failed bake, unless the maps need the materials anyway.
+    high_options.material_libraries_optional =
+        !high_options.material_defs && o.high_normal_maps == HighNormalMaps::automatic;
+    high_options.material_defs = true;
+    if (o.high_normal_maps == HighNormalMaps::on) high_options.corner_uvs = true;
+  }
   NMBAKE_TRY(load_meshes(o.high_paths, high_options, m.high, r.high_load));
+  resolve_high_normal_maps(o, m.high, r, m.high_normal_maps);
+  if (m.high_normal_maps && !m.high.has_corner_uvs()) {
+    // auto found a normal texture: the high's corner UVs, in a second read
+    // (a high without one, the common case, pays for its MTL alone: the
+    // corner UVs of a 2M-triangle OBJ cost about 0.14 s and 24 bytes a triangle).
+    const double first_seconds = r.high_load.seconds;
+    high_options.corner_uvs = true;
+    NMBAKE_TRY(load_meshes(o.high_paths, high_options, m.high, r.high_load));
+    r.high_load.seconds += first_seconds;
+    resolve_high_normal_maps(o, m.high, r, m.high_normal_maps);
+  }
   NMBAKE_TRY(check_high_for_maps(o, m.high));
   m.has_cage = !o.cage_path.empty();
   if (m.has_cage) {
@@ -320,10 +389,23 @@ Status prepare_high_scene(const BakeOptions& o, BakeReport& r, StageTimer& timer
   prepare_low_normals(m.low, r.low_mesh);
   if (o.encode.high_normals == HighNormals::smooth) prepare_high_normals(m.high, r.high_mesh);
   TextureSet textures;
-  if (const TextureNeeds needs = texture_needs(o.maps); needs.any()) {
-    NMBAKE_TRY(load_material_textures(m.high, high_name(o.high_paths), needs, textures));
-  }
-  prepare_map_mesh(m.high, o.maps, o.id_source, m.palette, m.groups, std::move(textures), s.map_mesh);
+  TextureNeeds needs = texture_needs(o.maps);
+  needs.normal = m.high_normal_maps;
+  // The textures' reading and the high's tangents side by side (each mostly on one core).
+  Status textures_read;
+  HighTangents high_tangents;
+  tbb::parallel_invoke(
+      [&] {
+        if (needs.any()) textures_read = load_material_textures(m.high, high_name(o.high_paths), needs, textures);
+      },
+      [&] {
+        if (m.high_normal_maps) high_tangents = compute_high_tangents(m.high);
+      });
+  NMBAKE_TRY(textures_read);
+  prepare_map_mesh(m.high, o.maps, o.id_source, m.palette, m.groups, std::move(textures), s.map_mesh,
+                   std::move(high_tangents));
+  // The map set holds its own copy, in the scene's order.
+  std::vector<glm::vec2>().swap(m.high.corner_uvs);
   detail::report_map_mesh(s.map_mesh, r);
   if (m.groups.grouped()) group_high_mesh(o, m.groups, m.high, s.groups);
   r.high_triangles_used = m.high.triangle_count();

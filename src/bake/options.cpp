@@ -305,6 +305,8 @@ const OptionSpec kTable[] = {
      [](const BakeOptions& o) { return std::string(o.rays.ignore_backfaces ? "true" : "false"); }, no_words,
      true},
     NMBAKE_WORD_ROW("high_normals", HighNormals, o.encode.high_normals, "the high mesh's normals at a hit"),
+    NMBAKE_WORD_ROW("high_normal_maps", HighNormalMaps, o.high_normal_maps,
+                    "the high's normal textures perturb its normals (auto: when its materials have one)"),
     {"padding", "N", "texels of dilation around charts (0 to 4096)",
      [](BakeOptions& o, const OptionValue& v) { return read_integer(v, o.padding); },
      [](const BakeOptions& o) { return std::to_string(o.padding); }, no_words},

@@ -89,6 +89,35 @@ ordered_json fallbacks_json(const BakeReport& r) {
   };
 }
 
+// The high's normal textures: only in the reports of bakes that read them
+// (or looked and left some out), so every other report is as it was.
+ordered_json high_normal_maps_json(const BakeReport& r) {
+  return {{"on", r.high_normal_maps},
+          {"materials", r.high_normal_textures},
+          {"skipped_materials", r.high_normal_textures_skipped},
+          {"samples", r.encode.high_normal_map_samples},
+          {"tangent_seconds", r.high_tangent_seconds},
+          {"unread_material_libraries", r.high_load.unread_material_libraries}};
+}
+
+// The counted fallbacks of the high's normal textures (fallbacks_json() adds them).
+void add_high_normal_map_fallbacks(const BakeReport& r, ordered_json& fallbacks) {
+  fallbacks["high_normal_map_no_uv"] = r.encode.high_normal_map_no_uv;
+  fallbacks["high_normal_map_degenerate_tangent"] = r.encode.high_normal_map_degenerate_tangent;
+  fallbacks["high_normal_map_zero_normal"] = r.encode.high_normal_map_zero_normal;
+  fallbacks["high_normal_map_tile_missing"] = r.encode.high_normal_map_tile_missing;
+  fallbacks["high_tangent_degenerate_triangles"] = r.high_tangents.degenerate_triangles;
+  fallbacks["high_tangent_degenerate_uv_triangles"] = r.high_tangents.degenerate_uv_triangles;
+  fallbacks["high_tangent_fallbacks"] = r.high_tangents.fallback_tangents;
+}
+
+// Every fallback of the high's normal textures, for the one-line summary.
+std::uint64_t high_normal_map_fallbacks(const BakeReport& r) {
+  return r.encode.high_normal_map_no_uv + r.encode.high_normal_map_degenerate_tangent +
+         r.encode.high_normal_map_zero_normal + r.encode.high_normal_map_tile_missing +
+         r.high_tangents.fallback_tangents;
+}
+
 ordered_json groups_json(const std::vector<BakeReport::Group>& groups) {
   ordered_json group_json = ordered_json::array();
   for (const BakeReport::Group& g : groups) {
@@ -203,6 +232,12 @@ std::string BakeReport::to_json() const {
   j["coverage"] = {{"covered_texels", raster.covered_texels}, {"fraction", coverage()}};
   j["rays"] = rays_json(*this);
   j["fallbacks"] = fallbacks_json(*this);
+  const bool normal_textures_looked =
+      high_normal_maps || high_normal_textures_skipped > 0 || high_load.unread_material_libraries > 0;
+  if (normal_textures_looked) {
+    add_high_normal_map_fallbacks(*this, j["fallbacks"]);
+    j["high_normal_maps"] = high_normal_maps_json(*this);
+  }
   if (!key.empty()) j["key"] = key;
   j["cached"] = cached;
   if (tile_count > 0) {
@@ -307,6 +342,21 @@ std::string BakeReport::summary_line() const {
       text += line;
     }
   }
+  if (high_normal_maps) {
+    std::snprintf(line, sizeof line, "; high normal maps of %llu material%s on %llu samples (%llu fallbacks)",
+                  static_cast<unsigned long long>(high_normal_textures), high_normal_textures == 1 ? "" : "s",
+                  static_cast<unsigned long long>(encode.high_normal_map_samples),
+                  static_cast<unsigned long long>(high_normal_map_fallbacks(*this)));
+    text += line;
+  }
+  if (high_normal_textures_skipped > 0) {
+    std::snprintf(line, sizeof line,
+                  "; %llu high normal texture%s not read (embedded in the file, or --samples adaptive; "
+                  "--high-normal-maps on refuses)",
+                  static_cast<unsigned long long>(high_normal_textures_skipped),
+                  high_normal_textures_skipped == 1 ? "" : "s");
+    text += line;
+  }
   if (tiles.size() > 1 || (!tiles.empty() && tiles.front().tile != 1001)) {
     std::snprintf(line, sizeof line, "; %zu UDIM tiles (%d to %d)", tiles.size(), tiles.front().tile,
                   tiles.back().tile);
@@ -360,6 +410,8 @@ void report_unwrapped(const std::string& path, BakeReport& r) {
 }
 
 void report_map_mesh(const MapMeshData& map_mesh, BakeReport& r) {
+  r.high_tangents = map_mesh.transfer.tangent_stats;
+  r.high_tangent_seconds = map_mesh.transfer.tangent_seconds;
   r.curvature_degenerate_triangles = map_mesh.curvature.degenerate_triangles;
   r.curvature_isolated_vertices = map_mesh.curvature.isolated_vertices;
   r.id_source = map_mesh.id_source;

@@ -99,6 +99,10 @@ std::string bake_key_text(const BakeOptions& o) {
   line("cage", o.cage_path.empty() ? "none" : "mesh");
   line("ignore_backfaces", o.rays.ignore_backfaces ? "1" : "0");
   line("high_normals", o.encode.high_normals == HighNormals::smooth ? "smooth" : "face");
+  // Not written for the default, so a key made before the option existed
+  // stays the key of the same bake (auto reads what the high's files say).
+  if (o.high_normal_maps != HighNormalMaps::automatic)
+    line("high_normal_maps", to_string(o.high_normal_maps));
   line("tangent_encode", o.encode.tangent_encode == TangentEncode::inverse ? "inverse" : "transpose");
   line("tangent_basis", to_string(o.tangent_basis));
   // Outputs as engines want them: the preset, and what it resolved to after

@@ -159,6 +159,11 @@ Status validate_map_set(const BakeOptions& o) {
     return Status::bad_input("--samples adaptive bakes the normal map alone; the map set (" +
                              map_list_text(o.maps) + ") needs a fixed sample count (1, 4, 16 or 64)");
   }
+  if (o.adaptive && o.high_normal_maps == HighNormalMaps::on) {
+    return Status::bad_input(
+        "--samples adaptive does not read the high's normal textures yet: --high-normal-maps on needs a "
+        "fixed sample count (1, 4, 16 or 64)");
+  }
   return Status::ok();
 }
 

@@ -313,8 +313,11 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
         std::printf("  note: the low mesh's unit is %g m, the high mesh's %g m; positions are not rescaled\n",
                     low_unit, high_unit);
       }
-      const std::uint64_t fallbacks = report.tangents.fallback_tangents + report.encode.singular_frames +
-                                      report.trace.ray_fallbacks + report.encode.zero_high_normals;
+      const std::uint64_t fallbacks =
+          report.tangents.fallback_tangents + report.encode.singular_frames + report.trace.ray_fallbacks +
+          report.encode.zero_high_normals + report.encode.high_normal_map_no_uv +
+          report.encode.high_normal_map_degenerate_tangent + report.encode.high_normal_map_zero_normal +
+          report.encode.high_normal_map_tile_missing + report.high_tangents.fallback_tangents;
       if (fallbacks > 0 || report.raster.overlapping_samples > 0) {
         std::printf("  note: %llu overlapping UV samples, %llu numerical fallbacks (see --report)\n",
                     static_cast<unsigned long long>(report.raster.overlapping_samples),

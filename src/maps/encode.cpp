@@ -195,7 +195,7 @@ bool own_frame(const NormalDecode& decode) {
 // for the common case, four samples at a time.
 bool sample_contribution(const LowSurface& surface, const TexelSamples& samples, const Mesh& high,
                          const Hits& hits, const EncodeOptions& options, bool smooth, std::size_t s,
-                         Counts& counts, glm::vec3& out) {
+                         Counts& counts, glm::vec3& out, const glm::vec3* hit_normal = nullptr) {
   const bool tangent_space = options.space == NormalSpace::tangent;
   const std::int32_t tri = samples.triangle[s];
   if (tri < 0) return false;
@@ -215,8 +215,11 @@ bool sample_contribution(const LowSurface& surface, const TexelSamples& samples,
   }
   const std::uint32_t* h = &high.indices[3 * static_cast<std::size_t>(hit)];
   glm::vec3 n_high(0.0f);
-  bool have = false;
-  if (smooth) {
+  // A normal given for the hit (the high's normal textures applied) is unit.
+  bool have = hit_normal != nullptr && *hit_normal != glm::vec3(0.0f);
+  if (have) {
+    n_high = *hit_normal;
+  } else if (smooth) {
     const glm::vec2 hb = hits.bary[s];
     n_high =
         high.normals[h[0]] * (1.0f - hb.x - hb.y) + high.normals[h[1]] * hb.x + high.normals[h[2]] * hb.y;
@@ -540,7 +543,7 @@ namespace {
 // (encode_rows(): `out` must hold them already, as no thread may resize it).
 void encode_impl(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
                  const EncodeOptions& options, Image& out, EncodeStats& stats, int lanes, int first_row,
-                 int last_row, bool parallel) {
+                 int last_row, bool parallel, const glm::vec3* hit_normals = nullptr) {
   const int width = samples.width;
   const int height = samples.height;
   const int spp = samples.samples;
@@ -581,7 +584,16 @@ void encode_impl(const LowSurface& surface, const TexelSamples& samples, const M
       Counts& counts = row_counts[y - first_row];
       const std::size_t first = static_cast<std::size_t>(y) * row_samples;
       std::size_t k = 0;
-      if (in_lanes) {
+      // A row with a given hit normal goes sample by sample (the same bits
+      // for the samples without one: the lanes are the reference's arithmetic).
+      const glm::vec3* row_normals = hit_normals != nullptr
+                                         ? hit_normals + static_cast<std::size_t>(y - first_row) * row_samples
+                                         : nullptr;
+      bool given = false;
+      for (std::size_t i = 0; row_normals != nullptr && i < row_samples && !given; ++i)
+        given = row_normals[i] != glm::vec3(0.0f);
+      if (!given) row_normals = nullptr;
+      if (in_lanes && !given) {
 #if NMBAKE_ENCODE_EIGHT
         if (eight) {
           for (; k + 8 <= row_samples; k += 8) {
@@ -596,7 +608,7 @@ void encode_impl(const LowSurface& surface, const TexelSamples& samples, const M
       }
       for (; k < row_samples; ++k) {
         used[k] = sample_contribution(surface, samples, high, hits, options, smooth, first + k, counts,
-                                      contribution[k]);
+                                      contribution[k], row_normals != nullptr ? &row_normals[k] : nullptr);
       }
 
       for (int x = 0; x < width; ++x) {
@@ -659,9 +671,10 @@ void encode(const LowSurface& surface, const TexelSamples& samples, const Mesh& 
 }
 
 void encode_rows(const LowSurface& surface, const TexelSamples& samples, const Mesh& high, const Hits& hits,
-                 const EncodeOptions& options, Image& out, EncodeStats& stats, int row_begin, int row_end) {
+                 const EncodeOptions& options, Image& out, EncodeStats& stats, int row_begin, int row_end,
+                 const glm::vec3* hit_normals) {
   NMBAKE_CHECK(0 <= row_begin && row_begin <= row_end && row_end <= samples.height, "rows of the band");
-  encode_impl(surface, samples, high, hits, options, out, stats, 8, row_begin, row_end, false);
+  encode_impl(surface, samples, high, hits, options, out, stats, 8, row_begin, row_end, false, hit_normals);
 }
 
 namespace detail {

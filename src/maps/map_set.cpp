@@ -3,6 +3,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -271,15 +272,50 @@ void prepare_transfer(const Mesh& high, const BakeGroups& groups, SurfaceTransfe
   }
 }
 
+// The high's tangents (file order) into SurfaceTransfer, in the scene's order.
+void prepare_normal_tangents(HighTangents tangents, const BakeGroups& groups, SurfaceTransfer& out) {
+  out.tangent_stats = tangents.stats;
+  out.tangent_seconds = tangents.seconds;
+  if (!groups.grouped()) {
+    out.corner_tangent = std::move(tangents.corner);
+    return;
+  }
+  for (const auto& triangles : groups.high_triangles) {
+    for (const std::uint32_t t : triangles) {
+      for (std::size_t k = 0; k < 3; ++k)
+        out.corner_tangent.push_back(tangents.corner[3 * std::size_t{t} + k]);
+    }
+  }
+}
+
 }  // namespace
+
+HighTangents compute_high_tangents(const Mesh& high) {
+  const auto begin = std::chrono::steady_clock::now();
+  HighTangents out;
+  std::vector<std::uint8_t> selected(high.triangle_count(), 0);
+  bool any = false;
+  for (const MeshPart& range : high.materials) {
+    const Material* m = high.material_def(range.name);
+    if (m == nullptr || m->normal_texture.empty() || range.triangle_count == 0) continue;
+    std::fill_n(selected.begin() + range.first_triangle, range.triangle_count, std::uint8_t{1});
+    any = true;
+  }
+  if (!any) return out;
+  compute_corner_uv_tangents(high, selected, out.corner, out.stats);
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
+  return out;
+}
 
 void prepare_map_mesh(const Mesh& high, const std::vector<MapKind>& maps, IdSource id_source,
                       const IdPalette& palette, const BakeGroups& groups, TextureSet textures,
-                      MapMeshData& out) {
+                      MapMeshData& out, HighTangents high_tangents) {
   const auto wants = [&](MapKind map) { return std::find(maps.begin(), maps.end(), map) != maps.end(); };
   out = MapMeshData{};
   out.transfer.textures = std::move(textures);
-  if (texture_needs(maps).any()) prepare_transfer(high, groups, out.transfer);
+  const bool normal_maps = !high_tangents.corner.empty();
+  if (texture_needs(maps).any() || normal_maps) prepare_transfer(high, groups, out.transfer);
+  if (normal_maps) prepare_normal_tangents(std::move(high_tangents), groups, out.transfer);
   if (wants(MapKind::position)) out.position_bounds = compute_bounds(high);
   if (wants(MapKind::curvature)) {
     if (high.has_normals()) {

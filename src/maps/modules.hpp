@@ -130,6 +130,11 @@ void texel_means(const BandInputs& in, Image& image, const std::array<float, C>&
   });
 }
 
+// Per low triangle: the side of one sample of a texel in scene units,
+// sqrt(area / UV area) / sqrt(width * height * samples) (0 for a triangle
+// without UV area), for a texture footprint (textures.hpp).
+std::vector<float> low_sample_sides(const LowSurface& surface, int width, int height, int samples);
+
 template <class V>
 inline V interpolate(const std::vector<V>& corner, std::size_t base, glm::vec2 b) {
   return corner[base] * (1.0f - b.x - b.y) + corner[base + 1] * b.x + corner[base + 2] * b.y;

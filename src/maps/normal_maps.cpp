@@ -3,8 +3,24 @@
 // direction), encoded as the normal map is: exact inverse of the MikkTSpace
 // decode in tangent space, per sample normalised, averaged per texel and
 // renormalised, rgb = 0.5 n + 0.5.
+//
+// The high's normal textures (HighNormalMaps, encode.hpp) change the hit
+// normal of the normal and object-space normal maps: at a hit on a triangle
+// whose material has a normal texture, the texture is sampled as the
+// transfer maps sample theirs (trilinear, the texel's footprint:
+// textures.hpp), read as data, t = 2 rgb - 1, +Y up (OpenGL, as glTF), x and
+// y times the material's scale (glTF normalTexture.scale), renormalised; and
+// decoded as MikkTSpace's per-pixel decode does in the high's own frame:
+// n = normalize(t.x T + t.y B + t.z N), T the high's tangent and N its
+// normal interpolated (not normalised), B = sign cross(N, T). The result is
+// then encoded in the low's frame as any hit normal. Every sample that
+// cannot be perturbed keeps the high normal of a bake without, counted.
+#include <tbb/enumerable_thread_specific.h>
+
+#include <algorithm>
 #include <cmath>
 #include <glm/geometric.hpp>
+#include <mutex>
 
 #include "maps/modules.hpp"
 
@@ -14,9 +30,79 @@ namespace {
 
 using maps_detail::interpolate;
 
-// Row block by row block (by_rows()): the encode stage's encode_rows().
+// The world normal of sample s perturbed by its hit material's normal
+// texture (see the top of this file), or (0, 0, 0): no texture, or a
+// fallback (counted in `stats`).
+glm::vec3 perturbed_normal(const BandInputs& in, const MapSettings& settings, const std::vector<float>& sides,
+                           std::size_t s, EncodeStats& stats) {
+  const std::int32_t low = in.samples.triangle[s], hit = in.hits.triangle[s];
+  if (low < 0 || hit < 0) return glm::vec3(0.0f);
+  const SurfaceTransfer& transfer = *settings.transfer;
+  const auto tri = static_cast<std::size_t>(hit);
+  const std::uint32_t material = transfer.triangle_material[tri];
+  const int texture = transfer.material_textures[material].normal;
+  if (texture < 0) return glm::vec3(0.0f);
+  ++stats.high_normal_map_samples;
+  const float density = transfer.uv_density[tri];
+  if (!(density > 0.0f)) {
+    ++stats.high_normal_map_no_uv;  // no UV area: no texture to read, no tangent
+    return glm::vec3(0.0f);
+  }
+  const glm::vec2 hb = in.hits.bary[s];
+  const std::uint32_t* h = &in.high.indices[3 * tri];
+  glm::vec3 N(0.0f);
+  bool smooth = false;
+  if (settings.encode.high_normals == HighNormals::smooth && in.high.has_normals()) {
+    N = in.high.normals[h[0]] * (1.0f - hb.x - hb.y) + in.high.normals[h[1]] * hb.x +
+        in.high.normals[h[2]] * hb.y;
+    const float l2 = glm::dot(N, N);
+    smooth = l2 > 1e-24f && std::isfinite(l2);
+  }
+  if (!smooth) {  // the face normal, as the encode takes it
+    N = glm::cross(in.high.positions[h[1]] - in.high.positions[h[0]],
+                   in.high.positions[h[2]] - in.high.positions[h[0]]);
+  }
+  const glm::vec4 tw = interpolate(transfer.corner_tangent, 3 * tri, hb);
+  const glm::vec3 T(tw);
+  const glm::vec3 C = glm::cross(N, T);
+  const float c2 = glm::dot(C, C), scale2 = glm::dot(N, N) * glm::dot(T, T);
+  if (!(c2 > 1e-12f * scale2) || !(scale2 > 0.0f) || !std::isfinite(c2) || !std::isfinite(scale2)) {
+    ++stats.high_normal_map_degenerate_tangent;
+    return glm::vec3(0.0f);
+  }
+  const glm::vec3 B = (tw.w < 0.0f ? -1.0f : 1.0f) * C;
+  const Material& m = transfer.materials[material];
+  const float footprint = sides[static_cast<std::size_t>(low)] * density;
+  bool missing = false;
+  const glm::vec4 texel = sample_texture(transfer.textures.textures[static_cast<std::size_t>(texture)],
+                                         m.normal_texture, interpolate(transfer.corner_uv, 3 * tri, hb),
+                                         std::isfinite(footprint) ? footprint : 0.0f, missing);
+  if (missing) {
+    ++stats.high_normal_map_tile_missing;
+    return glm::vec3(0.0f);
+  }
+  glm::vec3 t = 2.0f * glm::vec3(texel) - 1.0f;
+  t.x *= m.normal_scale;
+  t.y *= m.normal_scale;
+  const float lt = glm::length(t);
+  const glm::vec3 n = lt > 1e-6f && std::isfinite(lt) ? (t.x * T + t.y * B + t.z * N) / lt : glm::vec3(0.0f);
+  const float ln = glm::length(n);
+  if (!(ln > 1e-12f) || !std::isfinite(ln)) {
+    ++stats.high_normal_map_zero_normal;
+    return glm::vec3(0.0f);
+  }
+  return n / ln;
+}
+
+// Row block by row block (by_rows()): the encode stage's encode_rows(),
+// with the high's normal textures applied first when the bake reads them.
 struct NormalModule final : MapSet::Module {
   bool object;
+  std::once_flag sides_once;
+  std::vector<float> sides;  // low_sample_sides(), for the normal textures' footprint
+  // Per thread, the hit normals of a block of rows (allocated once: a
+  // block's 200 KB freed and mapped again each time was page faults).
+  tbb::enumerable_thread_specific<std::vector<glm::vec3>> hit_normal_buffers;
   NormalModule(MapKind map, bool object_space) : Module(map), object(object_space) {}
   void encode_band(const BandInputs&, const MapSettings&, EncodeStats&) override {}
   bool by_rows() const override { return true; }
@@ -27,7 +113,23 @@ struct NormalModule final : MapSet::Module {
       options.space = NormalSpace::object;
       options.green = GreenChannel::up;
     }
-    nmbake::encode_rows(in.surface, in.samples, in.high, in.hits, options, image, stats, row_begin, row_end);
+    const glm::vec3* given = nullptr;
+    if (settings.transfer != nullptr && settings.transfer->normal_maps()) {
+      std::call_once(sides_once, [&] {
+        sides = maps_detail::low_sample_sides(in.surface, in.samples.width, settings.map_height,
+                                              in.samples.samples);
+      });
+      const std::size_t row_samples = static_cast<std::size_t>(in.samples.width) * in.samples.samples;
+      const std::size_t first = static_cast<std::size_t>(row_begin) * row_samples;
+      std::vector<glm::vec3>& hit_normals = hit_normal_buffers.local();
+      hit_normals.resize(
+          std::max(hit_normals.size(), static_cast<std::size_t>(row_end - row_begin) * row_samples));
+      for (std::size_t i = 0; i < static_cast<std::size_t>(row_end - row_begin) * row_samples; ++i)
+        hit_normals[i] = perturbed_normal(in, settings, sides, first + i, stats);
+      given = hit_normals.data();
+    }
+    nmbake::encode_rows(in.surface, in.samples, in.high, in.hits, options, image, stats, row_begin, row_end,
+                        given);
   }
   void rows_encoded(const EncodeStats& band, EncodeStats& normal_stats) override {
     if (!object) {
@@ -36,6 +138,13 @@ struct NormalModule final : MapSet::Module {
     }
     add("zero_high_normals", static_cast<double>(band.zero_high_normals));
     add("zero_results", static_cast<double>(band.zero_results));
+    if (band.high_normal_map_samples > 0) {
+      add("high_normal_map_samples", static_cast<double>(band.high_normal_map_samples));
+      add("high_normal_map_no_uv", static_cast<double>(band.high_normal_map_no_uv));
+      add("high_normal_map_degenerate_tangent", static_cast<double>(band.high_normal_map_degenerate_tangent));
+      add("high_normal_map_zero_normal", static_cast<double>(band.high_normal_map_zero_normal));
+      add("high_normal_map_tile_missing", static_cast<double>(band.high_normal_map_tile_missing));
+    }
   }
 };
 

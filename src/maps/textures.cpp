@@ -330,6 +330,8 @@ Status load_material_textures(const Mesh& high, const std::string& high_path, co
     if (needs.metallic) NMBAKE_TRY(plan(m, "metallic", m.metallic_texture, false, t.metallic));
     if (needs.emissive) NMBAKE_TRY(plan(m, "emission", m.emissive_texture, true, t.emissive));
     if (needs.opacity) NMBAKE_TRY(plan(m, "opacity", m.opacity_texture, false, t.opacity));
+    // A normal texture is data (linear), +Y up.
+    if (needs.normal) NMBAKE_TRY(plan(m, "normal", m.normal_texture, false, t.normal));
   }
   // The reads side by side (a PNG decodes on one core); the first failure
   // in material order is the one reported.

@@ -66,18 +66,8 @@ struct TransferModule : MapSet::Module {
     const SurfaceTransfer& transfer = *settings.transfer;
     if (sample_side_.empty()) {
       NMBAKE_CHECK(in.surface.triangle_count() > 0, "a low surface");
-      const float texel_scale =
-          1.0f / std::sqrt(static_cast<float>(in.samples.width) * static_cast<float>(settings.map_height) *
-                           static_cast<float>(in.samples.samples));
-      sample_side_.resize(in.surface.triangle_count());
-      for (std::size_t t = 0; t < sample_side_.size(); ++t) {
-        const glm::vec3* p = &in.surface.position[3 * t];
-        const glm::vec2* uv = &in.surface.uv[3 * t];
-        const float area = glm::length(glm::cross(p[1] - p[0], p[2] - p[0]));
-        const glm::vec2 a = uv[1] - uv[0], b = uv[2] - uv[0];
-        const float uv_area = std::abs(a.x * b.y - a.y * b.x);
-        sample_side_[t] = uv_area > 0.0f ? std::sqrt(area / uv_area) * texel_scale : 0.0f;
-      }
+      sample_side_ = maps_detail::low_sample_sides(in.surface, in.samples.width, settings.map_height,
+                                                   in.samples.samples);
     }
     NMBAKE_CHECK(sample_side_.size() == in.surface.triangle_count(), "one surface for the map set's bands");
     std::vector<Attribute> attributes;
@@ -133,6 +123,22 @@ struct TransferModule : MapSet::Module {
 };
 
 }  // namespace
+
+std::vector<float> maps_detail::low_sample_sides(const LowSurface& surface, int width, int height,
+                                                 int samples) {
+  const float texel_scale =
+      1.0f / std::sqrt(static_cast<float>(width) * static_cast<float>(height) * static_cast<float>(samples));
+  std::vector<float> side(surface.triangle_count());
+  for (std::size_t t = 0; t < side.size(); ++t) {
+    const glm::vec3* p = &surface.position[3 * t];
+    const glm::vec2* uv = &surface.uv[3 * t];
+    const float area = glm::length(glm::cross(p[1] - p[0], p[2] - p[0]));
+    const glm::vec2 a = uv[1] - uv[0], b = uv[2] - uv[0];
+    const float uv_area = std::abs(a.x * b.y - a.y * b.x);
+    side[t] = uv_area > 0.0f ? std::sqrt(area / uv_area) * texel_scale : 0.0f;
+  }
+  return side;
+}
 
 std::unique_ptr<MapSet::Module> make_transfer_module(MapKind map) {
   if (!map_traits(map).surface) return nullptr;

@@ -433,4 +433,57 @@ void compute_tangents(const Mesh& mesh, std::vector<glm::vec4>& corner_tangents,
   }
 }
 
+void compute_corner_uv_tangents(const Mesh& mesh, const std::vector<std::uint8_t>& selected,
+                                std::vector<glm::vec4>& corner_tangents, TangentStats& stats) {
+  NMBAKE_CHECK(mesh.corner_uvs.size() == 3 * mesh.triangle_count(), "corner UVs for every triangle");
+  NMBAKE_CHECK(selected.empty() || selected.size() == mesh.triangle_count(), "one flag per triangle");
+  // The selected triangles as a mesh with one vertex per distinct (vertex,
+  // UV, normal) of their corners: split where the UVs (or, without vertex
+  // normals, the face normals) differ, as a renderer's vertex buffer is.
+  // compute_tangents() welds by value again, so the frames are those of
+  // any split of the same corners (one vertex per corner gives the same,
+  // and costs a sort of three times as many keys).
+  constexpr std::uint32_t kNone = 0xffffffffu;
+  Mesh split;
+  std::vector<std::uint32_t> source;                             // the selected triangles, in order
+  std::vector<std::uint32_t> first(mesh.vertex_count(), kNone);  // a source vertex's first split vertex
+  std::vector<std::uint32_t> next;                               // per split vertex: the next of its source
+  for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
+    if (!selected.empty() && selected[t] == 0) continue;
+    source.push_back(static_cast<std::uint32_t>(t));
+    const std::uint32_t* v = &mesh.indices[3 * t];
+    glm::vec3 face(0.0f, 0.0f, 1.0f);
+    if (!mesh.has_normals()) {
+      const glm::vec3 f = glm::cross(mesh.positions[v[1]] - mesh.positions[v[0]],
+                                     mesh.positions[v[2]] - mesh.positions[v[0]]);
+      const float l = glm::length(f);
+      if (l > 0.0f && std::isfinite(l)) face = f / l;
+    }
+    for (std::size_t k = 0; k < 3; ++k) {
+      const glm::vec2 uv = mesh.corner_uvs[3 * t + k];
+      const glm::vec3 n = mesh.has_normals() ? mesh.normals[v[k]] : face;
+      std::uint32_t id = first[v[k]];
+      while (id != kNone && (split.uvs[id] != uv || split.normals[id] != n)) id = next[id];
+      if (id == kNone) {
+        id = static_cast<std::uint32_t>(split.positions.size());
+        split.positions.push_back(mesh.positions[v[k]]);
+        split.normals.push_back(n);
+        split.uvs.push_back(uv);
+        next.push_back(first[v[k]]);
+        first[v[k]] = id;
+      }
+      split.indices.push_back(id);
+    }
+  }
+  std::vector<std::uint32_t>().swap(first);
+  std::vector<std::uint32_t>().swap(next);
+  std::vector<glm::vec4> tangents;
+  compute_tangents(split, tangents, stats);
+  corner_tangents.assign(3 * mesh.triangle_count(), glm::vec4(0.0f));
+  for (std::size_t i = 0; i < source.size(); ++i) {
+    for (std::size_t k = 0; k < 3; ++k)
+      corner_tangents[3 * static_cast<std::size_t>(source[i]) + k] = tangents[3 * i + k];
+  }
+}
+
 }  // namespace nmbake
