@@ -389,9 +389,10 @@ TEST(Plan, TextureSetsAreOneTaskListingEachSetsFiles) {
                    "usemtl body\nf 1/1/1 2/2/1 3/3/1\nusemtl visor\nf 2/2/1 4/4/1 3/3/1\n");
   test::write_text(dir.file("high2.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
   const std::string job = dir.file("job.toml");
-  test::write_text(job, "[[bake]]\nname = \"sets\"\nlow = \"low.obj\"\nhigh = [\"high.obj\", \"high2.obj\"]\n"
-                        "size = 128\noutputs = [\"<LOW>_<SET>_<MAP>.png\"]\nmaps = [\"normal\", \"ao\"]\n"
-                        "pack = [\"<SET>_orm.png=r:ao,g:0,b:1\"]\n");
+  test::write_text(job,
+                   "[[bake]]\nname = \"sets\"\nlow = \"low.obj\"\nhigh = [\"high.obj\", \"high2.obj\"]\n"
+                   "size = 128\noutputs = [\"<LOW>_<SET>_<MAP>.png\"]\nmaps = [\"normal\", \"ao\"]\n"
+                   "pack = [\"<SET>_orm.png=r:ao,g:0,b:1\"]\n");
   std::vector<BakeJob> jobs;
   ASSERT_TRUE(load_job_file(job, jobs).is_ok());
   PlanOptions options;
@@ -404,13 +405,15 @@ TEST(Plan, TextureSetsAreOneTaskListingEachSetsFiles) {
   ASSERT_TRUE(s.is_ok()) << s.message();
   ASSERT_EQ(tasks.size(), 1u);
   EXPECT_EQ(tasks[0].kind, "bake");
-  for (const char* file : {"low_body_normal.png", "low_body_ao.png", "low_visor_normal.png", "low_visor_ao.png",
-                           "body_orm.png", "visor_orm.png"}) {
-    EXPECT_NE(std::find(tasks[0].outputs.begin(), tasks[0].outputs.end(), dir.file(file)), tasks[0].outputs.end())
+  for (const char* file : {"low_body_normal.png", "low_body_ao.png", "low_visor_normal.png",
+                           "low_visor_ao.png", "body_orm.png", "visor_orm.png"}) {
+    EXPECT_NE(std::find(tasks[0].outputs.begin(), tasks[0].outputs.end(), dir.file(file)),
+              tasks[0].outputs.end())
         << file;
   }
   for (const char* file : {"high.obj", "high2.obj"}) {
-    EXPECT_NE(std::find(tasks[0].inputs.begin(), tasks[0].inputs.end(), dir.file(file)), tasks[0].inputs.end())
+    EXPECT_NE(std::find(tasks[0].inputs.begin(), tasks[0].inputs.end(), dir.file(file)),
+              tasks[0].inputs.end())
         << file;
   }
 }

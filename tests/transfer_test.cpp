@@ -425,6 +425,66 @@ TEST(Transfer, IdMapFromVertexColours) {
   EXPECT_NE(s.message().find("no vertex colours"), std::string::npos) << s.message();
 }
 
+// The cache key holds the meshes' bytes; the files a bake reads besides
+// them (MTL, textures, a glTF's buffers) are checked when an entry is
+// fetched: a texture painted over, or a .bin whose .gltf did not change, is
+// baked again (and stored in place of the old entry), never served stale.
+TEST(Transfer, CachedBakesNoticeChangedTexturesAndBuffers) {
+  const TransferScene scene = make_scene();
+  test::TempDir dir;
+  ASSERT_TRUE(write_image(texture_image(64, true), dir.file("albedo.png"), PixelFormat::png8).is_ok());
+  write_scene(dir, scene, "albedo.png");
+  ASSERT_TRUE(save_mesh(dir.file("high.gltf"), scene.high).is_ok());
+  const auto run = [&](const std::string& high, const std::string& map) {
+    return test::run_command(test::cli_path() + " bake --low " + dir.file("low.obj") + " --high " +
+                             dir.file(high) + " --size 32 --map " + map + " --cache " + dir.file("cache") +
+                             " -o " + dir.file("out.png") + " --report " + dir.file("r.json") + " 2>&1");
+  };
+  const auto cached = [&] {
+    return nlohmann::json::parse(read_bytes(dir.file("r.json"))).value("cached", false);
+  };
+  test::CommandResult r = run("high.obj", "base-color");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string first = read_bytes(dir.file("out.png"));
+  const nlohmann::json report = nlohmann::json::parse(read_bytes(dir.file("r.json")));
+  EXPECT_EQ(report["input_files"], nlohmann::json({dir.file("high.mtl"), dir.file("albedo.png")}));
+  r = run("high.obj", "base-color");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(cached());
+  // The texture painted over: baked again, with the new colours.
+  ASSERT_TRUE(write_image(texture_image(64, false), dir.file("albedo.png"), PixelFormat::png8).is_ok());
+  r = run("high.obj", "base-color");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find(dir.file("albedo.png") + ": changed since the entry was stored"), std::string::npos)
+      << r.output;
+  EXPECT_FALSE(cached());
+  EXPECT_TRUE(read_bytes(dir.file("out.png")) != first);
+  const std::string second = read_bytes(dir.file("out.png"));
+  r = run("high.obj", "base-color");
+  EXPECT_TRUE(cached());
+  EXPECT_TRUE(read_bytes(dir.file("out.png")) == second);
+  // A glTF whose buffer changed under the same .gltf bytes.
+  r = run("high.gltf", "normal");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string flat = read_bytes(dir.file("out.png"));
+  // Every vertex but the lowest and highest moves (the accessor's min and
+  // max, in the .gltf, stay as they were).
+  Mesh moved = scene.high;
+  const Bounds bounds = compute_bounds(moved);
+  for (glm::vec3& p : moved.positions) {
+    if (p.z != bounds.min.z && p.z != bounds.max.z) p.z = 0.5f * (p.z + 0.5f * (bounds.min.z + bounds.max.z));
+  }
+  MeshStats normal_stats;
+  compute_vertex_normals(moved, normal_stats);
+  const std::string gltf = read_bytes(dir.file("high.gltf"));
+  ASSERT_TRUE(save_mesh(dir.file("high.gltf"), moved).is_ok());
+  ASSERT_EQ(read_bytes(dir.file("high.gltf")), gltf);
+  r = run("high.gltf", "normal");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_FALSE(cached()) << r.output;
+  EXPECT_TRUE(read_bytes(dir.file("out.png")) != flat);
+}
+
 // Packed outputs: each channel equals the channel of the map's own file at
 // that depth (mapped, sRGB-encoded, dithered as the map alone is); an
 // inverted channel is 1 minus it; a constant is its step.
@@ -945,7 +1005,7 @@ TEST(Transfer, EmbeddedGltfImagesBakeAsTheirFiles) {
   // texture points at its own image, after the first file's.
   Mesh both;
   LoadStats both_stats;
-  LoadOptions both_options;
+  LoadOptions both_options{false, true};  // as a high is read
   both_options.material_defs = both_options.corner_uvs = true;
   s = load_meshes({dir.file("high.glb"), dir.file("inline.gltf")}, both_options, both, both_stats);
   ASSERT_TRUE(s.is_ok()) << s.message();

@@ -26,6 +26,10 @@ struct StageTime {
 struct BakeReport {
   std::string low_path, cage_path;
   std::vector<std::string> high_paths;
+  // The other files the bake read: MTL libraries, glTF buffers, textures
+  // (LoadStats::files, TextureSet::files), in the order read. A cache entry
+  // checks them (cache.hpp).
+  std::vector<std::string> input_files;
   std::vector<std::string> outputs;
   int width = 0, height = 0, samples = 0;
   std::uint64_t low_triangles = 0, high_triangles = 0, high_vertices = 0;

@@ -156,6 +156,10 @@ struct LoadStats {
   std::uint64_t degenerate_faces = 0;           // faces with fewer than 3 corners: skipped
   std::uint64_t corners_without_uvs = 0;        // LoadOptions::corner_uvs: corners the file gave no UV
   std::uint64_t unread_material_libraries = 0;  // LoadOptions::material_libraries_optional: skipped
+  // The files the load read (or looked for) besides the mesh file: MTL
+  // libraries, a glTF's external buffers. A bake's cache entry records
+  // their checksums (cache.hpp), as the bake key holds the mesh file's.
+  std::vector<std::string> files;
   // Length of one file unit in metres when the file says (FBX UnitScaleFactor:
   // 0.01 for centimetres; glTF: 1); 0 when the format does not say (OBJ, PLY).
   // Positions are kept in file units; the report shows this note.

@@ -124,6 +124,7 @@ struct TextureSet {
   std::vector<MaterialTextures> by_material;  // parallel to Mesh::material_defs
   std::uint64_t bytes = 0;                    // of all levels
   double seconds = 0.0;
+  std::vector<std::string> files;  // the texture files read (each UDIM tile's), for the cache (cache.hpp)
 };
 Status load_material_textures(const Mesh& high, const std::string& high_path, const TextureNeeds& needs,
                               TextureSet& out);

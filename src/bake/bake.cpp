@@ -286,10 +286,13 @@ Status load_inputs(const BakeOptions& o, BakeReport& r, StageTimer& timer, Meshe
     resolve_high_normal_maps(o, m.high, r, m.high_normal_maps);
   }
   NMBAKE_TRY(check_high_for_maps(o, m.high));
+  for (const LoadStats* stats : {&r.low_load, &r.high_load})
+    r.input_files.insert(r.input_files.end(), stats->files.begin(), stats->files.end());
   m.has_cage = !o.cage_path.empty();
   if (m.has_cage) {
     LoadStats cage_load;
     NMBAKE_TRY(load_mesh(o.cage_path, LoadOptions{false, false}, m.cage, cage_load));
+    r.input_files.insert(r.input_files.end(), cage_load.files.begin(), cage_load.files.end());
     NMBAKE_TRY(order_cage_by_parts(m.low, o.match, o.cage_path, m.cage));
     NMBAKE_TRY(check_cage_topology(m.low, m.cage, o.cage_path));
   }
@@ -396,12 +399,14 @@ Status prepare_high_scene(const BakeOptions& o, BakeReport& r, StageTimer& timer
   HighTangents high_tangents;
   tbb::parallel_invoke(
       [&] {
-        if (needs.any()) textures_read = load_material_textures(m.high, high_name(o.high_paths), needs, textures);
+        if (needs.any())
+          textures_read = load_material_textures(m.high, high_name(o.high_paths), needs, textures);
       },
       [&] {
         if (m.high_normal_maps) high_tangents = compute_high_tangents(m.high);
       });
   NMBAKE_TRY(textures_read);
+  r.input_files.insert(r.input_files.end(), textures.files.begin(), textures.files.end());
   prepare_map_mesh(m.high, o.maps, o.id_source, m.palette, m.groups, std::move(textures), s.map_mesh,
                    std::move(high_tangents));
   // The map set holds its own copy, in the scene's order.

@@ -213,6 +213,7 @@ std::string BakeReport::to_json() const {
     j["high"] = high_paths;
   }
   j["cage"] = cage_path;
+  if (!input_files.empty()) j["input_files"] = input_files;  // MTL libraries, glTF buffers, textures
   j["outputs"] = outputs;
   j["width"] = width;
   j["height"] = height;

@@ -14,10 +14,12 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <set>
+#include <string_view>
 
 #include "base/strings.hpp"
 #include "nmbake/cleanup.hpp"
@@ -199,11 +201,46 @@ bool parse_sum(const nlohmann::json& j, std::uint64_t max_bytes, std::uint64_t& 
   return true;
 }
 
+// The size and XXH3-64 of an input file as it is now; "" or why not.
+std::string hash_input(const std::string& path, std::uint64_t& size, std::uint64_t& hash) {
+  FileDescriptor in(::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC));
+  struct stat info {};
+  if (in.get() < 0 || ::fstat(in.get(), &info) != 0) return path + ": " + std::strerror(errno);
+  if (!S_ISREG(info.st_mode)) return path + ": not a regular file";
+  size = static_cast<std::uint64_t>(info.st_size);
+  return read_exactly(in.get(), path, size, hash, [](std::string_view) { return std::string(); });
+}
+
+// An input file the entry's bake read besides the meshes (an MTL library, a
+// glTF buffer, a texture: BakeReport::input_files) and its sum then.
+struct InputFile {
+  std::string path;
+  std::uint64_t size = 0, hash = 0;
+};
+
+// The manifest's "inputs" (absent in entries of bakes that read none).
+std::string parse_inputs(const nlohmann::json& manifest, std::vector<InputFile>& inputs) {
+  const auto list = manifest.find("inputs");
+  if (list == manifest.end()) return "";
+  if (!list->is_array()) return "manifest.json: inputs is not a list";
+  for (const nlohmann::json& f : *list) {
+    InputFile input;
+    const auto path = f.is_object() ? f.find("path") : f.end();
+    if (path == f.end() || !path->is_string() ||
+        !parse_sum(f, std::numeric_limits<std::uint64_t>::max(), input.size, input.hash)) {
+      return "manifest.json: an input entry of the wrong shape";
+    }
+    input.path = path->get<std::string>();
+    inputs.push_back(std::move(input));
+  }
+  return "";
+}
+
 // Checks the manifest's shape against the bake it is fetched for: the key,
 // every output once per tile (tile 1001 only for an output without
 // <UDIM>), plain file names, sizes within bounds. "" or why not.
 std::string parse_manifest(const std::string& text, const BakeKey& key, const BakeOptions& options,
-                           std::vector<EntryFile>& files, EntryFile& report) {
+                           std::vector<EntryFile>& files, EntryFile& report, std::vector<InputFile>& inputs) {
   const nlohmann::json manifest = nlohmann::json::parse(text, nullptr, false);
   if (manifest.is_discarded()) return "manifest.json is not JSON";
   if (!manifest.is_object()) return "manifest.json is not a JSON object";
@@ -216,6 +253,7 @@ std::string parse_manifest(const std::string& text, const BakeKey& key, const Ba
     return "manifest.json records no size and checksum of the report (an entry of an older nmbake?)";
   }
   report.name = "report.json";
+  if (std::string why = parse_inputs(manifest, inputs); !why.empty()) return why;
   const auto list = manifest.find("files");
   if (list == manifest.end() || !list->is_array() || list->empty()) return "manifest.json lists no files";
   const std::vector<MapOutput> outputs = map_outputs(options);
@@ -390,7 +428,18 @@ Status cache_fetch(const std::string& dir, const BakeKey& key, const BakeOptions
   }
   std::vector<EntryFile> files;
   EntryFile report_file;
-  if (std::string why = parse_manifest(text, key, options, files, report_file); !why.empty()) return bad(why);
+  std::vector<InputFile> inputs;
+  if (std::string why = parse_manifest(text, key, options, files, report_file, inputs); !why.empty())
+    return bad(why);
+  // The key holds the meshes' bytes; what else the bake read must be as it
+  // was (a texture painted over since is another bake).
+  for (const InputFile& input : inputs) {
+    std::uint64_t size = 0, hash = 0;
+    if (std::string why = hash_input(input.path, size, hash); !why.empty())
+      return bad("an input of the entry's bake cannot be read now: " + why);
+    if (size != input.size || hash != input.hash)
+      return bad(input.path + ": changed since the entry was stored (a file the bake read)");
+  }
   std::string report_text;
   if (std::string why = read_small(entry_fd.get(), report_file.name, report_file.size, report_text, hash);
       !why.empty()) {
@@ -453,11 +502,19 @@ Status cache_store(const std::string& dir, const BakeKey& key, const BakeOptions
   if (ec) return Status::io(temp.string() + ": cannot create: " + ec.message());
   nlohmann::ordered_json manifest;
   manifest["key"] = key.hex();
-  manifest["files"] = nlohmann::ordered_json::array();
   const auto fail = [&](const std::string& why) {
     fs::remove_all(temp, ec);
     return Status::io(dir + ": cannot store the bake in the cache: " + why);
   };
+  if (!report.input_files.empty()) {
+    manifest["inputs"] = nlohmann::ordered_json::array();
+    for (const std::string& path : report.input_files) {
+      std::uint64_t size = 0, hash = 0;
+      if (std::string why = hash_input(path, size, hash); !why.empty()) return fail(why);
+      manifest["inputs"].push_back({{"path", path}, {"size", size}, {"xxh3", hex64(hash)}});
+    }
+  }
+  manifest["files"] = nlohmann::ordered_json::array();
   for (const BakeReport::Tile& tile : report.tiles) {
     if (tile.outputs.size() != map_outputs(options).size()) return fail("outputs and tiles do not agree");
     for (std::size_t i = 0; i < tile.outputs.size(); ++i) {

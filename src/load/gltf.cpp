@@ -1453,7 +1453,10 @@ Status load_gltf(const std::string& path, const LoadOptions& options, Mesh& out,
   for (const tinygltf::Buffer& buffer : model.buffers) {
     // External buffers count into the bytes read; a .glb's own and data:
     // URIs are inside the file already.
-    if (!buffer.uri.empty() && buffer.uri.rfind("data:", 0) != 0) stats.bytes += buffer.data.size();
+    if (!buffer.uri.empty() && buffer.uri.rfind("data:", 0) != 0) {
+      stats.bytes += buffer.data.size();
+      stats.files.push_back((std::filesystem::path(path).parent_path() / buffer.uri).string());
+    }
   }
   GltfReader reader(path, model, options, out, stats);
   return reader.read();

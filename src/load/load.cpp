@@ -386,8 +386,8 @@ Status append_mesh(const std::string& path, Mesh next, Mesh& out) {
   // Embedded images follow the earlier files' (TextureRef::embedded).
   const auto image_base = static_cast<int>(out.embedded_images.size());
   for (Material& m : next.material_defs) {
-    for (TextureRef* t : {&m.base_color_texture, &m.roughness_texture, &m.metallic_texture, &m.emissive_texture,
-                          &m.opacity_texture, &m.normal_texture}) {
+    for (TextureRef* t : {&m.base_color_texture, &m.roughness_texture, &m.metallic_texture,
+                          &m.emissive_texture, &m.opacity_texture, &m.normal_texture}) {
       if (t->embedded >= 0) t->embedded += image_base;
     }
   }
@@ -472,6 +472,8 @@ Status load_meshes(const std::vector<std::string>& paths, const LoadOptions& opt
     stats.triangles += file_stats.triangles;
     stats.degenerate_faces += file_stats.degenerate_faces;
     stats.corners_without_uvs += file_stats.corners_without_uvs;
+    stats.unread_material_libraries += file_stats.unread_material_libraries;
+    stats.files.insert(stats.files.end(), file_stats.files.begin(), file_stats.files.end());
   }
   if (!out.has_named_materials()) out.materials.clear();
   const Status valid = validate_mesh(out, paths.front());

@@ -258,7 +258,8 @@ class MtlParser {
 }  // namespace
 
 Status read_mtl_library(const std::string& obj_path, const std::string& statement,
-                        const std::vector<std::string>& used, std::vector<Material>& defs) {
+                        const std::vector<std::string>& used, std::vector<Material>& defs,
+                        std::vector<std::string>& read_files) {
   const fs::path folder = fs::path(obj_path).parent_path();
   std::string name = statement;
   std::replace(name.begin(), name.end(), '\\', '/');
@@ -277,6 +278,7 @@ Status read_mtl_library(const std::string& obj_path, const std::string& statemen
   }
   for (const std::string& file : files) {
     const std::string path = (fs::path(file).is_absolute() ? fs::path(file) : folder / file).string();
+    read_files.push_back(path);
     // A FIFO would block and a device never end: regular files only.
     const fs::file_status status = fs::status(path, ec);
     if (!fs::is_regular_file(status)) {

@@ -275,12 +275,12 @@ class ObjParser {
     for (const NameStatement& n : names_) {
       if (n.kind != NameKind::library || n.name.empty()) continue;
       if (!options_.material_libraries_optional) {
-        NMBAKE_TRY(read_mtl_library(path_, n.name, used, out_.material_defs));
+        NMBAKE_TRY(read_mtl_library(path_, n.name, used, out_.material_defs, stats_.files));
         continue;
       }
       // Optional: what the library gave before it failed is dropped with it.
       std::vector<Material> defs = out_.material_defs;
-      if (read_mtl_library(path_, n.name, used, defs).is_ok()) {
+      if (read_mtl_library(path_, n.name, used, defs, stats_.files).is_ok()) {
         out_.material_defs = std::move(defs);
       } else {
         ++stats_.unread_material_libraries;

@@ -162,8 +162,10 @@ Status load_obj(const std::string& path, FileReader& reader, const LoadOptions& 
 // that `used` names, appended to `defs` (a name already there is kept):
 // mtl.cpp. bad_input naming the OBJ and the library when it cannot be read,
 // or the MTL's line.
+// Every library file it reads or looks for is appended to `files`.
 Status read_mtl_library(const std::string& obj_path, const std::string& statement,
-                        const std::vector<std::string>& used, std::vector<Material>& defs);
+                        const std::vector<std::string>& used, std::vector<Material>& defs,
+                        std::vector<std::string>& files);
 Status load_ply(const std::string& path, FileReader& reader, const LoadOptions& options, Mesh& out,
                 LoadStats& stats);
 

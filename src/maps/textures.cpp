@@ -352,6 +352,7 @@ Status load_material_textures(const Mesh& high, const std::string& high_path, co
   });
   for (std::size_t r = 0; r < reads.size(); ++r) {
     NMBAKE_TRY(status[r]);
+    if (reads[r].embedded == nullptr) out.files.push_back(reads[r].path);
     for (const MipLevel& level : mips[r].levels) out.bytes += level.data.size() * sizeof(float);
     out.textures[reads[r].texture].tiles.emplace(reads[r].tile, std::move(mips[r]));
   }

@@ -28,7 +28,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   Mesh mesh;
   const std::string obj = (fuzz::scratch_folder() / "input.obj").string();
-  if (!load_detail::read_mtl_library(obj, "input.mtl", used, mesh.material_defs).is_ok()) return 0;
+  std::vector<std::string> files;
+  if (!load_detail::read_mtl_library(obj, "input.mtl", used, mesh.material_defs, files).is_ok()) return 0;
   TextureNeeds all;
   all.base_color = all.roughness = all.metallic = all.emissive = all.opacity = true;
   TextureSet textures;
