@@ -434,10 +434,10 @@ Status cache_fetch(const std::string& dir, const BakeKey& key, const BakeOptions
   // The key holds the meshes' bytes; what else the bake read must be as it
   // was (a texture painted over since is another bake).
   for (const InputFile& input : inputs) {
-    std::uint64_t size = 0, hash = 0;
-    if (std::string why = hash_input(input.path, size, hash); !why.empty())
+    std::uint64_t now_size = 0, now_hash = 0;
+    if (std::string why = hash_input(input.path, now_size, now_hash); !why.empty())
       return bad("an input of the entry's bake cannot be read now: " + why);
-    if (size != input.size || hash != input.hash)
+    if (now_size != input.size || now_hash != input.hash)
       return bad(input.path + ": changed since the entry was stored (a file the bake read)");
   }
   std::string report_text;
