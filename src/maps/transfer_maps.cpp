@@ -117,8 +117,8 @@ struct TransferModule : MapSet::Module {
         v[0] = a->factor.r * (textured ? texture_channel(texel, a->ref->channel, a->alpha) : 1.0f);
       });
     }
-    add("samples with the factor alone (no texture)", static_cast<double>(factor_only.load()));
-    add("samples in a UDIM tile the texture lacks", static_cast<double>(tile_missing.load()));
+    add("factor_only_samples", static_cast<double>(factor_only.load()));
+    add("missing_tile_samples", static_cast<double>(tile_missing.load()));
   }
 };
 
