@@ -28,6 +28,7 @@
 #include "nmbake/bake.hpp"
 #include "nmbake/image.hpp"
 #include "nmbake/load.hpp"
+#include "nmbake/task.hpp"
 #include "test_util.hpp"
 
 namespace nmbake {
@@ -221,7 +222,7 @@ TEST(HighNormalMaps, AutoWithoutNormalTexturesGivesTheBytesOfOff) {
   }
 }
 
-TEST(HighNormalMaps, OneThreadAndTwoGiveTheSameBytes) {
+TEST(HighNormalMaps, OneThreadTwoAndMergedTilesGiveTheSameBytes) {
   test::TempDir dir;
   write_scene(dir, "norm bump.png\n");
   for (const int threads : {1, 2}) {
@@ -235,6 +236,22 @@ TEST(HighNormalMaps, OneThreadAndTwoGiveTheSameBytes) {
   const std::string one = read_bytes(dir.file("t1.png"));
   EXPECT_FALSE(one.empty());
   EXPECT_EQ(one, read_bytes(dir.file("t2.png")));
+  // Tiles of rows, merged: the same bytes.
+  std::vector<std::string> tiles;
+  for (int i = 0; i < 3; ++i) {
+    BakeOptions tile = normal_bake(dir, "textured.obj", "t1.png");
+    tile.tile_index = i;
+    tile.tile_count = 3;
+    tile.tile_path = dir.file(std::to_string(i) + ".tile");
+    BakeReport report;
+    const Status s = bake_to(tile, report);
+    ASSERT_TRUE(s.is_ok()) << s.message();
+    tiles.push_back(tile.tile_path);
+  }
+  MergeReport merged;
+  const Status s = merge_tiles(tiles, {{dir.file("merged.png"), PixelFormat::png16}}, merged);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  EXPECT_TRUE(one == read_bytes(dir.file("merged.png")));
 }
 
 // glTF's normalTexture.scale multiplies x and y of the texture's normal: a
