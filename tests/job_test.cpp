@@ -64,6 +64,32 @@ bvh = "compact"
   EXPECT_EQ(b.outputs[0].format, PixelFormat::tiff16);
 }
 
+// [[bake.pack]] tables are the pack option's text in another form: the same
+// packs as pack = ["..."]; a table of another shape names its key.
+TEST(Job, PackTablesAreThePackOptionsText) {
+  test::TempDir dir;
+  const std::string base = "[[bake]]\nlow = \"l.obj\"\nhigh = \"h.obj\"\noutputs = [\"m_<MAP>.png\"]\n";
+  test::write_text(dir.file("a.toml"), base +
+                                           "pack = [\"orm.png=r:ao,g:roughness,b:metallic,a:1\", "
+                                           "\"mask.png=r:metallic,g:ao,b:0,a:1-roughness\"]\n");
+  test::write_text(dir.file("b.toml"),
+                   base +
+                       "[[bake.pack]]\nfile = \"orm.png\"\nr = \"ao\"\ng = \"roughness\"\n"
+                       "b = \"metallic\"\na = 1\n[[bake.pack]]\nfile = \"mask.png\"\n"
+                       "r = \"metallic\"\ng = \"ao\"\nb = 0\na = \"1-roughness\"\n");
+  std::vector<BakeJob> a, b;
+  ASSERT_TRUE(load_job_file(dir.file("a.toml"), a).is_ok());
+  const Status s = load_job_file(dir.file("b.toml"), b);
+  ASSERT_TRUE(s.is_ok()) << s.message();
+  ASSERT_EQ(b.front().options.packs.size(), 2u);
+  EXPECT_EQ(a.front().options.packs, b.front().options.packs);
+  test::write_text(dir.file("c.toml"), base + "[[bake.pack]]\nfile = \"orm.png\"\nred = \"ao\"\n");
+  const Status c = load_job_file(dir.file("c.toml"), b);
+  ASSERT_FALSE(c.is_ok());
+  EXPECT_NE(c.message().find("c.toml:"), std::string::npos) << c.message();
+  EXPECT_NE(c.message().find("unknown key \"red\""), std::string::npos) << c.message();
+}
+
 TEST(Job, RejectsUnknownKeysWithTheLine) {
   test::TempDir dir;
   const std::string path = dir.file("job.toml");

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <set>
 #include <sstream>
@@ -54,6 +55,51 @@ bool option_value(const toml::node& node, const std::filesystem::path& folder, O
   return true;
 }
 
+// [[bake.pack]] tables (file = "orm.png", r = "ao", g = "roughness", b =
+// "metallic", a = 1) as the pack option's text ("orm.png=r:ao,g:roughness,
+// b:metallic,a:1"), which the option table parses, as it does
+// pack = ["..."]. False with `why` for a table of another shape.
+bool pack_tables(const toml::array& tables, std::vector<std::string>& texts, std::string& why) {
+  for (const toml::node& item : tables) {
+    const toml::table* t = item.as_table();
+    if (t == nullptr) return false;
+    std::string file;
+    std::string channel[4];  // r, g, b, a (TOML tables have no order)
+    for (const auto& [k, v] : *t) {
+      const std::string key(k.str());
+      std::string value;
+      if (auto s = v.value_exact<std::string>()) {
+        value = *s;
+      } else if (auto number = v.value<double>()) {
+        char digits[32];
+        std::snprintf(digits, sizeof digits, "%.17g", *number);
+        value = digits;
+      } else {
+        why = "pack: " + key + ": expected a map name or a number";
+        return false;
+      }
+      if (key == "file") {
+        file = value;
+      } else if (key == "r" || key == "g" || key == "b" || key == "a") {
+        channel[key == "r" ? 0 : key == "g" ? 1 : key == "b" ? 2 : 3] = key + ":" + value;
+      } else {
+        why = "pack: unknown key \"" + key + "\" (file, r, g, b, a)";
+        return false;
+      }
+    }
+    if (file.empty()) {
+      why = "pack: a [[bake.pack]] table needs file = \"...\"";
+      return false;
+    }
+    std::string channels;
+    for (const std::string& c : channel) {
+      if (!c.empty()) channels += (channels.empty() ? "" : ",") + c;
+    }
+    texts.push_back(file + "=" + channels);
+  }
+  return true;
+}
+
 // Reads one key of [defaults] or [[bake]]: an option of the table joins
 // `given` (applied once the bake's keys are all read), the job's own keys
 // (name, report, cache, outputs, groups) go to `job`.
@@ -73,7 +119,13 @@ Status apply_key(const std::string& file, const std::filesystem::path& folder, c
   std::string text;
   if (const OptionSpec* spec = find_option(key); spec != nullptr && (in_bake || spec->in_defaults)) {
     GivenOption g{spec, {}, where(file, value) + ": " + key, false};
-    if (!option_value(value, folder, g.value)) {
+    const toml::array* tables = value.as_array();
+    if (key == "pack" && tables != nullptr && !tables->empty() && tables->front().is_table()) {
+      std::string why = "expected [[bake.pack]] tables";
+      g.value.kind = OptionValue::Kind::list;
+      g.value.folder = folder.string();
+      if (!pack_tables(*tables, g.value.list, why)) return Status::bad_input(where(file, value) + ": " + why);
+    } else if (!option_value(value, folder, g.value)) {
       // A value of no type the table reads (a table, a date, a list of numbers).
       const std::string words = spec->words();
       return bad("expected " + (words.empty() ? std::string(spec->value) : "one of: " + words));
