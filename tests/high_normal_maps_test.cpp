@@ -237,19 +237,8 @@ TEST(HighNormalMaps, OneThreadTwoAndMergedTilesGiveTheSameBytes) {
   EXPECT_FALSE(one.empty());
   EXPECT_EQ(one, read_bytes(dir.file("t2.png")));
   // Tiles of rows, merged: the same bytes.
-  std::vector<std::string> tiles;
-  for (int i = 0; i < 3; ++i) {
-    BakeOptions tile = normal_bake(dir, "textured.obj", "t1.png");
-    tile.tile_index = i;
-    tile.tile_count = 3;
-    tile.tile_path = dir.file(std::to_string(i) + ".tile");
-    BakeReport report;
-    const Status s = bake_to(tile, report);
-    ASSERT_TRUE(s.is_ok()) << s.message();
-    tiles.push_back(tile.tile_path);
-  }
-  MergeReport merged;
-  const Status s = merge_tiles(tiles, {{dir.file("merged.png"), PixelFormat::png16}}, merged);
+  const Status s = test::bake_tiles_and_merge(normal_bake(dir, "textured.obj", "t1.png"), 3, dir.path(),
+                                              {{dir.file("merged.png"), PixelFormat::png16}});
   ASSERT_TRUE(s.is_ok()) << s.message();
   EXPECT_TRUE(one == read_bytes(dir.file("merged.png")));
 }

@@ -796,6 +796,23 @@ TEST(Hostile, FailedBakeStopsTheJobAndSaysWhatFinished) {
       << read_bytes(report);
 }
 
+// --report with a job file writes its one bake's report (after --only); a
+// job of several bakes is a usage error, not a flag silently ignored.
+TEST(Hostile, ReportFlagWithAJobFileIsOneBakesReportOrRefused) {
+  Scene s;
+  const std::string job = s.dir.file("job.toml");
+  write_text(job, job_bake("one", "low.obj", "one.png") + job_bake("two", "low.obj", "two.png"));
+  const std::string report = s.dir.file("r.json");
+  test::CommandResult r = run_command(cli() + " bake -q " + quoted(job) + " --report " + quoted(report));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(contains(r.output, "--report names one bake's report")) << r.output;
+  EXPECT_FALSE(fs::exists(s.dir.file("one.png")));
+  EXPECT_FALSE(fs::exists(report));
+  r = run_command(cli() + " bake -q " + quoted(job) + " --only two --report " + quoted(report));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(contains(read_bytes(report), s.dir.file("two.png"))) << read_bytes(report);
+}
+
 // ---------------------------------------------------------------- messages
 
 TEST(Hostile, MessagesNameThePathOnceAndEscapeFileBytes) {

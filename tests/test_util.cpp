@@ -12,6 +12,9 @@
 #include <random>
 #include <stdexcept>
 
+#include "nmbake/bake.hpp"
+#include "nmbake/task.hpp"
+
 namespace nmbake::test {
 
 LowSurface low_quad() {
@@ -139,5 +142,21 @@ std::string collada_text(const Mesh& mesh) {
 std::string cli_path() { return NMBAKE_CLI_PATH; }
 std::string gen_path() { return NMBAKE_GEN_PATH; }
 std::string source_dir() { return NMBAKE_SOURCE_DIR; }
+
+Status bake_tiles_and_merge(const BakeOptions& options, int count, const std::filesystem::path& folder,
+                            const std::vector<OutputSpec>& outputs) {
+  std::vector<std::string> tiles;
+  for (int i = count - 1; i >= 0; --i) {
+    BakeOptions tile = options;
+    tile.tile_index = i;
+    tile.tile_count = count;
+    tile.tile_path = (folder / (std::to_string(i) + ".tile")).string();
+    BakeReport report;
+    NMBAKE_TRY(bake(tile, report));
+    tiles.push_back(tile.tile_path);
+  }
+  MergeReport merged;
+  return merge_tiles(tiles, outputs, merged);
+}
 
 }  // namespace nmbake::test

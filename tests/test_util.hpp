@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <string>
 
+#include "nmbake/bake_options.hpp"
 #include "nmbake/mesh.hpp"
 #include "nmbake/surface.hpp"
 
@@ -45,6 +46,11 @@ LowSurface low_quad();
 // element). Parts are not written. Reals in the shortest
 // form that reads back exactly.
 std::string collada_text(const Mesh& mesh);
+
+// Bakes `options` as `count` tiles of rows (the last first: the order must
+// not matter), each to `folder`/I.tile, and merges them to `outputs`.
+Status bake_tiles_and_merge(const BakeOptions& options, int count, const std::filesystem::path& folder,
+                            const std::vector<OutputSpec>& outputs);
 
 // Paths of the built programs and of the source tree.
 std::string cli_path();

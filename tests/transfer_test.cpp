@@ -662,18 +662,8 @@ TEST(Transfer, SameBytesForOneThreadAndAll) {
     ASSERT_TRUE(bake(o, report).is_ok());
   }
   // Tiles of rows, baked in any order and merged: the whole bake's bytes.
-  std::vector<std::string> tiles;
-  for (int i = 2; i >= 0; --i) {
-    BakeOptions tile = o;
-    tile.tile_index = i;
-    tile.tile_count = 3;
-    tile.tile_path = dir.file(std::to_string(i) + ".tile");
-    const Status s = bake(tile, report);
-    ASSERT_TRUE(s.is_ok()) << s.message();
-    tiles.push_back(tile.tile_path);
-  }
-  MergeReport merged;
-  const Status s = merge_tiles(tiles, {{dir.file("merged_<MAP>.png"), PixelFormat::png8}}, merged);
+  const Status s =
+      test::bake_tiles_and_merge(o, 3, dir.path(), {{dir.file("merged_<MAP>.png"), PixelFormat::png8}});
   ASSERT_TRUE(s.is_ok()) << s.message();
   for (const char* map : {"base-color", "roughness"}) {
     const std::string all = read_bytes(dir.file(std::string("all_") + map + ".png"));

@@ -206,6 +206,16 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
       return usage_error("--only " + flags.only + ": no bake of that name (bakes: " + names + ")");
     jobs = std::move(kept);
   }
+  // --report with a job file: the report of its one bake (after --only);
+  // a job of several bakes names each one's in the file.
+  if (!flags.job_file.empty() && !flags.report.empty()) {
+    if (jobs.size() != 1) {
+      return usage_error("--report names one bake's report, and the job has " + std::to_string(jobs.size()) +
+                         ": pick one with --only NAME, or give each [[bake]] its report = \"...\" "
+                         "(--job-report writes every bake's outcome)");
+    }
+    jobs.front().report_path = flags.report;
+  }
   // --tile I/N: one band of rows of one bake, written as a tile file.
   if (!flags.tile.empty()) {
     int index = 0, count = 0;
