@@ -139,7 +139,6 @@ class Session:
             raise NotFound("%s serve printed no \"ready\" within %g s" % (binary, _READY_TIMEOUT)) from None
         if ready is _EOF or not isinstance(ready, dict) or ready.get("type") != "ready":
             self._kill()
-            self._stderr_reader.join(timeout=2.0)
             said = "\n".join(self._stderr_tail).strip()
             raise NotFound(
                 "%s has no working `serve` command (it %s before \"ready\")%s"
@@ -221,7 +220,11 @@ class Session:
             self._pending.pop(request_id, None)
 
     def _broken(self, what):
-        code = self._process.poll()
+        # Its output closes just before it ends: a moment for the exit code.
+        try:
+            code = self._process.wait(timeout=2.0)
+        except subprocess.TimeoutExpired:
+            code = None
         said = "\n".join(self._stderr_tail).strip()
         return InternalError(
             "nmbake serve ended (%s) before answering %s%s"
@@ -293,16 +296,27 @@ class Session:
             self._process.wait(timeout=_QUIT_TIMEOUT)
         except subprocess.TimeoutExpired:
             self._kill()
-        self._reader.join(timeout=_QUIT_TIMEOUT)
-        self._stderr_reader.join(timeout=_QUIT_TIMEOUT)
-        for stream in (self._process.stdout, self._process.stderr):
-            stream.close()
+            return
+        self._close_pipes()
 
     def _kill(self):
-        self._closed = True
+        """Ends the server at once (a failed start, or no "bye")."""
+        with self._lock:
+            self._closed = True
         if self._process.poll() is None:
             self._process.kill()
         self._process.wait()
+        self._close_pipes()
+
+    def _close_pipes(self):
+        # The readers end at the pipes' end of file; then the pipes close.
+        self._reader.join(timeout=_QUIT_TIMEOUT)
+        self._stderr_reader.join(timeout=_QUIT_TIMEOUT)
+        for stream in (self._process.stdin, self._process.stdout, self._process.stderr):
+            try:
+                stream.close()
+            except OSError:
+                pass
 
     def __enter__(self):
         return self
