@@ -9,6 +9,8 @@ process for many bakes. Errors are the exit codes as exceptions, all
 subclasses of nmbake.Error. Standard library only; see the README, "Python".
 """
 
+__version__ = "0.1.0"
+
 from ._errors import BadInput, Cancelled, Error, GateFailed, InternalError, NotFound
 from ._run import Job, bake, bake_job, find_binary
 from ._session import BakeRequest, Session
