@@ -134,10 +134,13 @@ def bake(low, high, output, *, nmbake=None, threads=None, max_miss_rate=None, **
     or { "path": .., "format": .. } dicts); every other keyword is a job
     file key (size, samples, maps, preset, front, back, cage, pack, ...).
     Relative paths are the caller's working directory's. threads and
-    max_miss_rate are the command's --threads and --max-miss-rate.
-    Raises BadInput, GateFailed, InternalError, Cancelled or NotFound.
+    max_miss_rate are the command's --threads and --max-miss-rate; a
+    `report` path also gets the report's JSON. Raises BadInput, GateFailed, InternalError, Cancelled or NotFound.
     """
     binary = find_binary(nmbake)
+    # The report is always written (to a temp file, to return it); a
+    # `report` path given as well gets a copy.
+    wanted_report = options.pop("report", None)
     first = output[0] if isinstance(output, (list, tuple)) and output else output
     name = first.get("path") if isinstance(first, dict) else first
     entries = {"name": os.fspath(name) if name is not None else None}
@@ -155,6 +158,8 @@ def bake(low, high, output, *, nmbake=None, threads=None, max_miss_rate=None, **
         if os.path.exists(report_path):
             with open(report_path, encoding="utf-8") as f:
                 report = json.load(f)
+            if wanted_report is not None:
+                shutil.copyfile(report_path, _absolute(wanted_report))
     if done.returncode != 0:
         raise error_for_code(done.returncode, error_message(done.stderr, done.returncode), done.stderr, report)
     if report is None:

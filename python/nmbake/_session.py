@@ -68,6 +68,10 @@ class BakeRequest:
                 answer = self._answers.get(timeout=timeout)
             except queue.Empty:
                 raise TimeoutError("no answer to bake %r within %s s" % (self.id, timeout)) from None
+            except KeyboardInterrupt:
+                # Ctrl-C while waiting: the server's bake is not left running.
+                self.cancel()
+                raise
             if answer is _EOF:
                 self._session._forget(self.id)
                 raise self._session._broken("bake %r" % (self.id,))
@@ -235,9 +239,8 @@ class Session:
     def submit(self, low, high, output, *, progress=None, request_id=None, **options):
         """Sends a bake and returns its BakeRequest at once. Arguments as
         bake(); `request_id` (a str or int) is chosen for you if None."""
-        entries = dict(options, low=_fspath(low), high=_fspath(high), outputs=_outputs(output, absolute=False))
-        for k, v in list(entries.items()):
-            entries[k] = _fspath(v)
+        entries = dict(options, low=low, high=high, outputs=_outputs(output, absolute=False))
+        entries = {k: _fspath(v) for k, v in entries.items()}
         request_id, answers = self._register(request_id)
         try:
             self._send({"id": request_id, "type": "bake", "bake": entries, "folder": os.getcwd()})
@@ -327,8 +330,11 @@ class Session:
 
 
 def _fspath(v):
+    """`v` with every path object (pathlib) made a str, for json."""
     if isinstance(v, (list, tuple)):
         return [_fspath(item) for item in v]
+    if isinstance(v, dict):
+        return {k: _fspath(item) for k, item in v.items()}
     if hasattr(v, "__fspath__"):
         return os.fspath(v)
     return v

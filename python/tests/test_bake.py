@@ -60,6 +60,13 @@ class BakeTest(unittest.TestCase):
         self.assertEqual(report["outputs"], [self.path("n.png"), self.path("n.exr")])
         self.assertGreater(report["high_triangles"], 1000)
         self.assertTrue(os.path.isfile(self.path("n.png")) and os.path.isfile(self.path("n.exr")))
+        # pathlib paths, and a report path of the caller's: a copy of the report.
+        import pathlib
+
+        again = nmbake.bake(low=pathlib.Path("low.obj"), high=pathlib.Path("high.obj"),
+                            output=pathlib.Path("m.png"), size=32, report="mine.json", nmbake=BINARY)
+        with open(self.path("mine.json"), encoding="utf-8") as f:
+            self.assertEqual(json.load(f), again)
 
     def test_binary_from_the_environment(self):
         old = os.environ.get("NMBAKE")
