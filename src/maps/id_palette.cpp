@@ -2,6 +2,7 @@
 #include <toml++/toml.h>
 
 #include <cctype>
+#include <cstdint>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -38,6 +39,14 @@ bool parse_hex_color(const std::string& text, glm::vec3& out) {
   return true;
 }
 
+// ":N" for a line number, "" for none (0). (Appended, not `":" + string`:
+// GCC 12 warns falsely (-Wrestrict) on that.)
+std::string line_suffix(std::uint32_t line) {
+  std::string out;
+  if (line > 0) out.append(":").append(std::to_string(line));
+  return out;
+}
+
 }  // namespace
 
 Status read_id_palette(const std::string& path, IdPalette& out) {
@@ -54,12 +63,12 @@ Status read_id_palette(const std::string& path, IdPalette& out) {
   } catch (const toml::parse_error& e) {
     const std::string message = printable_text(e.description());
     const auto line = e.source().begin.line;
-    return Status::bad_input(printable_text(path) + (line == 0 ? "" : ":" + std::to_string(line)) + ": " +
-                             message + " (an id palette is NAME = \"#RRGGBB\" lines)");
+    return Status::bad_input(printable_text(path) + line_suffix(line) + ": " + message +
+                             " (an id palette is NAME = \"#RRGGBB\" lines)");
   }
   for (const auto& [key, value] : table) {
     const std::string name(key.str());
-    const std::string line = key.source().begin.line > 0 ? ":" + std::to_string(key.source().begin.line) : "";
+    const std::string line = line_suffix(key.source().begin.line);
     const std::optional<std::string> text = value.value<std::string>();
     glm::vec3 color(0.0f);
     if (!text || !parse_hex_color(*text, color)) {
