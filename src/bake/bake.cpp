@@ -549,9 +549,8 @@ void report_built_high(const BuiltHigh& b, BakeReport& r) {
 
 // prepare (the high side): normals, the map set's data from the whole high
 // mesh (bounds, vertex curvature, parts or materials, before groups reorder
-// its triangles), the groups' ranges; then build: the BVH.
-Status build_high(const BakeOptions& o, StageTimer& timer, Meshes& m, BuiltHigh& b,
-                  std::vector<std::string>& texture_files) {
+// its triangles), the groups' ranges.
+Status prepare_high(const BakeOptions& o, Meshes& m, BuiltHigh& b, std::vector<std::string>& texture_files) {
   // The loaded mesh itself when this bake owns it, else a copy (a store keeps it).
   b.mesh = m.own_high != nullptr ? std::move(m.own_high->mesh) : m.high->mesh;
   if (o.encode.high_normals == HighNormals::smooth) prepare_high_normals(b.mesh, b.stats);
@@ -578,18 +577,11 @@ Status build_high(const BakeOptions& o, StageTimer& timer, Meshes& m, BuiltHigh&
   if (m.groups.grouped()) group_high_mesh(o, m.groups, b.mesh, b.groups);
   b.triangles_used = b.mesh.triangle_count();
   pad_for_embree(b.mesh);
-  timer.stop();
-
-  timer.start("build");
-  NMBAKE_TRY(HighScene::build(b.mesh, o.build_quality, o.rays.ignore_backfaces, b.scene, o.bvh_memory,
-                              m.groups.grouped() ? &b.groups : nullptr));
-  timer.stop();
-  timer.start("prepare");
   return Status::ok();
 }
 
-// prepare: the low normals and surface, and the high side (built, or from
-// the store when it holds the same); then build: the high mesh's BVH.
+// prepare: the low normals and surface, and the high side (from the store
+// when it holds the same); then build: the high mesh's BVH.
 Status prepare_scene(const BakeOptions& o, HighStore* store, BakeReport& r, StageTimer& timer, Meshes& m,
                      Scene& s, bool& reused) {
   reused = false;
@@ -603,21 +595,29 @@ Status prepare_scene(const BakeOptions& o, HighStore* store, BakeReport& r, Stag
       reused = true;
     }
   }
+  std::shared_ptr<BuiltHigh> built;
+  std::vector<std::string> texture_files;
   if (!s.high) {
-    auto built = std::make_shared<BuiltHigh>();
-    std::vector<std::string> texture_files;
-    NMBAKE_TRY(build_high(o, timer, m, *built, texture_files));
+    built = std::make_shared<BuiltHigh>();
+    NMBAKE_TRY(prepare_high(o, m, *built, texture_files));
+  }
+  SurfaceStats surface_stats;
+  s.surface = build_low_surface(m.low, m.has_cage ? &m.cage : nullptr, o.tangent_basis, surface_stats);
+  s.surface.group = m.groups.low_group;
+  detail::report_low_surface(surface_stats, compute_bounds(m.low).diagonal(), r);
+  timer.stop();
+
+  if (built) {
+    timer.start("build");
+    NMBAKE_TRY(HighScene::build(built->mesh, o.build_quality, o.rays.ignore_backfaces, built->scene,
+                                o.bvh_memory, m.groups.grouped() ? &built->groups : nullptr));
+    timer.stop();
     built->files = key.empty() ? std::vector<FileHash>(texture_files.size()) : hash_files(texture_files);
     for (std::size_t i = 0; i < texture_files.size(); ++i) built->files[i].first = texture_files[i];
     if (!key.empty()) store->keep_built(key, built);
     s.high = std::move(built);
   }
   report_built_high(*s.high, r);
-  SurfaceStats surface_stats;
-  s.surface = build_low_surface(m.low, m.has_cage ? &m.cage : nullptr, o.tangent_basis, surface_stats);
-  s.surface.group = m.groups.low_group;
-  detail::report_low_surface(surface_stats, compute_bounds(m.low).diagonal(), r);
-  timer.stop();
   detail::report_scene(s.high->scene, r);
   return Status::ok();
 }

@@ -9,6 +9,7 @@
 #include <condition_variable>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <deque>
 #include <exception>
 #include <filesystem>
@@ -63,6 +64,11 @@ struct Session {
   std::mutex out_mutex;             // one answer a line, whole
   std::mutex cache_mutex;           // the HighCache: the bake's calls, status
   std::unique_ptr<HighCache> cache;
+  // Tests only (NMBAKE_SERVE_TEST_HOLD=1): each bake waits at its first
+  // progress call until it is cancelled or the input ends, so that a test
+  // can see it running, queue others behind it and cancel either without
+  // depending on timing.
+  bool test_hold = false;
 
   void send(const json& answer) {
     const std::string line = answer.dump(-1, ' ', false, json::error_handler_t::replace) + "\n";
@@ -186,6 +192,7 @@ bool handle_line(Session& s, const std::string& line) {
     }
     if (s.busy && s.running_id == json(*target)) {
       s.cancel_running = true;  // the bake answers 130 at its next progress call
+      s.wake.notify_all();
       return true;
     }
     lock.unlock();
@@ -243,7 +250,14 @@ void run_request(Session& s, const Request& request) {
   // At most ten progress answers a second; a cancel stops the bake at its
   // next progress call (never once it has begun writing: bake.hpp).
   auto last = std::chrono::steady_clock::now() - std::chrono::seconds(1);
+  bool held = !s.test_hold;
   const ProgressFn listener = [&](const char* stage, double fraction) {
+    if (!held) {
+      held = true;
+      s.send({{"id", id}, {"type", "progress"}, {"stage", stage}, {"fraction", fraction}});
+      std::unique_lock<std::mutex> lock(s.mutex);
+      s.wake.wait(lock, [&] { return s.cancel_running || s.quit || s.broken; });
+    }
     const bool writing = std::string_view(stage) == "write" && fraction > 0.0;
     if (s.cancel_running && !writing) throw BakeCancelled{};
     const auto now = std::chrono::steady_clock::now();
@@ -297,6 +311,8 @@ int run_serve(const ServeFlags& flags) {
   std::signal(SIGPIPE, SIG_IGN);
   auto session = std::make_shared<Session>();
   session->cache = std::make_unique<HighCache>(budget);
+  const char* hold = std::getenv("NMBAKE_SERVE_TEST_HOLD");
+  session->test_hold = hold != nullptr && std::string(hold) == "1";
   session->send({{"type", "ready"}, {"protocol", kProtocol}, {"nmbake", kNmbakeVersion}});
   std::thread(read_requests, session).detach();
   Session& s = *session;
