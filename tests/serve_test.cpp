@@ -34,7 +34,7 @@ std::string file_bytes(const std::string& path) {
 // A `nmbake serve` child with its stdin and stdout on pipes.
 class ServeProcess {
  public:
-  explicit ServeProcess(const std::string& folder, bool hold = false) {
+  explicit ServeProcess(const std::string& folder, bool hold = false, const char* budget = "8G") {
     int in[2], out[2];
     EXPECT_EQ(::pipe(in), 0);
     EXPECT_EQ(::pipe(out), 0);
@@ -49,7 +49,8 @@ class ServeProcess {
       if (::chdir(folder.c_str()) != 0) ::_exit(99);
       if (hold) ::setenv("NMBAKE_SERVE_TEST_HOLD", "1", 1);
       const std::string cli = test::cli_path();
-      ::execl(cli.c_str(), cli.c_str(), "--threads", "2", "serve", static_cast<char*>(nullptr));
+      ::execl(cli.c_str(), cli.c_str(), "--threads", "2", "serve", "--memory-budget", budget,
+              static_cast<char*>(nullptr));
       ::_exit(98);
     }
     ::close(in[0]);
@@ -204,6 +205,38 @@ TEST(Serve, SessionBakesTheBytesOfColdBakesAndReusesTheHigh) {
   serve.send(json{{"type", "quit"}});
   EXPECT_EQ(serve.next_answer()["type"], "bye");
   EXPECT_TRUE(serve.next().is_null());
+  EXPECT_EQ(serve.wait(), 0);
+}
+
+// Over the budget the least recently used entry goes: with room for one
+// entry, the built scene pushes the loaded mesh out, and the next bake's
+// load pushes the scene out.
+TEST(Serve, MemoryBudgetEvictsLeastRecentlyUsed) {
+  test::TempDir dir;
+  make_scenes(dir);
+  ServeProcess serve(dir.path().string(), false, "4K");
+  EXPECT_EQ(serve.next()["type"], "ready");
+  const json bake = {{"low", "sphere_low.obj"},
+                     {"high", "sphere_high.ply"},
+                     {"outputs", {"m.png"}},
+                     {"size", 32},
+                     {"samples", 1}};
+  serve.send(bake_request("1", bake));
+  json a = serve.next_answer();
+  ASSERT_EQ(a["type"], "result") << a.dump();
+  EXPECT_EQ(a["report"]["session"]["cache"]["evictions"], 1);
+  serve.send(bake_request("2", bake));
+  a = serve.next_answer();
+  EXPECT_EQ(a["reused"]["high_mesh"], false);
+  EXPECT_EQ(a["reused"]["high_scene"], false);
+  EXPECT_EQ(a["report"]["session"]["cache"]["evictions"], 3);
+  serve.send(json{{"id", "s"}, {"type", "status"}});
+  a = serve.next_answer();
+  EXPECT_EQ(a["cache"]["entries"], 1);
+  EXPECT_EQ(a["cache"]["budget"], 4096);
+  EXPECT_EQ(a["cache"]["evictions"], 3);
+  serve.send(json{{"type", "quit"}});
+  EXPECT_EQ(serve.next_answer()["type"], "bye");
   EXPECT_EQ(serve.wait(), 0);
 }
 
