@@ -10,13 +10,20 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <functional>
+#include <memory>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "nmbake/bake_options.hpp"
 #include "nmbake/bake_report.hpp"
 #include "nmbake/common.hpp"
+#include "nmbake/load.hpp"
 #include "nmbake/maps.hpp"
+#include "nmbake/mesh.hpp"
+#include "nmbake/trace.hpp"
 
 namespace nmbake {
 
@@ -36,11 +43,66 @@ Status write_pack_files(MapSet& maps, const std::vector<PackSpec>& packs, int ud
 std::vector<MapReport> map_file_reports(const MapSet& maps, const std::vector<MapOutput>& files, int tile);
 
 // Called with a stage name and the fraction done (0..1) of that stage; from
-// the calling thread only.
+// the calling thread only. It may throw to cancel the bake: the exception
+// leaves bake() as it is. The write stage announces itself ("write", 0)
+// before the first file is opened, so a listener that throws there (or
+// earlier) leaves no map written; it should not throw from a later call
+// (maps are written by then).
 using ProgressFn = std::function<void(const char* stage, double fraction)>;
 
+// The high side of a bake, as bake() hands it between its stages: plain
+// data a caller may keep and hand back to a later bake (a live session,
+// `nmbake serve`), so that a high mesh is read and its BVH built once.
+// A file read besides the mesh files (an MTL library, a glTF's buffers, a
+// texture) with the XXH3-64 of its bytes (0: it could not be read): checked
+// again before the state is reused.
+using FileHash = std::pair<std::string, std::uint64_t>;
+// What load_inputs() reads of the high files.
+struct LoadedHigh {
+  Mesh mesh;
+  LoadStats load;
+  bool normal_maps = false;  // --high-normal-maps resolved
+  std::uint64_t normal_textures = 0, normal_textures_skipped = 0;
+  std::vector<FileHash> files;  // load.files, hashed
+};
+// What the rays are traced against on the high side: the mesh with its
+// normals prepared, grouped and padded (the BVH's shared buffers), the map
+// set's data of it, the groups' ranges and the BVH.
+struct BuiltHigh {
+  Mesh mesh;
+  MapMeshData map_mesh;
+  SceneGroups groups;
+  HighScene scene;
+  MeshStats stats;  // the report's high_mesh counters
+  std::uint64_t triangles_used = 0;
+  std::vector<FileHash> files;  // the textures the map set read, hashed
+};
+// Where bake() looks for the high side before it loads or builds it, and
+// leaves what it loaded or built. The keys are bake()'s: the high files'
+// paths, sizes and XXH3-64 of their bytes, and every option that changes
+// what was loaded (LoadedHigh) or built from it (BuiltHigh: also the
+// groups' high triangles, the id palette's colours, build quality, backface
+// filter, BVH layout). Called from the thread that runs bake().
+class HighStore {
+ public:
+  virtual ~HighStore() = default;
+  virtual std::shared_ptr<const LoadedHigh> find_loaded(const std::string& key) = 0;
+  virtual void keep_loaded(const std::string& key, std::shared_ptr<const LoadedHigh> high) = 0;
+  virtual std::shared_ptr<const BuiltHigh> find_built(const std::string& key) = 0;
+  virtual void keep_built(const std::string& key, std::shared_ptr<const BuiltHigh> high) = 0;
+};
+
+// What bake() took from a HighStore.
+struct HighReuse {
+  bool high_mesh = false;   // LoadedHigh found (and its files verified)
+  bool high_scene = false;  // BuiltHigh found
+};
+
 // Runs one bake. Nothing is written unless every stage succeeded; each output
-// is written atomically.
-Status bake(const BakeOptions& options, BakeReport& report, const ProgressFn& progress = {});
+// is written atomically. With `store`, the high side is taken from it when
+// it holds the same (same bytes, same options: the maps are byte for byte a
+// cold bake's) and left in it otherwise; `reuse` says which was taken.
+Status bake(const BakeOptions& options, BakeReport& report, const ProgressFn& progress = {},
+            HighStore* store = nullptr, HighReuse* reuse = nullptr);
 
 }  // namespace nmbake

@@ -5,11 +5,13 @@
 #include "nmbake/bake.hpp"
 
 #include <tbb/parallel_invoke.h>
+#include <xxhash.h>
 
 #include <algorithm>
 #include <cctype>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -167,7 +169,13 @@ Status check_tile_request(const BakeOptions& o) {
 // The meshes through the pipeline: as loaded, then the low one with UVs,
 // its groups and UDIM tiles.
 struct Meshes {
-  Mesh low, high, cage;
+  Mesh low, cage;
+  // The high mesh as loaded: this bake's own, or a HighStore's (shared,
+  // never changed). `own_high` is set when the bake may move the mesh out of
+  // it (no store keeps it); `high_key` is its store key.
+  std::shared_ptr<const LoadedHigh> high;
+  LoadedHigh* own_high = nullptr;
+  std::string high_key;
   bool has_cage = false;
   BakeGroups groups;
   bool udim = false;              // outputs hold <UDIM>: a map per UV tile
@@ -176,6 +184,44 @@ struct Meshes {
   IdPalette palette;              // the id map's colours by name (--id-palette)
   bool high_normal_maps = false;  // resolved: the normal maps read the high's normal textures
 };
+
+// XXH3-64 of a file's bytes; false when it cannot be read.
+bool hash_file_bytes(const std::string& path, std::uint64_t& out) {
+  std::unique_ptr<std::FILE, decltype(&std::fclose)> file(std::fopen(path.c_str(), "rb"), &std::fclose);
+  if (!file) return false;
+  std::unique_ptr<XXH3_state_t, decltype(&XXH3_freeState)> state(XXH3_createState(), &XXH3_freeState);
+  XXH3_64bits_reset(state.get());
+  std::vector<char> buffer(1 << 20);
+  std::size_t got = 0;
+  while ((got = std::fread(buffer.data(), 1, buffer.size(), file.get())) > 0)
+    XXH3_64bits_update(state.get(), buffer.data(), got);
+  if (std::ferror(file.get())) return false;
+  out = XXH3_64bits_digest(state.get());
+  return true;
+}
+
+std::vector<FileHash> hash_files(const std::vector<std::string>& paths) {
+  std::vector<FileHash> out;
+  for (const std::string& path : paths) {
+    std::uint64_t h = 0;
+    if (!hash_file_bytes(path, h)) h = 0;
+    out.emplace_back(path, h);
+  }
+  return out;
+}
+
+// Whether every file still has the bytes it had.
+bool files_unchanged(const std::vector<FileHash>& files) {
+  return std::all_of(files.begin(), files.end(), [](const FileHash& f) {
+    std::uint64_t h = 0;
+    return hash_file_bytes(f.first, h) == (f.second != 0) && h == f.second;
+  });
+}
+
+// A store key's part: "name=value;".
+void add_key(std::string& key, const char* name, const std::string& value) {
+  key.append(name).append("=").append(value).append(";");
+}
 
 // The high's normal textures (--high-normal-maps): its materials and corner
 // UVs are read from the files that carry them (OBJ + MTL, glTF) when the
@@ -248,14 +294,9 @@ Status check_high_for_maps(const BakeOptions& o, const Mesh& high) {
   return Status::ok();
 }
 
-// load: the low, high and cage meshes, and what can be checked of them
-// before anything is built: the map set's needs, the cage's topology,
-// coordinate ranges, memory, distances against the low diagonal.
-Status load_inputs(const BakeOptions& o, BakeReport& r, StageTimer& timer, Meshes& m) {
-  timer.start("load");
+// How the high files are read: only what the map set and the options need.
+LoadOptions high_load_options(const BakeOptions& o) {
   const bool id_map = std::find(o.maps.begin(), o.maps.end(), MapKind::id) != o.maps.end();
-  if (id_map && !o.id_palette.empty()) NMBAKE_TRY(read_id_palette(o.id_palette, m.palette));
-  NMBAKE_TRY(load_mesh(o.low_path, detail::low_load_options(o), m.low, r.low_load));
   LoadOptions high_options{false, o.encode.high_normals == HighNormals::smooth};
   high_options.keep_colors = std::find(o.maps.begin(), o.maps.end(), MapKind::vertex_color) != o.maps.end() ||
                              (id_map && o.id_source == IdSource::vertex_color);
@@ -273,19 +314,100 @@ Status load_inputs(const BakeOptions& o, BakeReport& r, StageTimer& timer, Meshe
     high_options.material_defs = true;
     if (o.high_normal_maps == HighNormalMaps::on) high_options.corner_uvs = true;
   }
-  NMBAKE_TRY(load_meshes(o.high_paths, high_options, m.high, r.high_load));
-  resolve_high_normal_maps(o, m.high, r, m.high_normal_maps);
-  if (m.high_normal_maps && !m.high.has_corner_uvs()) {
+  return high_options;
+}
+
+// The high files read into `high` (and the report's high_load and normal
+// texture counts).
+Status load_high_files(const BakeOptions& o, BakeReport& r, LoadedHigh& high) {
+  LoadOptions high_options = high_load_options(o);
+  NMBAKE_TRY(load_meshes(o.high_paths, high_options, high.mesh, r.high_load));
+  resolve_high_normal_maps(o, high.mesh, r, high.normal_maps);
+  if (high.normal_maps && !high.mesh.has_corner_uvs()) {
     // auto found a normal texture: the high's corner UVs, in a second read
     // (a high without one, the common case, pays for its MTL alone: the
     // corner UVs of a 2M-triangle OBJ cost about 0.14 s and 24 bytes a triangle).
     const double first_seconds = r.high_load.seconds;
     high_options.corner_uvs = true;
-    NMBAKE_TRY(load_meshes(o.high_paths, high_options, m.high, r.high_load));
+    NMBAKE_TRY(load_meshes(o.high_paths, high_options, high.mesh, r.high_load));
     r.high_load.seconds += first_seconds;
-    resolve_high_normal_maps(o, m.high, r, m.high_normal_maps);
+    resolve_high_normal_maps(o, high.mesh, r, high.normal_maps);
   }
-  NMBAKE_TRY(check_high_for_maps(o, m.high));
+  NMBAKE_TRY(check_high_for_maps(o, high.mesh));
+  high.load = r.high_load;
+  high.normal_textures = r.high_normal_textures;
+  high.normal_textures_skipped = r.high_normal_textures_skipped;
+  return Status::ok();
+}
+
+// The store key of the loaded high: each file's path, size and XXH3-64 (the
+// bytes, not a date: a file rewritten with other bytes in the same second
+// is another mesh), and every option that changes what is read.
+// False when a file cannot be read (the load then says why).
+bool loaded_high_key(const BakeOptions& o, std::string& key) {
+  key.clear();
+  for (const std::string& path : o.high_paths) {
+    std::uint64_t h = 0;
+    std::error_code error;
+    const std::uintmax_t size = std::filesystem::file_size(path, error);
+    if (error || !hash_file_bytes(path, h)) return false;
+    add_key(key, "high", path + "," + std::to_string(size) + "," + std::to_string(h));
+  }
+  const LoadOptions l = high_load_options(o);
+  add_key(key, "load",
+          std::to_string(l.keep_uvs) + std::to_string(l.keep_normals) + std::to_string(l.uv_set) +
+              std::to_string(l.keep_tangents) + std::to_string(l.keep_colors) + std::to_string(l.corner_uvs) +
+              std::to_string(l.material_defs) + std::to_string(l.material_libraries_optional));
+  add_key(key, "high_normal_maps", std::to_string(static_cast<int>(o.high_normal_maps)));
+  add_key(key, "adaptive", std::to_string(o.adaptive));
+  add_key(key, "maps",
+          std::to_string(reads_high_normal_maps(o)) + std::to_string(texture_needs(o.maps).any()));
+  return true;
+}
+
+// The high mesh as loaded: from the store when it holds the same, else read
+// (and left in the store).
+Status load_high(const BakeOptions& o, HighStore* store, BakeReport& r, Meshes& m, bool& reused) {
+  reused = false;
+  if (store != nullptr && loaded_high_key(o, m.high_key)) {
+    if (std::shared_ptr<const LoadedHigh> found = store->find_loaded(m.high_key);
+        found && files_unchanged(found->files)) {
+      m.high = std::move(found);
+      r.high_load = m.high->load;
+      r.high_load.seconds = 0.0;  // not read by this bake
+      r.high_normal_maps = m.high->normal_maps;
+      r.high_normal_textures = m.high->normal_textures;
+      r.high_normal_textures_skipped = m.high->normal_textures_skipped;
+      reused = true;
+      return Status::ok();
+    }
+  } else {
+    m.high_key.clear();
+  }
+  auto loaded = std::make_shared<LoadedHigh>();
+  NMBAKE_TRY(load_high_files(o, r, *loaded));
+  if (!m.high_key.empty()) {
+    loaded->files = hash_files(loaded->load.files);
+    store->keep_loaded(m.high_key, loaded);
+  } else {
+    m.own_high = loaded.get();
+  }
+  m.high = std::move(loaded);
+  return Status::ok();
+}
+
+// load: the low, high and cage meshes, and what can be checked of them
+// before anything is built: the map set's needs, the cage's topology,
+// coordinate ranges, memory, distances against the low diagonal.
+Status load_inputs(const BakeOptions& o, HighStore* store, BakeReport& r, StageTimer& timer, Meshes& m,
+                   bool& reused) {
+  timer.start("load");
+  const bool id_map = std::find(o.maps.begin(), o.maps.end(), MapKind::id) != o.maps.end();
+  if (id_map && !o.id_palette.empty()) NMBAKE_TRY(read_id_palette(o.id_palette, m.palette));
+  NMBAKE_TRY(load_mesh(o.low_path, detail::low_load_options(o), m.low, r.low_load));
+  NMBAKE_TRY(load_high(o, store, r, m, reused));
+  m.high_normal_maps = m.high->normal_maps;
+  const Mesh& high = m.high->mesh;
   for (const LoadStats* stats : {&r.low_load, &r.high_load})
     r.input_files.insert(r.input_files.end(), stats->files.begin(), stats->files.end());
   m.has_cage = !o.cage_path.empty();
@@ -299,10 +421,10 @@ Status load_inputs(const BakeOptions& o, BakeReport& r, StageTimer& timer, Meshe
   // Every derived value (diagonal, normals, ray origins) stays finite only
   // within these bounds; Embree aborts on a ray that is not.
   NMBAKE_TRY(check_coordinate_range(m.low, o.low_path));
-  NMBAKE_TRY(check_coordinate_range(m.high, high_name(o.high_paths)));
+  NMBAKE_TRY(check_coordinate_range(high, high_name(o.high_paths)));
   if (m.has_cage) NMBAKE_TRY(check_coordinate_range(m.cage, o.cage_path));
   NMBAKE_TRY(check_bake_memory(o, MeshSize{m.low.vertex_count(), m.low.triangle_count()},
-                               MeshSize{m.high.vertex_count(), m.high.triangle_count()}));
+                               MeshSize{high.vertex_count(), high.triangle_count()}));
   const float diagonal = compute_bounds(m.low).diagonal();
   NMBAKE_TRY(detail::check_distance("front", o.rays.front, diagonal));
   NMBAKE_TRY(detail::check_distance("back", o.rays.back, diagonal));
@@ -341,7 +463,7 @@ Status unwrap_low(const BakeOptions& o, BakeReport& r, StageTimer& timer, Mesh& 
 // a naming mistake is found in a second, not after the unwrap), UVs, the
 // file tangents it was asked to keep, its UDIM tiles.
 Status prepare_low_mesh(const BakeOptions& o, BakeReport& r, StageTimer& timer, Meshes& m) {
-  NMBAKE_TRY(match_parts(m.low, m.high, o.match, o.low_path, high_name(o.high_paths), m.groups));
+  NMBAKE_TRY(match_parts(m.low, m.high->mesh, o.match, o.low_path, high_name(o.high_paths), m.groups));
   m.udim = detail::bakes_udim_tiles(o);
   if (!m.low.has_uvs()) NMBAKE_TRY(unwrap_low(o, r, timer, m.low));
   if (o.tangent_basis == TangentBasis::file && !m.low.has_tangents()) {
@@ -352,17 +474,16 @@ Status prepare_low_mesh(const BakeOptions& o, BakeReport& r, StageTimer& timer, 
   }
   NMBAKE_TRY(find_udim_tiles(m.low, o.low_path, m.udim, m.tiles));
   if (detail::bakes_texture_sets(o)) NMBAKE_TRY(find_low_sets(m.low, o.low_path, m.sets));
-  detail::report_mesh_sizes(m.low, m.high, r);
+  detail::report_mesh_sizes(m.low, m.high->mesh, r);
   return Status::ok();
 }
 
-// What the rays are traced against: the map set's mesh data, the low
-// surface (per-corner arrays, the cage) and the high mesh's BVH.
+// What the rays are traced against: the high side (BuiltHigh: the map set's
+// mesh data, the groups' ranges, the high mesh's BVH) and the low surface
+// (per-corner arrays, the cage).
 struct Scene {
-  MapMeshData map_mesh;
-  SceneGroups groups;
+  std::shared_ptr<const BuiltHigh> high;
   LowSurface surface;
-  HighScene high;
 };
 
 // High normals: the file's, normalised, or area-weighted ones.
@@ -384,13 +505,54 @@ void group_high_mesh(const BakeOptions& o, const BakeGroups& groups, Mesh& high,
   scene_groups.groups_per_scene = o.groups_per_scene;
 }
 
-// prepare: normals, the map set's data from the whole high mesh (bounds,
-// vertex curvature, parts or materials, before groups reorder its
-// triangles), the groups' ranges, the low surface; then build: the BVH.
-Status prepare_high_scene(const BakeOptions& o, BakeReport& r, StageTimer& timer, Meshes& m, Scene& s) {
-  timer.start("prepare");
-  prepare_low_normals(m.low, r.low_mesh);
-  if (o.encode.high_normals == HighNormals::smooth) prepare_high_normals(m.high, r.high_mesh);
+// The store key of the built high side: the loaded high's, and what the
+// build reads besides: high normals, the map set and its id options (the
+// palette's colours), the groups' high triangles, the BVH's options.
+std::string built_high_key(const BakeOptions& o, const Meshes& m) {
+  std::string key = m.high_key;
+  add_key(key, "high_normals", std::to_string(static_cast<int>(o.encode.high_normals)));
+  std::string maps;
+  for (const MapKind map : o.maps) maps += std::to_string(static_cast<int>(map)) + ",";
+  add_key(key, "maps", maps);
+  add_key(key, "id_source", std::to_string(static_cast<int>(o.id_source)));
+  add_key(key, "high_normal_maps", std::to_string(m.high_normal_maps));
+  std::unique_ptr<XXH3_state_t, decltype(&XXH3_freeState)> state(XXH3_createState(), &XXH3_freeState);
+  XXH3_64bits_reset(state.get());
+  for (const auto& [name, colour] : m.palette.colors) {
+    XXH3_64bits_update(state.get(), name.data(), name.size() + 1);
+    XXH3_64bits_update(state.get(), &colour, sizeof colour);
+  }
+  add_key(key, "palette", std::to_string(XXH3_64bits_digest(state.get())));
+  XXH3_64bits_reset(state.get());
+  for (const std::vector<std::uint32_t>& triangles : m.groups.high_triangles) {
+    const std::uint64_t count = triangles.size();
+    XXH3_64bits_update(state.get(), &count, sizeof count);
+    XXH3_64bits_update(state.get(), triangles.data(), triangles.size() * sizeof(std::uint32_t));
+  }
+  add_key(key, "groups",
+          std::to_string(m.groups.grouped()) + "," + std::to_string(m.groups.high_triangles.size()) + "," +
+              std::to_string(XXH3_64bits_digest(state.get())) + "," + std::to_string(o.groups_per_scene));
+  add_key(key, "bvh",
+          std::to_string(static_cast<int>(o.build_quality)) + "," + std::to_string(o.rays.ignore_backfaces) +
+              "," + std::to_string(static_cast<int>(o.bvh_memory)));
+  return key;
+}
+
+// The report's figures of a built high side (also when it was reused).
+void report_built_high(const BuiltHigh& b, BakeReport& r) {
+  r.high_mesh = b.stats;
+  for (const FileHash& f : b.files) r.input_files.push_back(f.first);
+  detail::report_map_mesh(b.map_mesh, r);
+  r.high_triangles_used = b.triangles_used;
+}
+
+// prepare (the high side): normals, the map set's data from the whole high
+// mesh (bounds, vertex curvature, parts or materials, before groups reorder
+// its triangles), the groups' ranges.
+Status prepare_high(const BakeOptions& o, Meshes& m, BuiltHigh& b, std::vector<std::string>& texture_files) {
+  // The loaded mesh itself when this bake owns it, else a copy (a store keeps it).
+  b.mesh = m.own_high != nullptr ? std::move(m.own_high->mesh) : m.high->mesh;
+  if (o.encode.high_normals == HighNormals::smooth) prepare_high_normals(b.mesh, b.stats);
   TextureSet textures;
   TextureNeeds needs = texture_needs(o.maps);
   needs.normal = m.high_normal_maps;
@@ -400,32 +562,62 @@ Status prepare_high_scene(const BakeOptions& o, BakeReport& r, StageTimer& timer
   tbb::parallel_invoke(
       [&] {
         if (needs.any())
-          textures_read = load_material_textures(m.high, high_name(o.high_paths), needs, textures);
+          textures_read = load_material_textures(b.mesh, high_name(o.high_paths), needs, textures);
       },
       [&] {
-        if (m.high_normal_maps) high_tangents = compute_high_tangents(m.high);
+        if (m.high_normal_maps) high_tangents = compute_high_tangents(b.mesh);
       });
   NMBAKE_TRY(textures_read);
-  r.input_files.insert(r.input_files.end(), textures.files.begin(), textures.files.end());
-  prepare_map_mesh(m.high, o.maps, o.id_source, m.palette, m.groups, std::move(textures), s.map_mesh,
+  texture_files = textures.files;
+  prepare_map_mesh(b.mesh, o.maps, o.id_source, m.palette, m.groups, std::move(textures), b.map_mesh,
                    std::move(high_tangents));
   // The map set holds its own copy, in the scene's order.
-  std::vector<glm::vec2>().swap(m.high.corner_uvs);
-  detail::report_map_mesh(s.map_mesh, r);
-  if (m.groups.grouped()) group_high_mesh(o, m.groups, m.high, s.groups);
-  r.high_triangles_used = m.high.triangle_count();
-  pad_for_embree(m.high);
+  std::vector<glm::vec2>().swap(b.mesh.corner_uvs);
+  if (m.groups.grouped()) group_high_mesh(o, m.groups, b.mesh, b.groups);
+  b.triangles_used = b.mesh.triangle_count();
+  pad_for_embree(b.mesh);
+  return Status::ok();
+}
+
+// prepare: the low normals and surface, and the high side (from the store
+// when it holds the same); then build: the high mesh's BVH.
+Status prepare_scene(const BakeOptions& o, HighStore* store, BakeReport& r, StageTimer& timer, Meshes& m,
+                     Scene& s, bool& reused) {
+  reused = false;
+  timer.start("prepare");
+  prepare_low_normals(m.low, r.low_mesh);
+  const std::string key = store != nullptr && !m.high_key.empty() ? built_high_key(o, m) : std::string();
+  if (!key.empty()) {
+    if (std::shared_ptr<const BuiltHigh> found = store->find_built(key);
+        found && files_unchanged(found->files)) {
+      s.high = std::move(found);
+      reused = true;
+    }
+  }
+  std::shared_ptr<BuiltHigh> built;
+  std::vector<std::string> texture_files;
+  if (!s.high) {
+    built = std::make_shared<BuiltHigh>();
+    NMBAKE_TRY(prepare_high(o, m, *built, texture_files));
+  }
   SurfaceStats surface_stats;
   s.surface = build_low_surface(m.low, m.has_cage ? &m.cage : nullptr, o.tangent_basis, surface_stats);
   s.surface.group = m.groups.low_group;
   detail::report_low_surface(surface_stats, compute_bounds(m.low).diagonal(), r);
   timer.stop();
 
-  timer.start("build");
-  NMBAKE_TRY(HighScene::build(m.high, o.build_quality, o.rays.ignore_backfaces, s.high, o.bvh_memory,
-                              m.groups.grouped() ? &s.groups : nullptr));
-  detail::report_scene(s.high, r);
-  timer.stop();
+  if (built) {
+    timer.start("build");
+    NMBAKE_TRY(HighScene::build(built->mesh, o.build_quality, o.rays.ignore_backfaces, built->scene,
+                                o.bvh_memory, m.groups.grouped() ? &built->groups : nullptr));
+    timer.stop();
+    built->files = key.empty() ? std::vector<FileHash>(texture_files.size()) : hash_files(texture_files);
+    for (std::size_t i = 0; i < texture_files.size(); ++i) built->files[i].first = texture_files[i];
+    if (!key.empty()) store->keep_built(key, built);
+    s.high = std::move(built);
+  }
+  report_built_high(*s.high, r);
+  detail::report_scene(s.high->scene, r);
   return Status::ok();
 }
 
@@ -437,7 +629,7 @@ RayOptions resolve_bake_rays(const BakeOptions& o, const Meshes& m, Scene& s, Ba
   if (estimated) timer.start("distances");
   RayOptions rays;
   const DistanceEstimate estimate =
-      resolve_rays(o.rays, s.high, s.surface, r.low_diagonal, m.groups.groups.size(), rays);
+      resolve_rays(o.rays, s.high->scene, s.surface, r.low_diagonal, m.groups.groups.size(), rays);
   if (estimated) timer.stop();
   detail::report_rays(rays, estimate, estimated, m.groups, r);
   return rays;
@@ -546,7 +738,8 @@ Status write_unwrapped_low(const BakeReport& r, StageTimer& timer, const Mesh& l
 
 }  // namespace
 
-Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
+Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress, HighStore* store,
+            HighReuse* reuse) {
   const Clock::time_point bake_begin = Clock::now();
   NMBAKE_TRY(validate_options(o));
   NMBAKE_TRY(check_tile_request(o));
@@ -556,13 +749,16 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress) {
   // sizes once they are loaded, before the BVH and the map are allocated.
   NMBAKE_TRY(check_bake_memory(o, MeshSize{}, MeshSize{}));
 
+  HighReuse reused;
   Meshes meshes;
-  NMBAKE_TRY(load_inputs(o, r, timer, meshes));
+  NMBAKE_TRY(load_inputs(o, store, r, timer, meshes, reused.high_mesh));
   NMBAKE_TRY(prepare_low_mesh(o, r, timer, meshes));
   Scene scene;
-  NMBAKE_TRY(prepare_high_scene(o, r, timer, meshes, scene));
+  NMBAKE_TRY(prepare_scene(o, store, r, timer, meshes, scene, reused.high_scene));
+  if (reuse != nullptr) *reuse = reused;
   const RayOptions rays = resolve_bake_rays(o, meshes, scene, r, timer);
-  const Prepared prepared{o, meshes.high, scene.high, rays, map_settings(o, r.low_diagonal, scene.map_mesh)};
+  const BuiltHigh& high = *scene.high;
+  const Prepared prepared{o, high.mesh, high.scene, rays, map_settings(o, r.low_diagonal, high.map_mesh)};
   detail::report_map_set(o, r);
   const std::vector<glm::vec2> file_uvs =
       meshes.udim || !meshes.sets.empty() ? scene.surface.uv : std::vector<glm::vec2>{};

@@ -36,10 +36,11 @@ struct BakeFlags {
   std::string report;
   double max_miss_rate = -1.0;  // < 0: no gate
   std::string only, tile, tile_file, cache;
-  bool keep_going = false;     // a job: run the other bakes after one fails
-  std::string job_report;      // a job: write each bake's status here (JSON)
-  bool print_options = false;  // print each bake's options (JSON lines) and stop
-  TableFlags table;            // every option of the bake (options.hpp)
+  bool keep_going = false;        // a job: run the other bakes after one fails
+  std::string job_report;         // a job: write each bake's status here (JSON)
+  bool print_options = false;     // print each bake's options (JSON lines) and stop
+  std::string progress = "auto";  // auto (a bar on a terminal), bar, json, none
+  TableFlags table;               // every option of the bake (options.hpp)
 };
 
 int fail(const Status& status) {
@@ -270,13 +271,17 @@ int run_bake(const BakeFlags& flags, const GlobalOptions& global, CLI::App& comm
   for (std::size_t index = 0; index < jobs.size(); ++index) {
     const BakeJob& job = jobs[index];
     JobOutcome& outcome = outcomes[index];
-    const bool show_progress = !global.quiet && stderr_is_terminal();
+    const bool show_progress =
+        flags.progress == "bar" || (flags.progress == "auto" && !global.quiet && stderr_is_terminal());
     ProgressBar bar(show_progress);
+    JsonProgress json_progress;
     BakeReport report;
     // No listener at all when nothing is drawn: the stages then skip the
     // pauses they make to report progress.
     ProgressFn listener;
     if (show_progress) listener = [&](const char* stage, double f) { bar.update(stage, f); };
+    if (flags.progress == "json")
+      listener = [&](const char* stage, double f) { json_progress.update(stage, f); };
     bool cached = false;
     Status s = bake_or_fetch(job, !flags.cache.empty() ? flags.cache : resolve_cache_dir(job.cache_dir),
                              report, listener, cached);
@@ -394,6 +399,10 @@ Runner add_bake_command(CLI::App& app, const GlobalOptions& global) {
                 "a job: run the other bakes when one fails (exit 2 at the end)");
   cmd->add_option("--job-report", flags->job_report,
                   "a job: write each bake's status and outputs here (JSON)");
+  cmd->add_option("--progress", flags->progress,
+                  "progress on stderr: auto (a bar on a terminal), bar, json (a JSON line a update), none")
+      ->check(CLI::IsMember({"auto", "bar", "json", "none"}))
+      ->default_val("auto");
   cmd->add_flag("--print-options", flags->print_options,
                 "print each bake's options as they were read (one JSON line a bake) and bake nothing");
   return [flags, &global, cmd]() { return run_bake(*flags, global, *cmd); };
