@@ -728,6 +728,27 @@ Status bake_udim_tile(const Prepared& p, const Meshes& m, const std::vector<glm:
   return Status::ok();
 }
 
+// Every map set the outputs name: each texture set's (<SET>; one for the
+// whole low without it), for each UDIM tile.
+Status bake_sets_and_tiles(const Prepared& p, const Meshes& m, LowSurface& surface, BakeReport& r,
+                           StageTimer& timer, const ProgressFn& progress) {
+  const std::vector<glm::vec2> file_uvs = m.udim || !m.sets.empty() ? surface.uv : std::vector<glm::vec2>{};
+  if (m.sets.empty()) {
+    for (const int tile : m.tiles)
+      NMBAKE_TRY(bake_udim_tile(p, m, file_uvs, nullptr, surface, tile, r, timer, progress));
+  }
+  for (const LowSet& set : m.sets) {
+    // The set's own options: its name in the outputs' and packs' paths.
+    BakeOptions set_options = p.options;
+    for (OutputSpec& out : set_options.outputs) out.path = replace_token(out.path, kSetToken, set.path_name);
+    for (PackSpec& pack : set_options.packs) pack.path = replace_token(pack.path, kSetToken, set.path_name);
+    const Prepared set_prepared{set_options, p.high, p.scene, p.rays, p.maps};
+    for (const int tile : m.tiles)
+      NMBAKE_TRY(bake_udim_tile(set_prepared, m, file_uvs, &set, surface, tile, r, timer, progress));
+  }
+  return Status::ok();
+}
+
 // The low mesh this bake unwrapped, with the normals it was baked with.
 Status write_unwrapped_low(const BakeReport& r, StageTimer& timer, const Mesh& low) {
   timer.start("write");
@@ -760,25 +781,7 @@ Status bake(const BakeOptions& o, BakeReport& r, const ProgressFn& progress, Hig
   const BuiltHigh& high = *scene.high;
   const Prepared prepared{o, high.mesh, high.scene, rays, map_settings(o, r.low_diagonal, high.map_mesh)};
   detail::report_map_set(o, r);
-  const std::vector<glm::vec2> file_uvs =
-      meshes.udim || !meshes.sets.empty() ? scene.surface.uv : std::vector<glm::vec2>{};
-  if (meshes.sets.empty()) {
-    for (const int tile : meshes.tiles) {
-      NMBAKE_TRY(
-          bake_udim_tile(prepared, meshes, file_uvs, nullptr, scene.surface, tile, r, timer, progress));
-    }
-  }
-  for (const LowSet& set : meshes.sets) {
-    // The set's own options: its name in the outputs' and packs' paths.
-    BakeOptions set_options = o;
-    for (OutputSpec& out : set_options.outputs) out.path = replace_token(out.path, kSetToken, set.path_name);
-    for (PackSpec& pack : set_options.packs) pack.path = replace_token(pack.path, kSetToken, set.path_name);
-    const Prepared set_prepared{set_options, prepared.high, prepared.scene, prepared.rays, prepared.maps};
-    for (const int tile : meshes.tiles) {
-      NMBAKE_TRY(
-          bake_udim_tile(set_prepared, meshes, file_uvs, &set, scene.surface, tile, r, timer, progress));
-    }
-  }
+  NMBAKE_TRY(bake_sets_and_tiles(prepared, meshes, scene.surface, r, timer, progress));
   if (r.unwrapped) NMBAKE_TRY(write_unwrapped_low(r, timer, meshes.low));
   detail::report_finish(bake_begin, r);
   return Status::ok();
