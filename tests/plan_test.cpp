@@ -357,12 +357,8 @@ TEST(PlanQuoting, JsonRefusesBytesThatAreNotUtf8) {
 
 // A bake with packed outputs is planned whole (a tile file carries no
 // pack), and its task lists the pack among the files it writes.
-TEST(Plan, BakesWithPacksAreNotTiled) {
-  test::TempDir dir;
-  write_meshes(dir);
-  const std::string job = dir.file("job.toml");
-  test::write_text(job, bake_entry("packed", "m_<MAP>.png", 128) +
-                            "maps = [\"normal\", \"height\"]\npack = [\"orm.png=r:height,g:0,b:1\"]\n");
+// The plan of job file `job` in 4 tiles a bake (bakes of 64² and more).
+void plan_in_tiles(const std::string& job, std::vector<PlanTask>& tasks) {
   std::vector<BakeJob> jobs;
   ASSERT_TRUE(load_job_file(job, jobs).is_ok());
   PlanOptions options;
@@ -370,9 +366,18 @@ TEST(Plan, BakesWithPacksAreNotTiled) {
   options.job_file = job;
   options.tiles = 4;
   options.tiles_min_size = 64;
-  std::vector<PlanTask> tasks;
   const Status s = plan_jobs(jobs, options, tasks);
   ASSERT_TRUE(s.is_ok()) << s.message();
+}
+
+TEST(Plan, BakesWithPacksAreNotTiled) {
+  test::TempDir dir;
+  write_meshes(dir);
+  const std::string job = dir.file("job.toml");
+  test::write_text(job, bake_entry("packed", "m_<MAP>.png", 128) +
+                            "maps = [\"normal\", \"height\"]\npack = [\"orm.png=r:height,g:0,b:1\"]\n");
+  std::vector<PlanTask> tasks;
+  plan_in_tiles(job, tasks);
   ASSERT_EQ(tasks.size(), 1u);
   EXPECT_EQ(tasks[0].kind, "bake");
   EXPECT_NE(std::find(tasks[0].outputs.begin(), tasks[0].outputs.end(), dir.file("orm.png")),
@@ -393,16 +398,8 @@ TEST(Plan, TextureSetsAreOneTaskListingEachSetsFiles) {
                    "[[bake]]\nname = \"sets\"\nlow = \"low.obj\"\nhigh = [\"high.obj\", \"high2.obj\"]\n"
                    "size = 128\noutputs = [\"<LOW>_<SET>_<MAP>.png\"]\nmaps = [\"normal\", \"ao\"]\n"
                    "pack = [\"<SET>_orm.png=r:ao,g:0,b:1\"]\n");
-  std::vector<BakeJob> jobs;
-  ASSERT_TRUE(load_job_file(job, jobs).is_ok());
-  PlanOptions options;
-  options.nmbake = "nmbake";
-  options.job_file = job;
-  options.tiles = 4;
-  options.tiles_min_size = 64;
   std::vector<PlanTask> tasks;
-  const Status s = plan_jobs(jobs, options, tasks);
-  ASSERT_TRUE(s.is_ok()) << s.message();
+  plan_in_tiles(job, tasks);
   ASSERT_EQ(tasks.size(), 1u);
   EXPECT_EQ(tasks[0].kind, "bake");
   for (const char* file : {"low_body_normal.png", "low_body_ao.png", "low_visor_normal.png",

@@ -306,16 +306,23 @@ TEST(Transfer, GltfFactorsAndTextureTransform) {
   EXPECT_LT(m.max, 1e-4) << m.to_text();
 }
 
-// The id map in the materials' own colours: Kd as the DCC shows it
-// (sRGB-encoded), a hue for a material without Kd and for two that share one.
-TEST(Transfer, IdMapTakesTheMaterialsOwnColours) {
+// The transfer scene with its high in four material ranges named `names`
+// (a quarter each), written as dir/low.obj and dir/high.obj.
+void write_four_material_scene(const test::TempDir& dir, const std::array<std::string, 4>& names) {
   TransferScene scene = make_scene();
   const auto n = static_cast<std::uint32_t>(scene.high.triangle_count());
   const std::uint32_t q = n / 4;
-  scene.high.materials = {{"red", 0, q}, {"plain", q, q}, {"grey_a", 2 * q, q}, {"grey_b", 3 * q, n - 3 * q}};
-  test::TempDir dir;
+  scene.high.materials = {
+      {names[0], 0, q}, {names[1], q, q}, {names[2], 2 * q, q}, {names[3], 3 * q, n - 3 * q}};
   ASSERT_TRUE(save_mesh(dir.file("low.obj"), scene.low).is_ok());
   ASSERT_TRUE(save_mesh(dir.file("high.obj"), scene.high).is_ok());
+}
+
+// The id map in the materials' own colours: Kd as the DCC shows it
+// (sRGB-encoded), a hue for a material without Kd and for two that share one.
+TEST(Transfer, IdMapTakesTheMaterialsOwnColours) {
+  test::TempDir dir;
+  write_four_material_scene(dir, {"red", "plain", "grey_a", "grey_b"});
   test::write_text(dir.file("high.obj"), "mtllib high.mtl\n" + read_bytes(dir.file("high.obj")));
   test::write_text(dir.file("high.mtl"),
                    "newmtl red\nKd 0.5 0.1 0.05\nnewmtl plain\nNs 10\nnewmtl grey_a\nKd 0.8 0.8 0.8\n"
@@ -339,13 +346,8 @@ TEST(Transfer, IdMapTakesTheMaterialsOwnColours) {
 // the names it does not give are coloured as without it. Its mistakes are
 // exit 2 naming the file (and line), before anything is written.
 TEST(Transfer, IdPaletteGivesTheArtistsColours) {
-  TransferScene scene = make_scene();
-  const auto n = static_cast<std::uint32_t>(scene.high.triangle_count());
-  const std::uint32_t q = n / 4;
-  scene.high.materials = {{"red", 0, q}, {"plain", q, q}, {"grey a", 2 * q, q}, {"grey_b", 3 * q, n - 3 * q}};
   test::TempDir dir;
-  ASSERT_TRUE(save_mesh(dir.file("low.obj"), scene.low).is_ok());
-  ASSERT_TRUE(save_mesh(dir.file("high.obj"), scene.high).is_ok());
+  write_four_material_scene(dir, {"red", "plain", "grey a", "grey_b"});
   test::write_text(dir.file("palette.toml"),
                    "# id colours\nred = \"#00FF00\"\n\"grey a\" = \"#123456\"\ngrey_b = \"#123456\"\n"
                    "absent = \"#ffffff\"\n");

@@ -39,6 +39,13 @@ std::string bake_key_text(const BakeOptions& options);
 // cannot be read.
 Status bake_key(const BakeOptions& options, BakeKey& key);
 
+// The size and XXH3-64 of a regular file's bytes, for what checks a file is
+// still the one a bake read (the cache's input files, a live session's
+// kept meshes). Opened without blocking and refused unless regular: a FIFO
+// or device put in a file's place is an answer, never a wait. "" or why not
+// (the path and the reason).
+std::string hash_file_contents(const std::string& path, std::uint64_t& size, std::uint64_t& hash);
+
 // Rows [begin, end) of tile `index` (0-based) of `count` over a map of
 // `height` rows: bands of whole kRasterTileSize-row raster tiles, as even as
 // that allows (with more tiles than 32-row bands some tiles are empty).

@@ -226,7 +226,7 @@ class Session:
     def _broken(self, what):
         # Its output closes just before it ends: a moment for the exit code.
         try:
-            code = self._process.wait(timeout=2.0)
+            code = self._process.wait(timeout=10.0)
         except subprocess.TimeoutExpired:
             code = None
         said = "\n".join(self._stderr_tail).strip()

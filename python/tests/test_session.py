@@ -116,11 +116,11 @@ class FakeServerTest(unittest.TestCase):
 
             thread = threading.Thread(target=run)
             thread.start()
-            self.assertTrue(started.wait(10))
+            self.assertTrue(started.wait(120))
             # A status answer reaches this thread while the bake waits in the other.
-            self.assertEqual(session.status(timeout=10)["running"], ["slow-1"])
+            self.assertEqual(session.status(timeout=120)["running"], ["slow-1"])
             session.cancel("slow-1")
-            thread.join(10)
+            thread.join(120)
             self.assertFalse(thread.is_alive())
             self.assertIsInstance(outcome.get("error"), nmbake.Cancelled)
             self.assertEqual(outcome["error"].code, 130)
@@ -131,7 +131,7 @@ class FakeServerTest(unittest.TestCase):
             self.assertIsInstance(request.id, int)
             request.cancel()
             with self.assertRaises(nmbake.Cancelled):
-                request.result(timeout=10)
+                request.result(timeout=120)
 
     def test_a_raising_progress_callback_cancels(self):
         class Stop(Exception):
@@ -143,13 +143,18 @@ class FakeServerTest(unittest.TestCase):
         with nmbake.Session(nmbake=self.fake()) as session:
             with self.assertRaises(Stop):
                 session.bake(low="slow", high="h", output="n.png", progress=progress)
-            self.assertEqual(session.status(timeout=10)["running"], [])
+            self.assertEqual(session.status(timeout=120)["running"], [])
 
     def test_server_that_dies_is_an_internal_error(self):
         session = nmbake.Session(nmbake=self.fake())
         with self.assertRaises(nmbake.InternalError) as caught:
             session.bake(low="die", high="h", output="n.png")
-        self.assertIn("exit code 3", caught.exception.message)
+        # How it ended: its exit code when the process is gone by then (it
+        # usually is), else that its output closed; either way an error,
+        # whatever the machine's load.
+        message = caught.exception.message
+        self.assertIn("nmbake serve ended", message)
+        self.assertTrue("exit code 3" in message or "its output closed" in message, message)
         session.close()
 
     def test_no_serve_command_is_not_found(self):

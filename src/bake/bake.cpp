@@ -185,19 +185,11 @@ struct Meshes {
   bool high_normal_maps = false;  // resolved: the normal maps read the high's normal textures
 };
 
-// XXH3-64 of a file's bytes; false when it cannot be read.
+// XXH3-64 of a file's bytes (hash_file_contents(), task.hpp); false when it
+// cannot be read.
 bool hash_file_bytes(const std::string& path, std::uint64_t& out) {
-  std::unique_ptr<std::FILE, decltype(&std::fclose)> file(std::fopen(path.c_str(), "rb"), &std::fclose);
-  if (!file) return false;
-  std::unique_ptr<XXH3_state_t, decltype(&XXH3_freeState)> state(XXH3_createState(), &XXH3_freeState);
-  XXH3_64bits_reset(state.get());
-  std::vector<char> buffer(1 << 20);
-  std::size_t got = 0;
-  while ((got = std::fread(buffer.data(), 1, buffer.size(), file.get())) > 0)
-    XXH3_64bits_update(state.get(), buffer.data(), got);
-  if (std::ferror(file.get())) return false;
-  out = XXH3_64bits_digest(state.get());
-  return true;
+  std::uint64_t size = 0;
+  return hash_file_contents(path, size, out).empty();
 }
 
 std::vector<FileHash> hash_files(const std::vector<std::string>& paths) {
@@ -347,10 +339,8 @@ Status load_high_files(const BakeOptions& o, BakeReport& r, LoadedHigh& high) {
 bool loaded_high_key(const BakeOptions& o, std::string& key) {
   key.clear();
   for (const std::string& path : o.high_paths) {
-    std::uint64_t h = 0;
-    std::error_code error;
-    const std::uintmax_t size = std::filesystem::file_size(path, error);
-    if (error || !hash_file_bytes(path, h)) return false;
+    std::uint64_t size = 0, h = 0;
+    if (!hash_file_contents(path, size, h).empty()) return false;
     add_key(key, "high", path + "," + std::to_string(size) + "," + std::to_string(h));
   }
   const LoadOptions l = high_load_options(o);

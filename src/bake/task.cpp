@@ -208,6 +208,40 @@ Status hash_file(XXH3_state_t* state, const std::string& path, const char* role)
 
 }  // namespace
 
+std::string hash_file_contents(const std::string& path, std::uint64_t& size, std::uint64_t& hash) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  struct stat info {};
+  if (fd < 0) return path + ": " + std::strerror(errno);
+  const auto close_fd = [fd] { ::close(fd); };
+  if (::fstat(fd, &info) != 0 || !S_ISREG(info.st_mode)) {
+    close_fd();
+    return path + ": not a regular file";
+  }
+  size = static_cast<std::uint64_t>(info.st_size);
+  std::unique_ptr<XXH3_state_t, decltype(&XXH3_freeState)> state(XXH3_createState(), &XXH3_freeState);
+  NMBAKE_CHECK(state != nullptr, "xxHash state");
+  XXH3_64bits_reset(state.get());
+  constexpr std::size_t kChunk = std::size_t{1} << 20;
+  const auto buffer = std::make_unique_for_overwrite<char[]>(kChunk);
+  std::uint64_t total = 0;
+  for (;;) {
+    const ssize_t got = ::read(fd, buffer.get(), kChunk);
+    if (got < 0 && errno == EINTR) continue;
+    if (got < 0) {
+      const int error = errno;
+      close_fd();
+      return path + ": " + std::strerror(error);
+    }
+    if (got == 0) break;
+    XXH3_64bits_update(state.get(), buffer.get(), static_cast<std::size_t>(got));
+    total += static_cast<std::uint64_t>(got);
+  }
+  close_fd();
+  if (total != size) return path + ": changed while it was read";
+  hash = XXH3_64bits_digest(state.get());
+  return "";
+}
+
 Status bake_key(const BakeOptions& o, BakeKey& key) {
   std::unique_ptr<XXH3_state_t, decltype(&XXH3_freeState)> state(XXH3_createState(), &XXH3_freeState);
   NMBAKE_CHECK(state != nullptr, "xxHash state");

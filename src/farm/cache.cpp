@@ -201,16 +201,6 @@ bool parse_sum(const nlohmann::json& j, std::uint64_t max_bytes, std::uint64_t& 
   return true;
 }
 
-// The size and XXH3-64 of an input file as it is now; "" or why not.
-std::string hash_input(const std::string& path, std::uint64_t& size, std::uint64_t& hash) {
-  FileDescriptor in(::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC));
-  struct stat info {};
-  if (in.get() < 0 || ::fstat(in.get(), &info) != 0) return path + ": " + std::strerror(errno);
-  if (!S_ISREG(info.st_mode)) return path + ": not a regular file";
-  size = static_cast<std::uint64_t>(info.st_size);
-  return read_exactly(in.get(), path, size, hash, [](std::string_view) { return std::string(); });
-}
-
 // An input file the entry's bake read besides the meshes (an MTL library, a
 // glTF buffer, a texture: BakeReport::input_files) and its sum then.
 struct InputFile {
@@ -435,7 +425,7 @@ Status cache_fetch(const std::string& dir, const BakeKey& key, const BakeOptions
   // was (a texture painted over since is another bake).
   for (const InputFile& input : inputs) {
     std::uint64_t now_size = 0, now_hash = 0;
-    if (std::string why = hash_input(input.path, now_size, now_hash); !why.empty())
+    if (std::string why = hash_file_contents(input.path, now_size, now_hash); !why.empty())
       return bad("an input of the entry's bake cannot be read now: " + why);
     if (now_size != input.size || now_hash != input.hash)
       return bad(input.path + ": changed since the entry was stored (a file the bake read)");
@@ -510,7 +500,7 @@ Status cache_store(const std::string& dir, const BakeKey& key, const BakeOptions
     manifest["inputs"] = nlohmann::ordered_json::array();
     for (const std::string& path : report.input_files) {
       std::uint64_t size = 0, hash = 0;
-      if (std::string why = hash_input(path, size, hash); !why.empty()) return fail(why);
+      if (std::string why = hash_file_contents(path, size, hash); !why.empty()) return fail(why);
       manifest["inputs"].push_back({{"path", path}, {"size", size}, {"xxh3", hex64(hash)}});
     }
   }
