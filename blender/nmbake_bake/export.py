@@ -9,7 +9,7 @@ back on load).
 
 The high goes out as binary little-endian PLY, one file per object named
 after it (nmbake names a part-less file's part by its stem): positions,
-normals, and 13-byte face records (a one-byte count and three int32
+normals, and 13-byte face records (a one-byte count and three uint32
 indices, the loader's fast path). Smooth meshes write one vertex per
 vertex with Blender's vertex normals; a mesh with flat faces or split
 normals (auto smooth, custom normals) writes one vertex per loop with the
@@ -36,6 +36,10 @@ def _evaluated_mesh(obj, depsgraph):
 
 
 def _array(collection, attribute, count, width, dtype):
+    # The dtype must be the property's own (uint32 for loop and vertex
+    # indices, float32): foreach_get then copies the raw array; another
+    # dtype converts item by item, ten times slower (0.6 s against 0.06 s
+    # for 2M triangles).
     out = np.empty(count * width, dtype=dtype)
     collection.foreach_get(attribute, out)
     return out.reshape(count, width) if width > 1 else out
@@ -81,7 +85,7 @@ def low_arrays(obj, depsgraph, uv_name=""):
         if layer is None:
             raise ValueError("%s has no UV map%s" % (obj.name, " named %r" % uv_name if uv_name else ""))
         loop_count = len(mesh.loops)
-        vertex_of_loop = _array(mesh.loops, "vertex_index", loop_count, 1, np.int32)
+        vertex_of_loop = _array(mesh.loops, "vertex_index", loop_count, 1, np.uint32)
         co = _array(mesh.vertices, "co", len(mesh.vertices), 3, np.float32)
         normals = _array(mesh.loops, "normal", loop_count, 3, np.float32)
         uvs = _array(layer.data, "uv", loop_count, 2, np.float32)
@@ -158,32 +162,38 @@ def write_glb(path, parts):
 
 def high_arrays(obj, depsgraph):
     """One object's evaluated mesh in world space for the high side:
-    dict(positions, normals, indices (vertex index per triangle corner))."""
-    obj_eval, mesh = _evaluated_mesh(obj, depsgraph)
-    try:
-        mesh.calc_loop_triangles()
-        triangle_count = len(mesh.loop_triangles)
-        smooth = np.empty(len(mesh.polygons), dtype=bool)
-        mesh.polygons.foreach_get("use_smooth", smooth)
-        per_vertex = bool(smooth.all()) and not mesh.use_auto_smooth and not mesh.has_custom_normals
-        if per_vertex:
-            positions = _array(mesh.vertices, "co", len(mesh.vertices), 3, np.float32)
-            normals = _array(mesh.vertices, "normal", len(mesh.vertices), 3, np.float32)
-            indices = _array(mesh.loop_triangles, "vertices", triangle_count, 3, np.int32)
-        else:
+    dict(positions, normals, indices (vertex index per triangle corner)).
+
+    A smooth mesh is read from the evaluated object's own mesh, read only:
+    to_mesh() would copy it and compute its normals again (2M triangles:
+    0.25 s against 1 s)."""
+    obj_eval = obj.evaluated_get(depsgraph)
+    mesh = obj_eval.data
+    smooth = np.empty(len(mesh.polygons), dtype=bool)
+    mesh.polygons.foreach_get("use_smooth", smooth)
+    per_vertex = bool(smooth.all()) and not mesh.use_auto_smooth and not mesh.has_custom_normals
+    if per_vertex:
+        mesh.calc_loop_triangles()  # a cache of the mesh: computed once
+        positions = _array(mesh.vertices, "co", len(mesh.vertices), 3, np.float32)
+        normals = _array(mesh.vertices, "normal", len(mesh.vertices), 3, np.float32)
+        indices = _array(mesh.loop_triangles, "vertices", len(mesh.loop_triangles), 3, np.uint32)
+    else:
+        mesh = obj_eval.to_mesh()
+        try:
             mesh.calc_normals_split()
+            mesh.calc_loop_triangles()
             loop_count = len(mesh.loops)
-            vertex_of_loop = _array(mesh.loops, "vertex_index", loop_count, 1, np.int32)
+            vertex_of_loop = _array(mesh.loops, "vertex_index", loop_count, 1, np.uint32)
             co = _array(mesh.vertices, "co", len(mesh.vertices), 3, np.float32)
             positions = co[vertex_of_loop]
             normals = _array(mesh.loops, "normal", loop_count, 3, np.float32)
-            indices = _array(mesh.loop_triangles, "loops", triangle_count, 3, np.int32)
-        positions, normals, mirrored = _transform(obj.matrix_world, positions, normals)
-        if mirrored:
-            indices = indices[:, [0, 2, 1]]
-        return {"positions": positions, "normals": normals, "indices": indices}
-    finally:
-        obj_eval.to_mesh_clear()
+            indices = _array(mesh.loop_triangles, "loops", len(mesh.loop_triangles), 3, np.uint32)
+        finally:
+            obj_eval.to_mesh_clear()
+    positions, normals, mirrored = _transform(obj.matrix_world, positions, normals)
+    if mirrored:
+        indices = indices[:, [0, 2, 1]]
+    return {"positions": positions, "normals": normals, "indices": indices}
 
 
 def write_ply(path, a):
@@ -196,12 +206,12 @@ def write_ply(path, a):
         "element vertex %d\n"
         "property float x\nproperty float y\nproperty float z\n"
         "property float nx\nproperty float ny\nproperty float nz\n"
-        "element face %d\nproperty list uchar int vertex_indices\nend_header\n" % (vertex_count, triangle_count)
+        "element face %d\nproperty list uchar uint vertex_indices\nend_header\n" % (vertex_count, triangle_count)
     ).encode("ascii")
     vertices = np.empty((vertex_count, 6), dtype="<f4")
     vertices[:, :3] = a["positions"]
     vertices[:, 3:] = a["normals"]
-    faces = np.empty(triangle_count, dtype=np.dtype([("n", "u1"), ("i", "<i4", (3,))]))
+    faces = np.empty(triangle_count, dtype=np.dtype([("n", "u1"), ("i", "<u4", (3,))]))
     faces["n"] = 3
     faces["i"] = a["indices"]
     tmp = path + ".tmp"

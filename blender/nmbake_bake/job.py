@@ -100,26 +100,28 @@ def role_name(obj, collection):
 
 
 def fingerprint(objects, depsgraph, uv_name=""):
-    """A hash of what the export of `objects` depends on: evaluated
-    positions, loop normals and UVs, and the world matrices."""
+    """A hash of what the export of `objects` mostly depends on: the
+    evaluated positions, the loops' vertices, smooth flags, UVs and world
+    matrices (not custom normals or auto smooth angles)."""
     digest = hashlib.blake2b(digest_size=16)
     for obj in objects:
-        obj_eval = obj.evaluated_get(depsgraph)
-        mesh = obj_eval.to_mesh()
-        try:
-            digest.update(obj.name.encode("utf-8"))
-            digest.update(np.array(obj.matrix_world, dtype=np.float64).tobytes())
-            co = np.empty(len(mesh.vertices) * 3, np.float32)
-            mesh.vertices.foreach_get("co", co)
-            digest.update(co.tobytes())
-            digest.update(np.int64(len(mesh.loops)).tobytes())
-            layer = export.uv_layer_of(mesh, uv_name)
-            if layer is not None:
-                uv = np.empty(len(mesh.loops) * 2, np.float32)
-                layer.data.foreach_get("uv", uv)
-                digest.update(uv.tobytes())
-        finally:
-            obj_eval.to_mesh_clear()
+        mesh = obj.evaluated_get(depsgraph).data  # read only
+        digest.update(obj.name.encode("utf-8"))
+        digest.update(np.array(obj.matrix_world, dtype=np.float64).tobytes())
+        co = np.empty(len(mesh.vertices) * 3, np.float32)
+        mesh.vertices.foreach_get("co", co)
+        digest.update(co.tobytes())
+        loops = np.empty(len(mesh.loops), np.uint32)
+        mesh.loops.foreach_get("vertex_index", loops)
+        digest.update(loops.tobytes())
+        smooth = np.empty(len(mesh.polygons), dtype=bool)
+        mesh.polygons.foreach_get("use_smooth", smooth)
+        digest.update(smooth.tobytes())
+        layer = export.uv_layer_of(mesh, uv_name)
+        if layer is not None:
+            uv = np.empty(len(mesh.loops) * 2, np.float32)
+            layer.data.foreach_get("uv", uv)
+            digest.update(uv.tobytes())
     return digest.hexdigest()
 
 
