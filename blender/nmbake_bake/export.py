@@ -74,7 +74,8 @@ def uv_layer_of(mesh, name):
 def low_arrays(obj, depsgraph, uv_name=""):
     """Per-loop arrays of one object's evaluated mesh in world space:
     dict(positions, normals, uvs, indices (loop index per triangle corner),
-    uv_name). Raises ValueError when the mesh has no UV map."""
+    uv_name, quads (polygons of more than 3 corners)). Raises ValueError
+    when the mesh has no UV map."""
     obj_eval, mesh = _evaluated_mesh(obj, depsgraph)
     try:
         # Before looking up the UV layer: computing split normals adds a
@@ -90,11 +91,13 @@ def low_arrays(obj, depsgraph, uv_name=""):
         normals = _array(mesh.loops, "normal", loop_count, 3, np.float32)
         uvs = _array(layer.data, "uv", loop_count, 2, np.float32)
         indices = _array(mesh.loop_triangles, "loops", len(mesh.loop_triangles), 3, np.uint32)
+        corners = _array(mesh.polygons, "loop_total", len(mesh.polygons), 1, np.int32)
         positions, normals, mirrored = _transform(obj.matrix_world, co[vertex_of_loop], normals)
         if mirrored:
             indices = indices[:, [0, 2, 1]]
         return {"positions": positions, "normals": normals, "uvs": uvs,
-                "indices": np.ascontiguousarray(indices), "uv_name": layer.name}
+                "indices": np.ascontiguousarray(indices), "uv_name": layer.name,
+                "quads": int((corners > 3).sum())}
     finally:
         obj_eval.to_mesh_clear()
 

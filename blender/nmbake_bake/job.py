@@ -175,6 +175,7 @@ class Job:
         self.uv_names = {}
         self.request_keys = None
         self.low_fingerprint = None
+        self.quads = 0
         self._thread = None
 
     # -- main thread ------------------------------------------------------
@@ -209,6 +210,7 @@ class Job:
                     tangents, signs = blender_tangents(obj, depsgraph, arrays["uv_name"])
                     arrays["tangents"] = np.concatenate([tangents, signs[:, None]], axis=1)
                 self.uv_names[obj.name] = arrays["uv_name"]
+                self.quads += arrays["quads"]
                 parts.append((obj.name, arrays))
             export.write_glb(low_path, parts)
             self.low_fingerprint = fingerprint(low + cage, depsgraph, s.uv_map)

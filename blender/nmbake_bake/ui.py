@@ -66,13 +66,13 @@ class NMBakeSettings(bpy.types.PropertyGroup):
         (str(n), str(n), "%d samples per texel" % n) for n in (1, 4, 16, 64)])
     maps: EnumProperty(name="Maps", options={"ENUM_FLAG"}, items=_MAPS, default={"normal"})
     preset: EnumProperty(name="Preset", items=_PRESETS, default="BLENDER")
-    tangents: EnumProperty(name="Tangents", default="BLENDER", items=[
-        ("BLENDER", "Blender's",
-         "Blender's own MikkTSpace tangents (calc_tangents on quads and n-gons as Blender sees them), "
-         "written with the low: the map decodes exactly in Blender"),
-        ("MIKKTSPACE", "MikkTSpace on triangles",
-         "nmbake's MikkTSpace on the exported triangles, as an engine computes it from a triangulated "
-         "export; on quads it differs from Blender's (README, \"Baking from Blender\")"),
+    tangents: EnumProperty(name="Tangents", default="MIKKTSPACE", items=[
+        ("MIKKTSPACE", "Triangles (Cycles)",
+         "MikkTSpace on the triangles Blender renders (loop triangles), computed by nmbake: what Cycles "
+         "decodes with, and an engine reading a triangulated export"),
+        ("BLENDER", "Blender mesh (EEVEE)",
+         "Blender's own tangents (calc_tangents: quads split on MikkTSpace's own diagonal), written with "
+         "the low: what EEVEE and the viewport decode with"),
     ])
     uv_map: StringProperty(name="UV map", description="Empty: each low object's active render UV map")
     output_dir: StringProperty(name="Folder", subtype="DIR_PATH", default="//nmbake/")
@@ -90,6 +90,7 @@ class NMBakeSettings(bpy.types.PropertyGroup):
     seconds_bake: FloatProperty(name="Bake seconds")
     seconds_load: FloatProperty(name="Load seconds")
     reused_high: BoolProperty(name="High reused")
+    quads: IntProperty(name="Quads and n-gons of the low")
     last_report: StringProperty(name="Report (JSON)")
     last_request: StringProperty(name="Request (JSON)")
 
@@ -132,6 +133,7 @@ def _store(context, settings, job):
     settings.seconds_total = settings.seconds_export + settings.seconds_bake + settings.seconds_load
     reused = report.get("reused", {})
     settings.reused_high = bool(reused.get("high_mesh")) and bool(reused.get("high_scene"))
+    settings.quads = job.quads
     report = dict(report, blender_timings=job.timings)
     settings.last_report = json.dumps(report)
     settings.status = "baked"
@@ -251,6 +253,11 @@ class NMBAKE_PT_panel(bpy.types.Panel):
             box.label(text="Time: %.2f s (export %.2f, bake %.2f, load %.2f)" % (
                 s.seconds_total, s.seconds_export, s.seconds_bake, s.seconds_load))
             box.label(text="High reused: %s" % ("yes" if s.reused_high else "no"))
+            if s.quads:
+                # Measured (README "Baking from Blender"): on quads Cycles and
+                # EEVEE decode with different tangents.
+                box.label(text="%d quads/n-gons: Cycles and EEVEE differ there;" % s.quads, icon="ERROR")
+                box.label(text="a Triangulate modifier on the low makes them agree")
 
 
 # -- automatic re-bake -----------------------------------------------------
@@ -282,9 +289,10 @@ def _on_depsgraph_update(scene, depsgraph):
 
 
 def _auto_tick():
+    """The debounced change: bakes when the low or cage really changed."""
+    global _auto_job
     context = bpy.context
-    scene = context.scene
-    settings = scene.nmbake
+    settings = context.scene.nmbake
     if not settings.auto_rebake:
         return None
     if _current is not None and not _current.done:
@@ -294,22 +302,32 @@ def _auto_tick():
     if stamp == _last_fingerprint.get(settings.as_pointer()):
         return None  # our own material edits, or a change that changed nothing
     try:
-        job = _start(context, settings)
+        _auto_job = _start(context, settings)
     except (jobs.BakeError, jobs.client.Error) as e:
         settings.status = "failed: %s" % e
         return None
     context.window_manager.progress_begin(0, 100)
+    bpy.app.timers.register(_auto_poll, first_interval=0.1)
+    return None
 
-    def poll():
-        if not job.done:
-            bpy.context.window_manager.progress_update(int(job.fraction * 100))
-            return 0.1
-        bpy.context.window_manager.progress_end()
-        _store(bpy.context, settings, job)
-        _redraw(bpy.context)
+
+_auto_job = None
+
+
+def _auto_poll():
+    """Follows the automatic bake; finishes it on the main thread."""
+    global _auto_job
+    job = _auto_job
+    if job is None:
         return None
-
-    bpy.app.timers.register(poll, first_interval=0.1)
+    wm = bpy.context.window_manager
+    if not job.done:
+        wm.progress_update(int(job.fraction * 100))
+        return 0.1
+    wm.progress_end()
+    _auto_job = None
+    _store(bpy.context, job.settings, job)
+    _redraw(bpy.context)
     return None
 
 
@@ -326,8 +344,9 @@ def register():
 def unregister():
     if _on_depsgraph_update in bpy.app.handlers.depsgraph_update_post:
         bpy.app.handlers.depsgraph_update_post.remove(_on_depsgraph_update)
-    if bpy.app.timers.is_registered(_auto_tick):
-        bpy.app.timers.unregister(_auto_tick)
+    for timer in (_auto_tick, _auto_poll):
+        if bpy.app.timers.is_registered(timer):
+            bpy.app.timers.unregister(timer)
     if _current is not None and not _current.done:
         _current.cancel()
     jobs.close_session()

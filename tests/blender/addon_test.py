@@ -14,7 +14,13 @@ Installs and enables the add-on zip, builds a low sphere and a high one
      same low with a Triangulate modifier agrees;
  (c) a Cycles render of the low with the baked map through the Normal Map
      node shows the high's shading normals within BOUND_MEAN / BOUND_P95
-     degrees (pixels covered by both), and the low without the map does not.
+     degrees (pixels covered by both), and the low without the map does not;
+ (d) the tangent finding, on one quad with unequal UV diagonals: Cycles
+     decodes with MikkTSpace on the triangles (the default), EEVEE with
+     Blender's mesh tangents (tangents = file) -- EEVEE only where it renders;
+ (e) re-bake on change: moving the low arms the debounce, its tick bakes
+     (the high reused), nothing changed bakes nothing, the high is not watched;
+ (f) cancel: the session's cancel; the bake answers cancelled, no map.
 Exits non-zero (an exception) on any failure.
 """
 
@@ -31,10 +37,10 @@ import numpy as np
 ZIP, NMBAKE, WORK = sys.argv[sys.argv.index("--") + 1:][:3]
 
 # (c)'s bounds in degrees, on the angle between the rendered shading
-# normals of low+map and high (160x160 pixels, ~8500 covered by both).
-# Measured (README "Baking from Blender"): mean 1.11, p95 4.03 with the
-# map (what is left is parallax: the high's bumps stand 0.04 off the low,
-# and a 256x256 map); mean 5.93, p95 11.40 without it.
+# normals of low+map and high (160x160 pixels, ~10500 covered by both).
+# Measured (README "Baking from Blender"): mean 1.17, p95 4.27 with the
+# map (what is left is parallax: the high's bumps stand up to 0.04 off the
+# low, and a 256x256 map); mean 6.15, p95 12.06 without it.
 BOUND_MEAN = 2.0
 BOUND_P95 = 6.0
 
@@ -67,11 +73,10 @@ def read_glb(path):
         width = widths[a["type"]]
         start = view.get("byteOffset", 0) + a.get("byteOffset", 0)
         stride = view.get("byteStride", 0) or dtype.itemsize * width
-        rows = [np.frombuffer(blob, dtype=dtype, count=width, offset=start + k * stride) for k in range(a["count"])] \
-            if stride != dtype.itemsize * width else None
-        if rows is not None:
-            return np.array(rows)
-        return np.frombuffer(blob, dtype=dtype, count=a["count"] * width, offset=start).reshape(a["count"], width)
+        if stride == dtype.itemsize * width:
+            return np.frombuffer(blob, dtype=dtype, count=a["count"] * width, offset=start).reshape(a["count"], width)
+        return np.array([np.frombuffer(blob, dtype=dtype, count=width, offset=start + k * stride)
+                         for k in range(a["count"])])
 
     out = []
     for node in doc["nodes"]:
@@ -167,7 +172,12 @@ def tangent_difference(obj, name):
     mesh.loop_triangles.foreach_get("loops", corners)
     obj_eval.to_mesh_clear()
     check(len(corners) == len(theirs), "%s: %d corners against %d" % (name, len(corners), len(theirs)))
-    diff = np.abs(theirs[:, :3] - tangents.reshape(-1, 3)[corners]).max()
+    # Blender's are in object space, the export in world space: a rotation
+    # and a uniform scale here, which MikkTSpace's unit tangents follow.
+    linear = np.array(obj.matrix_world, dtype=np.float64)[:3, :3]
+    tangents = tangents.reshape(-1, 3).astype(np.float64) @ linear.T
+    tangents /= np.linalg.norm(tangents, axis=1, keepdims=True)
+    diff = np.abs(theirs[:, :3] - tangents[corners]).max()
     sign_diffs = int((theirs[:, 3] != signs[corners]).sum())
     return float(diff), sign_diffs
 
@@ -236,6 +246,8 @@ def setup_render():
     scene.render.film_transparent = True
     scene.render.image_settings.file_format = "OPEN_EXR"
     scene.render.image_settings.color_depth = "32"
+    scene.eevee.taa_render_samples = 1  # (d) only
+    scene.render.filter_size = 0.0
     scene.render.threads_mode = "FIXED"
     scene.render.threads = 2
     bpy.ops.object.camera_add(location=(0.0, -4.2, 1.2), rotation=(np.radians(74), 0.0, 0.0))
@@ -248,6 +260,73 @@ def angles(a, b, mask):
     return np.degrees(np.arccos(dots[mask]))
 
 
+def skewed_quad(name, tilt=0.0):
+    """One quad, 2 x 2, whose UVs are a trapezoid with unequal diagonals
+    (0-2: 1.41, 1-3: 1.08): MikkTSpace splits it on 1-3, loop_triangles on
+    0-2. With `tilt` (degrees about x) it is the high: a plane at a slant."""
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], [], [(0, 1, 2, 3)])
+    layer = mesh.uv_layers.new(name="UVMap")
+    for loop, uv in zip(layer.data, [(0.0, 0.0), (1.0, 0.2), (1.0, 1.0), (0.0, 0.6)]):
+        loop.uv = uv
+    mesh.polygons[0].use_smooth = True
+    obj = bpy.data.objects.new(name, mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    if tilt:
+        sub = obj.modifiers.new("subdivide", "SUBSURF")
+        sub.subdivision_type = "SIMPLE"
+        sub.levels = sub.render_levels = 4
+        obj.rotation_euler = (np.radians(tilt), 0.0, 0.0)
+        obj.location.z = 0.01
+    return obj
+
+
+def quads(s, sphere_low, sphere_high):
+    """(d) A quad whose UV diagonals differ: the map in Blender's tangents
+    (calc_tangents) and in nmbake's MikkTSpace on the exported triangles,
+    each rendered against the high (a plane at a slant: one normal
+    everywhere) in Cycles and, where it runs, EEVEE. Returns
+    {(engine, mode): (mean, p95) degrees over the pixels covered by both,
+    away from the high's edge}."""
+    for obj in (sphere_low, sphere_high):
+        obj.hide_render = True
+    low = skewed_quad("quad_low")
+    high = skewed_quad("quad_high", tilt=20.0)
+    diff, _ = tangent_difference(low, "quad_low")
+    log("(d) skewed quad: max |T_blender - T_nmbake| = %.3f" % diff)
+    check(diff > 0.05, "(d) the quad's tangents agree: the README's tangent finding is out of date")
+    s.low_object, s.high_object = low, high
+    scene = bpy.context.scene
+    scene.camera.location, scene.camera.rotation_euler = (0.0, 0.0, 4.0), (0.0, 0.0, 0.0)
+    images = {}
+    for mode in ("MIKKTSPACE", "BLENDER"):
+        s.tangents = mode
+        s.name_template = "<LOW>_%s_<MAP>.png" % mode.lower()
+        report = bake(s)
+        images[mode] = bpy.data.images.load(report["maps"][0]["outputs"][0], check_existing=False)
+        images[mode].colorspace_settings.name = "Non-Color"
+    figures = {}
+    for engine in ("CYCLES", "BLENDER_EEVEE"):
+        scene.render.engine = engine
+        try:
+            high_n, high_covered = render_normals(high, low, normal_material("quad high"),
+                                                  os.path.join(WORK, "quad_high_%s.exr" % engine))
+        except RuntimeError as e:
+            log("(d) %s does not render here: %s" % (engine, e))
+            continue
+        # Away from the high's edge, where the slanted plane's outline differs.
+        inner = np.zeros_like(high_covered)
+        inner[40:-40, 40:-40] = True
+        for mode, image in images.items():
+            mapped_n, low_covered = render_normals(low, high, normal_material("quad %s" % mode, image, "UVMap"),
+                                                   os.path.join(WORK, "quad_%s_%s.exr" % (engine, mode)))
+            a = angles(mapped_n, high_n, high_covered & low_covered & inner)
+            figures[(engine, mode)] = (a.mean(), np.percentile(a, 95))
+            log("(d) %s, tangents %s: mean %.2f deg, p95 %.2f" % ((engine, mode) + figures[(engine, mode)]))
+    scene.render.engine = "CYCLES"
+    return figures
+
+
 # -- the test -------------------------------------------------------------------
 
 def main():
@@ -257,9 +336,14 @@ def main():
     check("nmbake_bake" in bpy.context.preferences.addons, "the add-on is not enabled")
     bpy.context.preferences.addons["nmbake_bake"].preferences.nmbake_path = NMBAKE
     log("installed", sys.modules["nmbake_bake"].__file__)
+    ui = sys.modules["nmbake_bake.ui"]
 
     low = sphere("ball_low")
     high = sphere("ball_high", subdivisions=2, displace=0.08)
+    for obj in (low, high):  # handed over in world space
+        obj.location = (0.1, 0.0, 0.05)
+        obj.rotation_euler = (0.3, 0.2, 0.5)
+        obj.scale = (1.1, 1.1, 1.1)
     log("low %d triangles, high %d triangles" % (triangle_count(low), triangle_count(high)))
 
     s = bpy.context.scene.nmbake
@@ -269,23 +353,24 @@ def main():
     s.samples = "4"
     s.maps = {"normal"}
     s.preset = "BLENDER"
-    s.tangents = "BLENDER"
+    check(s.tangents == "MIKKTSPACE", "the default tangents: %s" % s.tangents)
     s.output_dir = os.path.join(WORK, "out")
     s.name_template = "<LOW>_<MAP>.png"
     s.apply_material = True
 
-    # (a) Blender's tangents, written with the low (tangents = file).
+    # (a) The default: nmbake's MikkTSpace on the exported triangles.
     report = bake(s)
     request = json.loads(s.last_request)
     log("bake 1: status %s, misses %d, %.2f s (export %.3f, bake %.3f, load %.3f), high reused %s"
         % (s.status, s.misses, s.seconds_total, s.seconds_export, s.seconds_bake, s.seconds_load, s.reused_high))
-    check(request.get("tangents") == "file", "tangents mode: %r" % request.get("tangents"))
+    check("tangents" not in request, "tangents key: %r" % request.get("tangents"))
     check(not s.reused_high, "the first bake reused a high")
     check(s.misses == 0, "misses: %d" % s.misses)
+    check(report["high_triangles"] == triangle_count(high), "the high's triangles: %d" % report["high_triangles"])
     ours = report["maps"][0]["outputs"][0]
-    cli = cli_bake(report, request, os.path.join(WORK, "cli_file"))
+    cli = cli_bake(report, request, os.path.join(WORK, "cli_mikk"))
     check(same_bytes(ours, cli["normal"]), "(a) the add-on's map differs from the CLI's: %s %s" % (ours, cli["normal"]))
-    log("(a) tangents=file: the map equals the CLI bake's byte for byte")
+    log("(a) tangents=mikktspace: the map equals the CLI bake's byte for byte")
 
     image = bpy.data.images.get(os.path.basename(ours))
     check(image is not None and image.colorspace_settings.name == "Non-Color", "the normal map image")
@@ -296,24 +381,61 @@ def main():
     check(normal_map.outputs["Normal"].links and normal_map.outputs["Normal"].links[0].to_socket.name == "Normal",
           "the Normal Map node is not wired to the BSDF")
 
-    # Again with nmbake's MikkTSpace: a new low file, the same high, so the
-    # session reuses it.
-    s.tangents = "MIKKTSPACE"
+    # Again with Blender's tangents written with the low (tangents = file):
+    # a new low file, the same high, so the session reuses it.
+    s.tangents = "BLENDER"
     report2 = bake(s)
     request2 = json.loads(s.last_request)
     log("bake 2: %.2f s (export %.3f, bake %.3f, load %.3f), high reused %s"
         % (s.seconds_total, s.seconds_export, s.seconds_bake, s.seconds_load, s.reused_high))
+    check(request2.get("tangents") == "file", "tangents key: %r" % request2.get("tangents"))
     check(s.reused_high and report2["reused"]["high_mesh"] and report2["reused"]["high_scene"],
           "the second bake did not reuse the high: %s" % report2.get("reused"))
-    cli2 = cli_bake(report2, request2, os.path.join(WORK, "cli_mikk"))
-    check(same_bytes(report2["maps"][0]["outputs"][0], cli2["normal"]), "(a) tangents=mikktspace: differs from the CLI")
-    log("(a) tangents=mikktspace: the map equals the CLI bake's byte for byte")
+    cli2 = cli_bake(report2, request2, os.path.join(WORK, "cli_file"))
+    check(same_bytes(report2["maps"][0]["outputs"][0], cli2["normal"]), "(a) tangents=file: differs from the CLI")
+    log("(a) tangents=file: the map equals the CLI bake's byte for byte")
+    s.tangents = "MIKKTSPACE"
+
+    # (e) Re-bake on change: a moved low arms the debounce timer; its tick
+    # bakes (the high reused); a tick with nothing changed does not.
+    s.auto_rebake = True
+    low.location.x += 0.01
+    bpy.context.view_layer.update()
+    check(bpy.app.timers.is_registered(ui._auto_tick), "(e) moving the low armed no re-bake")
+    bpy.app.timers.unregister(ui._auto_tick)  # timers do not run in -b: tick by hand
+    ui._auto_tick()
+    check(ui._auto_job is not None, "(e) the tick started no bake")
+    ui._auto_job.wait()
+    check(ui._auto_poll() is None and s.status == "baked" and s.reused_high, "(e) the re-bake: %s" % s.status)
+    ui._auto_tick()
+    check(ui._auto_job is None and ui._current is None, "(e) a tick with nothing changed baked")
+    high.location.x += 0.01  # the high is not watched
+    bpy.context.view_layer.update()
+    check(not bpy.app.timers.is_registered(ui._auto_tick), "(e) moving the high armed a re-bake")
+    high.location.x -= 0.01
+    low.location.x -= 0.01
+    s.auto_rebake = False
+    bpy.context.view_layer.update()
+    log("(e) re-bake on change: armed by the low, baked once, the high reused")
+
+    # (f) Cancel (Esc in the modal operator): the session's cancel; no map written.
+    s.size, s.samples, s.name_template = "4096", "64", "<LOW>_cancelled_<MAP>.png"
+    job = ui._start(bpy.context, s)
+    job.cancel()
+    job.wait()
+    check(job.cancelled and isinstance(job.error, sys.modules["nmbake_bake.job"].client.Cancelled),
+          "(f) not cancelled: %r" % job.error)
+    ui._store(bpy.context, s, job)
+    check(s.status == "cancelled", "(f) status %s" % s.status)
+    check(not os.path.exists(os.path.join(WORK, "out", "ball_low_cancelled_normal.png")), "(f) a map was written")
+    s.size, s.samples, s.name_template = "256", "4", "<LOW>_<MAP>.png"
+    log("(f) cancel: the bake answered cancelled, no map written")
 
     # (b) tangents: this low (a UV sphere: quads with equal UV diagonals, fans at the poles).
     diff, signs = tangent_difference(low, "ball_low")
     log("(b) UV sphere low: max |T_blender - T_nmbake| = %.2e, sign differences %d" % (diff, signs))
     check(diff <= 1e-4 and signs == 0, "(b) tangents differ")
-    # The finding: a bevelled cube's quads (unequal UV diagonals).
+    # A bevelled cube's quads (unequal UV diagonals), and with a Triangulate modifier.
     bpy.ops.mesh.primitive_cube_add(location=(10.0, 0.0, 0.0))
     cube = bpy.context.active_object
     cube.name = "bevelled_cube"
@@ -330,9 +452,8 @@ def main():
     check(tri_diff <= 1e-4 and tri_signs == 0, "(b) triangulated cube: tangents differ")
     bpy.data.objects.remove(cube)
 
-    # (c) Cycles: the low with the map against the high. The map of the
-    # default mode (Blender's tangents) is the one wired into the material.
-    s.tangents = "BLENDER"
+    # (c) Cycles: the low with the map (the default mode's, as wired into
+    # the material) against the high, and without the map.
     report3 = bake(s)
     check(report3["reused"]["high_mesh"], "the third bake did not reuse the high")
     setup_render()
@@ -354,6 +475,15 @@ def main():
           "(c) the mapped low is not within mean %.1f / p95 %.1f degrees of the high" % (BOUND_MEAN, BOUND_P95))
     check(without.mean() > BOUND_MEAN or np.percentile(without, 95) > BOUND_P95,
           "(c) the low without the map is within the bound too: the check cannot fail")
+
+    # (d) The tangent finding: on a quad, Cycles decodes with MikkTSpace on
+    # the triangles, EEVEE with Blender's mesh tangents.
+    quad = quads(s, low, high)
+    check(quad[("CYCLES", "MIKKTSPACE")][1] <= 0.1, "(d) Cycles and the triangles' tangents disagree")
+    check(quad[("CYCLES", "BLENDER")][0] >= 0.5, "(d) Cycles and Blender's mesh tangents agree")
+    if ("BLENDER_EEVEE", "BLENDER") in quad:
+        check(quad[("BLENDER_EEVEE", "BLENDER")][1] <= 0.1, "(d) EEVEE and Blender's mesh tangents disagree")
+        check(quad[("BLENDER_EEVEE", "MIKKTSPACE")][0] >= 0.5, "(d) EEVEE and the triangles' tangents agree")
     bpy.ops.preferences.addon_disable(module="nmbake_bake")
     log("passed")
 
