@@ -148,6 +148,23 @@ def _status_text(job):
     return "nmbake: %s %d%%  (Esc to cancel)" % (job.stage, int(round(job.fraction * 100)))
 
 
+def modal_step(context, job, event_type, event_value, status):
+    """One event of the modal bake: Esc cancels (the session's cancel), a
+    timer tick shows the progress. Returns "pass" (not ours), "running" or
+    "done" (the job has answered: finish it)."""
+    if event_type == "ESC" and event_value == "PRESS":
+        job.cancel()
+        status("nmbake: cancelling")
+        return "running"
+    if event_type != "TIMER":
+        return "pass"
+    if not job.done:
+        context.window_manager.progress_update(int(job.fraction * 100))
+        status(_status_text(job))
+        return "running"
+    return "done"
+
+
 class NMBAKE_OT_bake(bpy.types.Operator):
     """Bake the maps with nmbake (Esc cancels)"""
 
@@ -190,14 +207,10 @@ class NMBAKE_OT_bake(bpy.types.Operator):
 
     def modal(self, context, event):
         job = self._job
-        if event.type == "ESC" and event.value == "PRESS":
-            job.cancel()
-            context.workspace.status_text_set("nmbake: cancelling")
-        if event.type != "TIMER":
+        step = modal_step(context, job, event.type, event.value, context.workspace.status_text_set)
+        if step == "pass":
             return {"PASS_THROUGH"}
-        if not job.done:
-            context.window_manager.progress_update(int(job.fraction * 100))
-            context.workspace.status_text_set(_status_text(job))
+        if step == "running":
             return {"RUNNING_MODAL"}
         wm = context.window_manager
         wm.event_timer_remove(self._timer)

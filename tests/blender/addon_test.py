@@ -396,6 +396,35 @@ def main():
     log("(a) tangents=file: the map equals the CLI bake's byte for byte")
     s.tangents = "MIKKTSPACE"
 
+    # (g) Collections: the parts keep their object names, so nmbake matches
+    # X_low with X_high as the CLI does (two groups), and the maps are the CLI's.
+    lows, highs = bpy.data.collections.new("lows"), bpy.data.collections.new("highs")
+    for c in (lows, highs):
+        bpy.context.scene.collection.children.link(c)
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(3.0, 0.0, 0.0))
+    box_low = bpy.context.active_object
+    box_low.name = "box_low"
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(3.0, 0.0, 0.0))
+    box_high = bpy.context.active_object
+    box_high.name = "box_high"
+    box_high.modifiers.new("bevel", "BEVEL").width = 0.1
+    for obj, c in ((low, lows), (box_low, lows), (high, highs), (box_high, highs)):
+        c.objects.link(obj)
+    s.low_collection, s.high_collection = lows, highs
+    s.name_template = "<LOW>_groups_<MAP>.png"
+    report_g = bake(s)
+    request_g = json.loads(s.last_request)
+    groups = sorted((sorted(g["low_parts"]), sorted(g["high_parts"])) for g in report_g["groups"])
+    log("(g) collections: groups %s, high reused %s" % (groups, s.reused_high))
+    check(groups == [(["ball_low"], ["ball_high"]), (["box_low"], ["box_high"])], "(g) groups: %s" % groups)
+    cli_g = cli_bake(report_g, request_g, os.path.join(WORK, "cli_groups"))
+    check(same_bytes(report_g["maps"][0]["outputs"][0], cli_g["normal"]), "(g) differs from the CLI")
+    log("(g) the map equals the CLI bake's byte for byte")
+    s.low_collection = s.high_collection = None
+    s.name_template = "<LOW>_<MAP>.png"
+    for obj in (box_low, box_high):
+        bpy.data.objects.remove(obj)
+
     # (e) Re-bake on change: a moved low arms the debounce timer; its tick
     # bakes (the high reused); a tick with nothing changed does not.
     s.auto_rebake = True
@@ -418,11 +447,18 @@ def main():
     bpy.context.view_layer.update()
     log("(e) re-bake on change: armed by the low, baked once, the high reused")
 
-    # (f) Cancel (Esc in the modal operator): the session's cancel; no map written.
+    # (f) Cancel: Esc to the modal operator's step (the modal operator itself
+    # needs a window), then its timer ticks until the bake has answered.
     s.size, s.samples, s.name_template = "4096", "64", "<LOW>_cancelled_<MAP>.png"
     job = ui._start(bpy.context, s)
-    job.cancel()
-    job.wait()
+    shown = []
+    check(ui.modal_step(bpy.context, job, "MOUSEMOVE", "NOTHING", shown.append) == "pass", "(f) a mouse move")
+    check(ui.modal_step(bpy.context, job, "ESC", "PRESS", shown.append) == "running", "(f) Esc")
+    deadline = time.monotonic() + 120.0
+    while ui.modal_step(bpy.context, job, "TIMER", "NOTHING", shown.append) != "done":
+        check(time.monotonic() < deadline, "(f) no answer to the cancel in 120 s")
+        time.sleep(0.05)
+    check(shown[0] == "nmbake: cancelling", "(f) the status text: %r" % shown[:2])
     check(job.cancelled and isinstance(job.error, sys.modules["nmbake_bake.job"].client.Cancelled),
           "(f) not cancelled: %r" % job.error)
     ui._store(bpy.context, s, job)
