@@ -71,11 +71,11 @@ def uv_layer_of(mesh, name):
     return mesh.uv_layers.active
 
 
-def low_arrays(obj, depsgraph, uv_name=""):
+def low_arrays(obj, depsgraph, uv_name="", need_uvs=True):
     """Per-loop arrays of one object's evaluated mesh in world space:
     dict(positions, normals, uvs, indices (loop index per triangle corner),
     uv_name, quads (polygons of more than 3 corners)). Raises ValueError
-    when the mesh has no UV map."""
+    when the mesh has no UV map and need_uvs (zeros without one else)."""
     obj_eval, mesh = _evaluated_mesh(obj, depsgraph)
     try:
         # Before looking up the UV layer: computing split normals adds a
@@ -83,20 +83,22 @@ def low_arrays(obj, depsgraph, uv_name=""):
         mesh.calc_normals_split()
         mesh.calc_loop_triangles()
         layer = uv_layer_of(mesh, uv_name)
-        if layer is None:
+        if layer is None and need_uvs:
             raise ValueError("%s has no UV map%s" % (obj.name, " named %r" % uv_name if uv_name else ""))
         loop_count = len(mesh.loops)
         vertex_of_loop = _array(mesh.loops, "vertex_index", loop_count, 1, np.uint32)
         co = _array(mesh.vertices, "co", len(mesh.vertices), 3, np.float32)
         normals = _array(mesh.loops, "normal", loop_count, 3, np.float32)
-        uvs = _array(layer.data, "uv", loop_count, 2, np.float32)
+        # A cage needs no UVs (its triangles are matched to the low's by order).
+        uvs = _array(layer.data, "uv", loop_count, 2, np.float32) if layer is not None \
+            else np.zeros((loop_count, 2), np.float32)
         indices = _array(mesh.loop_triangles, "loops", len(mesh.loop_triangles), 3, np.uint32)
         corners = _array(mesh.polygons, "loop_total", len(mesh.polygons), 1, np.int32)
         positions, normals, mirrored = _transform(obj.matrix_world, co[vertex_of_loop], normals)
         if mirrored:
             indices = indices[:, [0, 2, 1]]
         return {"positions": positions, "normals": normals, "uvs": uvs,
-                "indices": np.ascontiguousarray(indices), "uv_name": layer.name,
+                "indices": np.ascontiguousarray(indices), "uv_name": layer.name if layer is not None else "",
                 "quads": int((corners > 3).sum())}
     finally:
         obj_eval.to_mesh_clear()

@@ -8,8 +8,10 @@ included, arrive there), and is finished on the main thread again
 (finish(): images and materials).
 """
 
+import atexit
 import hashlib
 import os
+import shutil
 import tempfile
 import threading
 import time
@@ -35,6 +37,24 @@ _session_lock = threading.Lock()
 # then keeps its bytes, and the server its loaded mesh and BVH).
 _high_files = {}
 _export_root = None
+
+
+def remove_exports():
+    """Removes this Blender process's exported meshes (at exit, and when the
+    add-on is disabled)."""
+    global _export_root
+    if _export_root is not None:
+        shutil.rmtree(_export_root, ignore_errors=True)
+        _export_root = None
+        _high_files.clear()
+
+
+def _at_exit():
+    close_session()
+    remove_exports()
+
+
+atexit.register(_at_exit)
 
 
 def export_root():
@@ -217,7 +237,8 @@ class Job:
             cage_path = None
             if cage:
                 cage_path = os.path.join(root, "cage", export.file_name(role_name(s.cage_object, s.cage_collection), ".glb"))
-                export.write_glb(cage_path, [(o.name, export.low_arrays(o, depsgraph, s.uv_map)) for o in cage])
+                export.write_glb(cage_path, [(o.name, export.low_arrays(o, depsgraph, s.uv_map, need_uvs=False))
+                                             for o in cage])
             t1 = time.perf_counter()
             high_paths = []
             for obj in high:
@@ -229,6 +250,8 @@ class Job:
                 high_paths.append(path)
         except ValueError as e:
             raise BakeError(str(e)) from None
+        except OSError as e:
+            raise BakeError("writing the meshes: %s" % e) from None
         t2 = time.perf_counter()
         self.timings["export_low"] = t1 - t0
         self.timings["export_high"] = t2 - t1

@@ -77,7 +77,7 @@ class NMBakeSettings(bpy.types.PropertyGroup):
     uv_map: StringProperty(name="UV map", description="Empty: each low object's active render UV map")
     output_dir: StringProperty(name="Folder", subtype="DIR_PATH", default="//nmbake/")
     name_template: StringProperty(name="Name", default="<LOW>_<MAP>.png",
-                                  description="Tokens: <LOW> (the low object or collection), <MAP>, <UDIM>")
+                                  description="Tokens: <LOW> (the low object or collection), <MAP>")
     apply_material: BoolProperty(name="Set up material", default=True,
                                  description="Wire the normal map into the low's materials (Normal Map node)")
     auto_rebake: BoolProperty(name="Re-bake on change", default=False,
@@ -363,6 +363,7 @@ def unregister():
     if _current is not None and not _current.done:
         _current.cancel()
     jobs.close_session()
+    jobs.remove_exports()
     del bpy.types.Scene.nmbake
     for cls in reversed(classes):
         bpy.utils.unregister_class(cls)

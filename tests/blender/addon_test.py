@@ -20,7 +20,9 @@ Installs and enables the add-on zip, builds a low sphere and a high one
      Blender's mesh tangents (tangents = file) -- EEVEE only where it renders;
  (e) re-bake on change: moving the low arms the debounce, its tick bakes
      (the high reused), nothing changed bakes nothing, the high is not watched;
- (f) cancel: the session's cancel; the bake answers cancelled, no map.
+ (f) cancel: the session's cancel; the bake answers cancelled, no map;
+ (g) low and high collections: bake groups by object name, as the CLI;
+ (h) a cage object (without UVs): the map equals the CLI's.
 Exits non-zero (an exception) on any failure.
 """
 
@@ -424,6 +426,27 @@ def main():
     s.name_template = "<LOW>_<MAP>.png"
     for obj in (box_low, box_high):
         bpy.data.objects.remove(obj)
+
+    # (h) A cage: the low pushed out 0.12 along its normals, without UVs.
+    cage = low.copy()
+    cage.data = low.data.copy()
+    cage.name = "ball_cage"
+    cage.data.uv_layers.remove(cage.data.uv_layers[0])
+    bpy.context.scene.collection.objects.link(cage)
+    push = cage.modifiers.new("push", "DISPLACE")
+    push.strength, push.mid_level = 0.12, 0.0
+    s.cage_object = cage
+    s.name_template = "<LOW>_cage_<MAP>.png"
+    report_c = bake(s)
+    request_c = json.loads(s.last_request)
+    check("cage" in request_c and report_c["reused"]["high_mesh"], "(h) the cage bake: %s" % request_c)
+    cli_c = cli_bake(report_c, request_c, os.path.join(WORK, "cli_cage"))
+    check(same_bytes(report_c["maps"][0]["outputs"][0], cli_c["normal"]), "(h) differs from the CLI")
+    check(not same_bytes(report_c["maps"][0]["outputs"][0], ours), "(h) the cage changed nothing")
+    log("(h) a cage without UVs: the map equals the CLI bake's byte for byte (misses %d)" % s.misses)
+    s.cage_object = None
+    s.name_template = "<LOW>_<MAP>.png"
+    bpy.data.objects.remove(cage)
 
     # (e) Re-bake on change: a moved low arms the debounce timer; its tick
     # bakes (the high reused); a tick with nothing changed does not.
