@@ -344,6 +344,18 @@ def _auto_poll():
     return None
 
 
+@bpy.app.handlers.persistent
+def _on_load_pre(*_args):
+    """Another file: a bake of the old one is cancelled and forgotten (its
+    scene's settings are gone)."""
+    global _current, _auto_job
+    for job in (_current, _auto_job):
+        if job is not None and not job.done:
+            job.cancel()
+    _current = _auto_job = None
+    _last_fingerprint.clear()
+
+
 classes = (NMBakePreferences, NMBakeSettings, NMBAKE_OT_bake, NMBAKE_PT_panel)
 
 
@@ -352,11 +364,14 @@ def register():
         bpy.utils.register_class(cls)
     bpy.types.Scene.nmbake = PointerProperty(type=NMBakeSettings)
     bpy.app.handlers.depsgraph_update_post.append(_on_depsgraph_update)
+    bpy.app.handlers.load_pre.append(_on_load_pre)
 
 
 def unregister():
     if _on_depsgraph_update in bpy.app.handlers.depsgraph_update_post:
         bpy.app.handlers.depsgraph_update_post.remove(_on_depsgraph_update)
+    if _on_load_pre in bpy.app.handlers.load_pre:
+        bpy.app.handlers.load_pre.remove(_on_load_pre)
     for timer in (_auto_tick, _auto_poll):
         if bpy.app.timers.is_registered(timer):
             bpy.app.timers.unregister(timer)

@@ -22,7 +22,10 @@ Installs and enables the add-on zip, builds a low sphere and a high one
      (the high reused), nothing changed bakes nothing, the high is not watched;
  (f) cancel: the session's cancel; the bake answers cancelled, no map;
  (g) low and high collections: bake groups by object name, as the CLI;
- (h) a cage object (without UVs): the map equals the CLI's.
+ (h) a cage object (without UVs): the map equals the CLI's;
+ (i) a mirrored pair (negative scale): the render within (c)'s bounds, and
+     Blender's tangents (signs flipped with the winding) give nmbake's map.
+The panel's draw() runs on a stand-in layout (each property it shows exists).
 Exits non-zero (an exception) on any failure.
 """
 
@@ -329,6 +332,39 @@ def quads(s, sphere_low, sphere_high):
     return figures
 
 
+class FakeLayout:
+    """Stands in for a UI layout (there is none in -b): the panel's draw()
+    runs, and each property it shows must exist."""
+
+    def __init__(self, shown):
+        self.shown = shown
+        self.use_property_split = False
+        self.enabled = True
+
+    def column(self, **_kw):
+        return self
+
+    row = box = column
+
+    def prop(self, data, name, **_kw):
+        check(name in data.bl_rna.properties, "the panel shows a missing property %r" % name)
+        self.shown.append(name)
+
+    def operator(self, idname, **_kw):
+        module, name = idname.split(".")
+        check(hasattr(getattr(bpy.ops, module), name), "the panel's operator %r" % idname)
+        self.shown.append(idname)
+
+    def label(self, text="", **_kw):
+        self.shown.append(text)
+
+
+def draw_panel(ui):
+    shown = []
+    ui.NMBAKE_PT_panel.draw(type("Panel", (), {"layout": FakeLayout(shown)})(), bpy.context)
+    return shown
+
+
 # -- the test -------------------------------------------------------------------
 
 def main():
@@ -362,6 +398,8 @@ def main():
 
     # (a) The default: nmbake's MikkTSpace on the exported triangles.
     report = bake(s)
+    shown = draw_panel(ui)
+    check("nmbake.bake" in shown and any(t.startswith("Misses: 0") for t in shown), "the panel: %s" % shown)
     request = json.loads(s.last_request)
     log("bake 1: status %s, misses %d, %.2f s (export %.3f, bake %.3f, load %.3f), high reused %s"
         % (s.status, s.misses, s.seconds_total, s.seconds_export, s.seconds_bake, s.seconds_load, s.reused_high))
@@ -534,6 +572,33 @@ def main():
           "(c) the mapped low is not within mean %.1f / p95 %.1f degrees of the high" % (BOUND_MEAN, BOUND_P95))
     check(without.mean() > BOUND_MEAN or np.percentile(without, 95) > BOUND_P95,
           "(c) the low without the map is within the bound too: the check cannot fail")
+
+    # (i) Mirrored (a negative scale): the export flips the winding back;
+    # the render is as good as the unmirrored one's.
+    for obj in (low, high):
+        obj.scale = (-1.1, 1.1, 1.1)
+    report_m = bake(s)
+    image_m = bpy.data.images.load(report_m["maps"][0]["outputs"][0], check_existing=False)
+    image_m.colorspace_settings.name = "Non-Color"
+    high_n, high_covered = render_normals(high, low, normal_material("high normals m"), os.path.join(WORK, "high_m.exr"))
+    mapped_n, low_covered = render_normals(low, high, normal_material("mapped m", image_m, "UVMap"),
+                                           os.path.join(WORK, "low_mapped_m.exr"))
+    both = high_covered & low_covered
+    mirrored = angles(mapped_n, high_n, both)
+    log("(i) mirrored: %d pixels, with the map mean %.2f deg, p95 %.2f (misses %d)"
+        % (both.sum(), mirrored.mean(), np.percentile(mirrored, 95), s.misses))
+    check(mirrored.mean() <= BOUND_MEAN and np.percentile(mirrored, 95) <= BOUND_P95, "(i) mirrored: out of bounds")
+    # Blender's tangents of the mirrored low (their signs flipped with the
+    # winding): on this sphere they are nmbake's, so the map is the same.
+    s.tangents, s.name_template = "BLENDER", "<LOW>_mirrored_file_<MAP>.png"
+    report_mf = bake(s)
+    s.tangents, s.name_template = "MIKKTSPACE", "<LOW>_<MAP>.png"
+    diff = subprocess.run([NMBAKE, "diff", report_m["maps"][0]["outputs"][0], report_mf["maps"][0]["outputs"][0]],
+                          capture_output=True, text=True).stdout.strip()
+    log("(i) mirrored, Blender's tangents against nmbake's: %s" % diff)
+    check(float(diff.split("max ")[1].split(";")[0]) < 0.1, "(i) mirrored: the tangent signs disagree")
+    for obj in (low, high):
+        obj.scale = (1.1, 1.1, 1.1)
 
     # (d) The tangent finding: on a quad, Cycles decodes with MikkTSpace on
     # the triangles, EEVEE with Blender's mesh tangents.
