@@ -216,6 +216,10 @@ class Job:
         maps = sorted(s.maps) if s.maps else ["normal"]
         if not s.output_dir:
             raise BakeError("no output folder")
+        out_dir = output_folder(s.output_dir)
+        template = s.name_template or "<LOW>_<MAP>.png"
+        if len(maps) > 1 and "<MAP>" not in template:
+            raise BakeError("several maps need <MAP> in the name template")
         t0 = time.perf_counter()
         root = export_root()
         for sub in ("low", "high", "cage"):
@@ -257,11 +261,10 @@ class Job:
         self.timings["export_high"] = t2 - t1
         self.timings["export"] = t2 - t0
 
-        out_dir = output_folder(s.output_dir)
-        os.makedirs(out_dir, exist_ok=True)
-        template = s.name_template or "<LOW>_<MAP>.png"
-        if len(maps) > 1 and "<MAP>" not in template:
-            raise BakeError("several maps need <MAP> in the name template")
+        try:
+            os.makedirs(out_dir, exist_ok=True)
+        except OSError as e:
+            raise BakeError("the output folder: %s" % e) from None
         keys = {
             "low": low_path,
             "high": high_paths,

@@ -608,6 +608,17 @@ def main():
     if ("BLENDER_EEVEE", "BLENDER") in quad:
         check(quad[("BLENDER_EEVEE", "BLENDER")][1] <= 0.1, "(d) EEVEE and Blender's mesh tangents disagree")
         check(quad[("BLENDER_EEVEE", "MIKKTSPACE")][0] >= 0.5, "(d) EEVEE and the triangles' tangents agree")
+    # Bad input: a low without UVs is a failed bake that says why.
+    bare = bpy.data.objects.new("bare_low", bpy.data.meshes.new("bare_low"))
+    bare.data.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
+    bpy.context.scene.collection.objects.link(bare)
+    s.low_object = bare
+    try:
+        bpy.ops.nmbake.bake()
+        check(False, "a low without UVs baked")
+    except RuntimeError as e:
+        check("bare_low has no UV map" in str(e) and s.status.startswith("failed"), "the error: %s" % e)
+    log("bad input: %s" % s.status)
     bpy.ops.preferences.addon_disable(module="nmbake_bake")
     log("passed")
 
