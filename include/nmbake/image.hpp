@@ -125,4 +125,8 @@ struct ImageFileInfo {
 };
 Status read_image_info(const std::string& path, ImageFileInfo& out);
 
+// The OpenImageIO library the image module runs with ("2.4.7") and the
+// module's file, loading the module; on failure "" and `error` says why.
+std::string openimageio_version(std::string& module_file, std::string& error);
+
 }  // namespace nmbake

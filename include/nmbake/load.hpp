@@ -217,4 +217,9 @@ Status check_mesh_file(const char* what, const std::string& path);
 // Used by the generators and by `nmbake unwrap`.
 Status save_mesh(const std::string& path, const Mesh& mesh);
 
+// The versions of the mesh readers in use: Assimp's shared library ("5.2.5")
+// and tinygltf's header compiled into nmbake ("2.7.0", from its change log).
+std::string assimp_version();
+std::string tinygltf_version();
+
 }  // namespace nmbake

@@ -317,4 +317,8 @@ DistanceEstimate estimate_distances(const HighScene& scene, const LowSurface& su
 DistanceEstimate resolve_rays(const RaySettings& settings, const HighScene& scene, LowSurface& surface,
                               float low_diagonal, std::size_t group_count, RayOptions& rays);
 
+// The version of the Embree library in use (asked of a device: the shared
+// library loaded, not the headers built against), "3.13.5".
+std::string embree_version();
+
 }  // namespace nmbake

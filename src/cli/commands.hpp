@@ -63,4 +63,11 @@ Runner add_merge_command(CLI::App& app, const GlobalOptions& global);  // merge_
 Runner add_plan_command(CLI::App& app, const GlobalOptions& global);   // plan_command.cpp
 Runner add_serve_command(CLI::App& app, const GlobalOptions& global);  // serve_command.cpp
 
+// `nmbake docs` (docs_command.cpp; not in --help): man pages, bash completion and
+// the Markdown reference from the app's own definitions. Register it last.
+Runner add_docs_command(CLI::App& app, const GlobalOptions& global);
+
+// What `nmbake --version` prints (version.cpp).
+std::string version_text();
+
 }  // namespace nmbake::cli

@@ -23,7 +23,8 @@ void print_error(const std::string& message) {
 int main(int argc, char** argv) {
   using namespace nmbake::cli;
   CLI::App app{"nmbake: bakes the detail of a high-poly mesh into a normal map of a low-poly mesh"};
-  app.set_version_flag("--version", std::string("nmbake ") + nmbake::kNmbakeVersion);
+  app.set_version_flag("--version", version_text,
+                       "print the version, the commit and the libraries in use, and exit");
   app.require_subcommand(1);
   app.fallthrough();  // --threads, -q, -v also after the subcommand
   app.get_formatter()->column_width(36);
@@ -43,6 +44,7 @@ int main(int argc, char** argv) {
   const Runner merge = add_merge_command(app, global);
   const Runner plan = add_plan_command(app, global);
   const Runner serve = add_serve_command(app, global);
+  const Runner docs = add_docs_command(app, global);  // last: it walks the others
 
   try {
     app.parse(argc, argv);
@@ -68,6 +70,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("merge")) return merge();
     if (app.got_subcommand("plan")) return plan();
     if (app.got_subcommand("serve")) return serve();
+    if (app.got_subcommand("docs")) return docs();
   } catch (const std::exception& e) {
     std::fprintf(stderr, "nmbake: internal error: %s\n", nmbake::printable_text(e.what()).c_str());
     return kInternal;

@@ -72,6 +72,9 @@ fs::path temp_path_for(const fs::path& target) {
 // The OpenImageIO module, loaded once: from $NMBAKE_MODULE_DIR when it is
 // set, else from beside the executable, its parent folder (tests/ of a build
 // tree) or ../lib/nmbake. Never unloaded.
+// The module's file once image_module() found it (written once, under its once_flag).
+std::string loaded_module_file;
+
 const oiio_module::Api* image_module(std::string& error) {
   static std::once_flag once;
   static const oiio_module::Api* api = nullptr;
@@ -109,6 +112,7 @@ const oiio_module::Api* image_module(std::string& error) {
         return;
       }
       api = found;
+      loaded_module_file = file.string();
       return;
     }
     failure = std::string("the image module ") + oiio_module::kFileName +
@@ -674,6 +678,13 @@ Status read_image_memory(const std::string& name, const unsigned char* bytes, st
   NMBAKE_TRY(check_no_nan(name, image));
   out = std::move(image);
   return Status::ok();
+}
+
+std::string openimageio_version(std::string& module_file, std::string& error) {
+  const oiio_module::Api* api = image_module(error);
+  if (!api) return "";
+  module_file = loaded_module_file;
+  return api->oiio_version;
 }
 
 }  // namespace nmbake

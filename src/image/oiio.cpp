@@ -212,7 +212,16 @@ Outcome read(const std::string& path, const std::string& reader, const unsigned 
   return Outcome::ok;
 }
 
-const Api api = {kAbiVersion, OIIO_VERSION_STRING, write, read_info, read};
+// The OpenImageIO library this module runs with (its shared library, which
+// may be newer than the headers it was built against).
+std::string runtime_version() {
+  const int version = OIIO::openimageio_version();
+  return std::to_string(version / 10000) + "." + std::to_string(version / 100 % 100) + "." +
+         std::to_string(version % 100);
+}
+const std::string kRuntimeVersion = runtime_version();
+
+const Api api = {kAbiVersion, kRuntimeVersion.c_str(), write, read_info, read};
 
 }  // namespace
 }  // namespace nmbake::oiio_module

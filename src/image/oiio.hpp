@@ -24,7 +24,7 @@ enum class Outcome : int { ok = 0, io_error = 1, bad_input = 2 };
 
 struct Api {
   int abi_version;
-  const char* oiio_version;
+  const char* oiio_version;  // the OpenImageIO library it runs with, "2.4.7"
   // Writes `image` (already checked: sized, finite) to `file` in `format`
   // (tiff16, exr_float_piz, tga8), the same bytes for the same pixels;
   // `dither`: 8-bit samples (tga8) with ordered dithering (quantise.hpp).

@@ -49,6 +49,7 @@
 #include <assimp/config.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
+#include <assimp/version.h>
 
 #include <algorithm>
 #include <array>
@@ -627,3 +628,12 @@ Status load_assimp(const std::string& path, const LoadOptions& options, Mesh& ou
 }
 
 }  // namespace nmbake::load_detail
+
+namespace nmbake {
+
+std::string assimp_version() {
+  return std::to_string(aiGetVersionMajor()) + "." + std::to_string(aiGetVersionMinor()) + "." +
+         std::to_string(aiGetVersionPatch());
+}
+
+}  // namespace nmbake

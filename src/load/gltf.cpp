@@ -1463,3 +1463,11 @@ Status load_gltf(const std::string& path, const LoadOptions& options, Mesh& out,
 }
 
 }  // namespace nmbake::load_detail
+
+namespace nmbake {
+
+// NMBAKE_TINYGLTF_VERSION: the first version in tiny_gltf.h's change log,
+// read by CMake (tinygltf has no version macro).
+std::string tinygltf_version() { return NMBAKE_TINYGLTF_VERSION; }
+
+}  // namespace nmbake

@@ -1168,4 +1168,13 @@ std::vector<PacketRay> packet_rays(const LowSurface& surface, const TexelSamples
   return rays;
 }
 
+std::string embree_version() {
+  RTCDevice device = rtcNewDevice("verbose=0");
+  if (!device) return "unknown (no Embree device)";
+  const long long version = static_cast<long long>(rtcGetDeviceProperty(device, RTC_DEVICE_PROPERTY_VERSION));
+  rtcReleaseDevice(device);
+  return std::to_string(version / 10000) + "." + std::to_string(version / 100 % 100) + "." +
+         std::to_string(version % 100);
+}
+
 }  // namespace nmbake
