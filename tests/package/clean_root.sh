@@ -65,6 +65,7 @@ chroot "$root" /bin/sh -ec '
   command -v nmbake
   nmbake --version
   cd /tmp/pair
+  mkdir -p out
   nmbake bake --low sphere_low.obj --high sphere_high.ply --size 256 -o out/n.png -o out/n.exr -o out/n.tif
   for f in out/n.png out/n.exr out/n.tif; do test -s "$f" || { echo "missing $f"; exit 1; }; done
   nmbake diff out/n.png out/n.tif --max-mean 0.01
@@ -74,6 +75,7 @@ chroot "$root" /bin/sh -ec '
   head -n 12 /tmp/man.txt
   man -w nmbake-bake
   test -f /usr/share/bash-completion/completions/nmbake
+  test -s /usr/share/nmbake/blender/nmbake_blender.zip
   if command -v python3 >/dev/null; then python3 -c "import nmbake; print(\"python: nmbake\", nmbake.__version__)"; fi
 '
 echo "clean root: the package installed, baked PNG, EXR and TIFF, and showed its manual"
