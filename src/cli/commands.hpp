@@ -62,5 +62,6 @@ Runner add_unwrap_command(CLI::App& app, const GlobalOptions& global);
 Runner add_merge_command(CLI::App& app, const GlobalOptions& global);  // merge_command.cpp
 Runner add_plan_command(CLI::App& app, const GlobalOptions& global);   // plan_command.cpp
 Runner add_serve_command(CLI::App& app, const GlobalOptions& global);  // serve_command.cpp
+Runner add_view_command(CLI::App& app, const GlobalOptions& global);   // view_command.cpp
 
 }  // namespace nmbake::cli
