@@ -6,9 +6,13 @@
 // `nmbake preview`. Skipped, with the reason, where node, the validator or
 // Chromium is missing.
 #include <gtest/gtest.h>
+#include <httplib.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
+#include <csignal>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -19,6 +23,7 @@
 
 #include "nmbake/image.hpp"
 #include "nmbake/load.hpp"
+#include "nmbake/review.hpp"
 #include "test_util.hpp"
 
 namespace nmbake {
@@ -333,6 +338,109 @@ TEST(View, BrowserMatchesThePreviewAndItsTogglesWork) {
   const Difference shown_vs_on = compare(shown, on, 0, size, 0);
   EXPECT_GT(wire_vs_on.mean, 1.0);
   EXPECT_GT(shown_vs_on.mean, 10.0);
+}
+
+// `--serve`: /state counts the map files' changes, /map/I/TILE.png serves
+// the file as it is now, and a page that holds an older version (it starts
+// at 0) polls, sees the change, fetches the maps again and shows the new
+// one: its screenshot is that of a page built from the new map.
+TEST(View, ServeReloadsARewrittenMap) {
+  test::TempDir dir;
+  make_moon(dir, 256);
+  // Another map of the same mesh: the same bake read with green down.
+  run_ok("bake -q --low " + quoted(dir.file("moon_low.obj")) + " --high " +
+         quoted(dir.file("moon_high.ply")) + " --size 256 --green down -o " + quoted(dir.file("down.png")));
+  fs::copy_file(dir.file("m_normal.png"), dir.file("live.png"));
+
+  int out[2];
+  ASSERT_EQ(::pipe(out), 0);
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    ::dup2(out[1], STDOUT_FILENO);
+    ::close(out[0]);
+    ::close(out[1]);
+    const std::string low = dir.file("moon_low.obj"), map = dir.file("live.png"), exe = test::cli_path();
+    ::execl(exe.c_str(), exe.c_str(), "view", "--low", low.c_str(), "--map", map.c_str(), "--serve", "--port",
+            "0", static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  ::close(out[1]);
+  std::string line;
+  char c = 0;
+  while (::read(out[0], &c, 1) == 1 && c != '\n') line += c;
+  const std::size_t at = line.find("http://127.0.0.1:");
+  ASSERT_NE(at, std::string::npos) << line;
+  const int port = std::stoi(line.substr(at + 17));
+  const std::string url = "http://127.0.0.1:" + std::to_string(port) + "/";
+  const auto stop = [&]() {
+    ::kill(child, SIGINT);
+    int status = 0;
+    ::waitpid(child, &status, 0);
+    ::close(out[0]);
+    return status;
+  };
+
+  httplib::Client client("127.0.0.1", port);
+  auto state = client.Get("/state");
+  ASSERT_TRUE(state) << "no answer from " << url;
+  EXPECT_EQ(state->body, "{\"version\":0}");
+  auto before = client.Get("/map/0/1001.png");
+  ASSERT_TRUE(before);
+  EXPECT_EQ(before->status, 200);
+  EXPECT_EQ(client.Get("/map/1/1001.png")->status, 404);
+  // The map rewritten on disk, as a bake writes it (a new file renamed over it).
+  fs::copy_file(dir.file("down.png"), dir.file("live.tmp"));
+  fs::rename(dir.file("live.tmp"), dir.file("live.png"));
+  state = client.Get("/state");
+  ASSERT_TRUE(state);
+  EXPECT_EQ(state->body, "{\"version\":1}");
+  auto after = client.Get("/map/0/1001.png");
+  ASSERT_TRUE(after);
+  EXPECT_NE(after->body, before->body);
+  std::string expected;
+  float range[2];
+  ASSERT_TRUE(review_map_png("normal", dir.file("down.png"), expected, range));
+  EXPECT_EQ(after->body, expected);
+
+  const std::string exe = chromium();
+  if (exe.empty()) {
+    EXPECT_EQ(stop(), 0);
+    GTEST_SKIP() << "chromium is not installed (tools/setup): the page's reload was not checked in a browser";
+  }
+  const int size = 256;
+  const std::string hash = "#mode=compare&size=" + std::to_string(size);
+  const test::CommandResult dom = browse(exe, dir, url + hash, "--dump-dom");
+  EXPECT_NE(dom.output.find("<title>nmbake view: ready, maps reloaded 1 time</title>"), std::string::npos)
+      << dom.output.substr(0, 3000);
+  const std::string window = "--window-size=" + std::to_string(size) + "," + std::to_string(size);
+  const auto shot = [&](const std::string& page, const std::string& name) {
+    const std::string path = dir.file(name);
+    const test::CommandResult r = browse(exe, dir, page + hash, window + " --screenshot=" + quoted(path));
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    Image image;
+    EXPECT_TRUE(read_image(path, image)) << path;
+    return image;
+  };
+  const Image served = shot(url, "served.png");
+  EXPECT_EQ(stop(), 0);  // Ctrl-C: a clean exit
+  for (const char* name : {"down", "m_normal"}) {
+    run_ok("view -q --low " + quoted(dir.file("moon_low.obj")) + " --map " +
+           quoted(dir.file(std::string(name) + ".png")) + " -o " +
+           quoted(dir.file(std::string(name) + ".html")));
+  }
+  const Image down = shot("file://" + fs::absolute(dir.file("down.html")).string(), "down_shot.png");
+  const Image old = shot("file://" + fs::absolute(dir.file("m_normal.html")).string(), "old_shot.png");
+  ASSERT_EQ(served.width, size);
+  ASSERT_EQ(down.width, size);
+  ASSERT_EQ(old.width, size);
+  const Difference to_new = compare(served, down, 0, size, 0);
+  const Difference to_old = compare(served, old, 0, size, 0);
+  std::printf(
+      "served page vs the new map's page: mean %.3f, p99 %.1f; vs the old map's: mean %.3f, p99 %.1f\n",
+      to_new.mean, to_new.p99, to_old.mean, to_old.p99);
+  EXPECT_LT(to_new.mean, 0.1);
+  EXPECT_GT(to_old.p99, 4.0);
 }
 
 }  // namespace

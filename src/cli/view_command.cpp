@@ -1,15 +1,29 @@
 // `nmbake view --low L --map normal.png [--map ao.png ...] [--high H]
 // [--report R.json] -o review.html`: the review .glb (beside the page, same
 // stem) and the self-contained page (review.hpp).
+// `--serve [--port N]`: the page served on 127.0.0.1 only (cpp-httplib,
+// libcpp-httplib-dev); it polls /state, which changes when a map file's
+// size or modification time does, and then fetches /map/I/TILE.png again,
+// so a re-bake shows without a click. Ctrl-C stops it (exit 0).
+#include <httplib.h>
+#include <pthread.h>
+#include <sys/stat.h>
+
+#include <atomic>
+#include <cctype>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <nlohmann/json.hpp>
+#include <thread>
 
 #include "commands.hpp"
 #include "nmbake/cleanup.hpp"
 #include "nmbake/review.hpp"
+#include "nmbake/udim.hpp"
 
 namespace nmbake::cli {
 
@@ -21,6 +35,8 @@ struct ViewCommandFlags {
   std::uint64_t high_budget = 200000;
   std::string three_dir = "/usr/share/javascript/three";
   ViewFlags camera;
+  bool serve = false;
+  int port = 8790;
 };
 
 int fail(const Status& s) {
@@ -89,10 +105,121 @@ Status write_file(const std::string& path, const std::string& bytes) {
   return Status::ok();
 }
 
+// Size and modification time of every map file, one line each: what /state
+// compares.
+std::string map_signature(const std::vector<ReviewMap>& maps, const std::vector<int>& tiles) {
+  std::string out;
+  for (const ReviewMap& m : maps) {
+    for (const int tile : tiles) {
+      const std::string path = udim_path(m.path, tile);
+      struct stat st {};
+      if (::stat(path.c_str(), &st) != 0) {
+        out += path + " missing\n";
+        continue;
+      }
+      out += path + " " + std::to_string(st.st_size) + " " + std::to_string(st.st_mtim.tv_sec) + "." +
+             std::to_string(st.st_mtim.tv_nsec) + "\n";
+    }
+  }
+  return out;
+}
+
+sigset_t stop_signals() {
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  return signals;
+}
+
+int serve_review(const ViewCommandFlags& f, const GlobalOptions& global, const ReviewOptions& options,
+                 const std::string& html, const std::vector<int>& tiles) {
+  httplib::Server server;
+  std::mutex mutex;
+  std::string signature = map_signature(options.maps, tiles);
+  std::uint64_t version = 0;
+  server.Get("/", [&](const httplib::Request&, httplib::Response& res) {
+    res.set_content(html, "text/html; charset=utf-8");
+  });
+  // The maps' version: one more each time their files change on disk.
+  server.Get("/state", [&](const httplib::Request&, httplib::Response& res) {
+    std::lock_guard<std::mutex> lock(mutex);
+    const std::string now = map_signature(options.maps, tiles);
+    if (now != signature) {
+      signature = now;
+      ++version;
+    }
+    res.set_header("Cache-Control", "no-store");
+    res.set_content("{\"version\":" + std::to_string(version) + "}", "application/json");
+  });
+  server.Get(R"(/map/(\d+)/(\d+)\.png)", [&](const httplib::Request& req, httplib::Response& res) {
+    const std::size_t index = std::stoul(req.matches[1].str());
+    const int tile = std::stoi(req.matches[2].str());
+    if (index >= options.maps.size() || std::find(tiles.begin(), tiles.end(), tile) == tiles.end()) {
+      res.status = 404;
+      return;
+    }
+    std::string png;
+    float range[2];
+    const ReviewMap& m = options.maps[index];
+    if (const Status s = review_map_png(m.kind, udim_path(m.path, tile), png, range); !s) {
+      // A map being rewritten: the page keeps the one it has and asks again.
+      res.status = 503;
+      res.set_content(s.message(), "text/plain");
+      return;
+    }
+    res.set_header("Cache-Control", "no-store");
+    res.set_content(png, "image/png");
+  });
+
+  // 127.0.0.1 only: the page is for this machine.
+  int port = f.port;
+  if (port == 0) {
+    port = server.bind_to_any_port("127.0.0.1");
+  } else if (!server.bind_to_port("127.0.0.1", port)) {
+    port = -1;
+  }
+  if (port <= 0) {
+    print_error("cannot listen on 127.0.0.1:" + std::to_string(f.port) +
+                " (in use? --port 0 picks a free one)");
+    return kBadInput;
+  }
+  // Ctrl-C and SIGTERM end the server cleanly: run_view() blocked them
+  // before any thread started, and one thread waits for them here.
+  sigset_t signals = stop_signals();
+  std::atomic<bool> stopping{false};
+  std::thread waiter([&]() {
+    int signal = 0;
+    sigwait(&signals, &signal);
+    stopping = true;
+    server.stop();
+  });
+  std::printf("view: serving http://127.0.0.1:%d/ (Ctrl-C to stop)\n", port);
+  std::fflush(stdout);
+  const bool listened = server.listen_after_bind();
+  if (!stopping) {
+    // The server ended on its own: wake the waiter.
+    pthread_kill(waiter.native_handle(), SIGTERM);
+  }
+  waiter.join();
+  if (!global.quiet) std::printf("view: stopped\n");
+  return listened || stopping ? kSuccess : kInternal;
+}
+
 int run_view(const ViewCommandFlags& f, const GlobalOptions& global) {
   const auto start = std::chrono::steady_clock::now();
+  if (f.serve) {
+    // Blocked before any thread starts (TBB's workers inherit the mask), so
+    // that only serve_review()'s waiter receives them.
+    const sigset_t signals = stop_signals();
+    pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  }
   std::string extension = std::filesystem::path(f.output).extension().string();
-  if (extension != ".html" && extension != ".htm") {
+  if (f.output.empty() && !f.serve) {
+    std::fprintf(stderr, "nmbake: error: give -o review.html, or --serve\n");
+    return kBadInput;
+  }
+  if (!f.output.empty() && extension != ".html" && extension != ".htm") {
     std::fprintf(stderr, "nmbake: error: %s: the review page is written as .html\n", f.output.c_str());
     return kBadInput;
   }
@@ -102,6 +229,7 @@ int run_view(const ViewCommandFlags& f, const GlobalOptions& global) {
   options.report = f.report;
   options.high_budget = f.high_budget;
   options.three_dir = f.three_dir;
+  options.served = f.serve;
   if (const Status s = parse_view_flags(f.camera, options.view); !s) return fail(s);
   nlohmann::json report;
   if (!f.report.empty()) {
@@ -127,6 +255,7 @@ int run_view(const ViewCommandFlags& f, const GlobalOptions& global) {
   std::string glb, html;
   ReviewStats stats;
   if (const Status s = build_review(options, glb, html, stats); !s) return fail(s);
+  if (f.serve && f.output.empty()) return serve_review(f, global, options, html, stats.tiles);
   const std::string glb_path = std::filesystem::path(f.output).replace_extension(".glb").string();
   if (const Status s = write_file(glb_path, glb); !s) return fail(s);
   if (const Status s = write_file(f.output, html); !s) return fail(s);
@@ -146,6 +275,7 @@ int run_view(const ViewCommandFlags& f, const GlobalOptions& global) {
     }
     std::printf(", %.2f s\n", seconds);
   }
+  if (f.serve) return serve_review(f, global, options, html, stats.tiles);
   return kSuccess;
 }
 
@@ -163,8 +293,12 @@ Runner add_view_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--high", flags->high,
                   "the high mesh, shown beside the low (and framed as the preview frames it)");
   cmd->add_option("--report", flags->report, "the bake report (JSON): its figures and encoding in the page");
-  cmd->add_option("-o,--output", flags->output, "the page (.html); the .glb is written beside it, same stem")
-      ->required();
+  cmd->add_option("-o,--output", flags->output, "the page (.html); the .glb is written beside it, same stem");
+  cmd->add_flag("--serve", flags->serve,
+                "serve the page on 127.0.0.1, reloading the maps when their files change (Ctrl-C stops)");
+  cmd->add_option("--port", flags->port, "--serve: the port (0: a free one, printed)")
+      ->default_val(8790)
+      ->check(CLI::Range(0, 65535));
   cmd->add_option("--high-budget", flags->high_budget,
                   "triangles of the high mesh in the page at most (vertex clustering above)")
       ->default_val(200000)

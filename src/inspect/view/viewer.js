@@ -477,10 +477,67 @@
       scene.add(high);
     }
     apply();
+    if (config.served) {
+      // The maps as they are on disk now, then whenever they change.
+      return reloadMaps(0).then(function () {
+        setStatus(problems.length ? 'console: ' + problems.join(' | ') : 'ready');
+        setInterval(poll, 1000);
+      });
+    }
     setStatus(problems.length ? 'console: ' + problems.join(' | ') : 'ready');
   }).catch(function (e) {
     setStatus('error: ' + (e && e.message ? e.message : e));
   });
+
+  // --serve: /state counts the changes of the map files; each change
+  // fetches every map again (/map/I/TILE.png) and swaps the textures.
+  let version = 0;
+  let reloads = 0;
+  let polling = false;
+  function poll() {
+    if (polling) return;
+    polling = true;
+    fetch('state', { cache: 'no-store' }).then(function (r) { return r.json(); }).then(function (s) {
+      if (s.version === version) return null;
+      return reloadMaps(s.version);
+    }).catch(function (e) {
+      status.textContent = 'server: ' + e.message;
+    }).then(function () { polling = false; });
+  }
+  function loadTexture(url) {
+    return new Promise(function (resolve, reject) {
+      new THREE.TextureLoader().load(url, resolve, undefined, function () { reject(new Error(url + ' did not load')); });
+    });
+  }
+  function reloadMaps(newVersion) {
+    const jobs = [];
+    config.maps.forEach(function (map, index) {
+      Object.keys(map.tiles).forEach(function (tile) {
+        jobs.push(loadTexture('map/' + index + '/' + tile + '.png?v=' + newVersion).then(function (texture) {
+          asPreviewSamples(texture);
+          if (map.slot) {
+            const low = lows.find(function (l) { return l.tile === tile; });
+            if (low) {
+              if (low.pbr[slotOf[map.slot]]) low.pbr[slotOf[map.slot]].dispose();
+              low.pbr[slotOf[map.slot]] = texture;
+              low.pbr.needsUpdate = true;
+            }
+          } else {
+            if (pageTextures[index + '/' + tile]) pageTextures[index + '/' + tile].dispose();
+            pageTextures[index + '/' + tile] = texture;
+          }
+        }));
+      });
+    });
+    return Promise.all(jobs).then(function () {
+      version = newVersion;
+      if (newVersion > 0) {
+        ++reloads;
+        setStatus('ready, maps reloaded ' + reloads + (reloads === 1 ? ' time' : ' times'));
+      }
+      apply();
+    });
+  }
 
   // The triangles' edges as line segments of their UVs.
   function uvEdges(geometry) {
