@@ -77,7 +77,10 @@
   const camera = new THREE.PerspectiveCamera(30, 1, radius * 0.01, radius * 100);
 
   // The preview's camera (preview_draw.cpp make_camera): the bounding sphere
-  // touches the edges of a 30 degree cone, with a 4% margin.
+  // touches the edges of a 30 degree cone, with a 4% margin. Outside compare
+  // mode the cone is the narrower of the two fields of view, and with the
+  // high beside the low both are framed.
+  const right = new THREE.Vector3();
   function placeCamera() {
     const yaw = state.yaw * Math.PI / 180, pitch = state.pitch * Math.PI / 180;
     let out;
@@ -88,28 +91,41 @@
       out = new THREE.Vector3(Math.cos(pitch) * Math.sin(yaw), -Math.cos(pitch) * Math.cos(yaw), Math.sin(pitch));
       camera.up.set(0, 0, 1);
     }
-    const distance = 1.04 * radius / Math.sin(15 * Math.PI / 180);
-    camera.position.copy(centre).addScaledVector(out, distance);
-    camera.lookAt(centre);
+    right.crossVectors(out.clone().negate(), camera.up).normalize();
+    const beside = !compare && state.high === 'beside';
+    const target = centre.clone().addScaledVector(right, beside ? 1.05 * radius : 0);
+    const half = 15 * Math.PI / 180;
+    let distance = 1.04 * radius / Math.sin(half);
+    if (!compare) {
+      const across = Math.atan(camera.aspect * Math.tan(half));  // half the horizontal field of view
+      distance = Math.max(distance, 1.04 * (beside ? 2.1 : 1) * radius / Math.sin(across));
+    }
+    camera.position.copy(target).addScaledVector(out, distance);
+    camera.lookAt(target);
+    if (controls) {
+      controls.target.copy(target);
+      controls.update();
+    }
   }
-  placeCamera();
-
+  let controls = null;
+  // Outside compare mode the canvas leaves the panel's column free.
+  const panelWidth = compare || window.innerWidth < 700 ? 0 : 296;
+  canvas.style.marginLeft = panelWidth + 'px';
   function resize() {
-    const w = compare ? state.size : window.innerWidth;
+    const w = compare ? state.size : window.innerWidth - panelWidth;
     const h = compare ? state.size : window.innerHeight;
     renderer.setSize(w, h, true);
     camera.aspect = w / h;
     camera.updateProjectionMatrix();
   }
   resize();
+  placeCamera();
 
-  let controls = null;
   if (!compare) {
     controls = new THREE.OrbitControls(camera, canvas);
-    controls.target.copy(centre);
-    controls.update();
+    placeCamera();
     controls.addEventListener('change', render);
-    window.addEventListener('resize', function () { resize(); render(); });
+    window.addEventListener('resize', function () { resize(); placeCamera(); render(); });
   }
 
   // --- The shader: nmbake's decode and the preview's lights ----------------
@@ -299,7 +315,11 @@
   showSelect.addEventListener('change', function () { state.show = showSelect.value; apply(); });
   const highSelect = document.getElementById('high');
   highSelect.value = state.high;
-  highSelect.addEventListener('change', function () { state.high = highSelect.value; apply(); });
+  highSelect.addEventListener('change', function () {
+    state.high = highSelect.value;
+    placeCamera();
+    apply();
+  });
   if (!config.high) highSelect.disabled = true;
   if (indexOfKind('miss') < 0) document.getElementById('misses').disabled = true;
 
@@ -403,7 +423,7 @@
     });
     highs.forEach(function (h) {
       h.visible = state.high !== 'off' && state.show !== 'uv';
-      h.position.set(state.high === 'beside' ? 2.1 * radius : 0, 0, 0);
+      h.position.copy(right).multiplyScalar(state.high === 'beside' ? 2.1 * radius : 0);
     });
     scene.background = null;
     render();
@@ -433,11 +453,11 @@
   Promise.all([loadGlb()].concat(pending)).then(function (results) {
     const gltf = results[0];
     // Lights for the PBR view only (the lit view computes its own).
-    const sun = new THREE.DirectionalLight(0xffffff, 2.0);
+    const sun = new THREE.DirectionalLight(0xffffff, 0.9);
     camera.add(sun);
     sun.position.set(state.light[0], state.light[1], state.light[2]);
     scene.add(camera);
-    scene.add(new THREE.HemisphereLight(0xffffff, 0x404040, 0.6));
+    scene.add(new THREE.HemisphereLight(0xffffff, 0x404040, 0.25));
     gltf.scene.updateMatrixWorld(true);
     gltf.scene.traverse(function (object) {
       if (!object.isMesh) return;
