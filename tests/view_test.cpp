@@ -217,6 +217,34 @@ TEST(View, BadInputIsExit2AndWritesNothing) {
   EXPECT_FALSE(fs::exists(dir.file("x.glb")));
 }
 
+// `nmbake view JOB.toml -o DIR`: a page and a .glb per bake, each wearing
+// the maps its bake wrote (a <MAP> output names each).
+TEST(View, JobFileGivesAPagePerBake) {
+  test::TempDir dir;
+  make_moon(dir, 32);
+  fs::create_directories(dir.path() / "out");
+  test::write_text(
+      dir.file("job.toml"),
+      "[defaults]\nsize = 64\n"
+      "[[bake]]\nname = \"set\"\nlow = \"moon_low.obj\"\nhigh = \"moon_high.ply\"\n"
+      "maps = [\"normal\", \"ao\"]\noutputs = [\"out/set_<MAP>.png\"]\nreport = \"out/set.json\"\n"
+      "[[bake]]\nname = \"plain\"\nlow = \"moon_low.obj\"\nhigh = \"moon_high.ply\"\n"
+      "outputs = [\"out/plain.png\"]\n");
+  run_ok("bake -q " + quoted(dir.file("job.toml")));
+  run_ok("view -q " + quoted(dir.file("job.toml")) + " -o " + quoted(dir.file("review")));
+  for (const char* name : {"set", "plain"}) {
+    EXPECT_TRUE(fs::exists(dir.path() / "review" / (std::string(name) + ".html"))) << name;
+    ASSERT_TRUE(fs::exists(dir.path() / "review" / (std::string(name) + ".glb"))) << name;
+  }
+  const nlohmann::json set = glb_json((dir.path() / "review" / "set.glb").string());
+  EXPECT_TRUE(set["materials"][0].contains("normalTexture"));
+  EXPECT_TRUE(set["materials"][0].contains("occlusionTexture"));
+  const nlohmann::json plain = glb_json((dir.path() / "review" / "plain.glb").string());
+  EXPECT_TRUE(plain["materials"][0].contains("normalTexture"));
+  EXPECT_FALSE(plain["materials"][0].contains("occlusionTexture"));
+  VALIDATE((dir.path() / "review" / "set.glb").string());
+}
+
 // ------------------------------------------------------------ the browser
 
 std::string chromium() {

@@ -22,6 +22,8 @@
 
 #include "commands.hpp"
 #include "nmbake/cleanup.hpp"
+#include "nmbake/job.hpp"
+#include "nmbake/maps.hpp"
 #include "nmbake/review.hpp"
 #include "nmbake/udim.hpp"
 
@@ -30,6 +32,7 @@ namespace nmbake::cli {
 namespace {
 
 struct ViewCommandFlags {
+  std::string job;  // `nmbake view JOB.toml -o DIR`: every bake of the job
   std::string low, high, report, output;
   std::vector<std::string> maps;
   std::uint64_t high_budget = 200000;
@@ -206,7 +209,62 @@ int serve_review(const ViewCommandFlags& f, const GlobalOptions& global, const R
   return listened || stopping ? kSuccess : kInternal;
 }
 
+int run_view(const ViewCommandFlags& f, const GlobalOptions& global);
+
+// The maps a bake of a job wrote, as `--map KIND=FILE`: per map its first
+// output (a <MAP> path names each map; a path without it is the normal map,
+// or the only map).
+std::vector<std::string> job_maps(const BakeJob& job) {
+  std::vector<std::string> out;
+  for (const MapKind kind : job.options.maps) {
+    for (const OutputSpec& o : job.options.outputs) {
+      const bool named = has_map_token(o.path);
+      if (!named && !(kind == MapKind::normal || job.options.maps.size() == 1)) continue;
+      out.push_back(std::string(to_string(kind)) + "=" + (named ? map_path(o.path, kind) : o.path));
+      break;
+    }
+  }
+  return out;
+}
+
+// `nmbake view JOB.toml -o DIR`: DIR/NAME.html and NAME.glb for every bake.
+int run_view_job(const ViewCommandFlags& f, const GlobalOptions& global) {
+  if (f.serve) {
+    std::fprintf(stderr, "nmbake: error: --serve reviews one bake: give --low and --map, not a job file\n");
+    return kBadInput;
+  }
+  if (f.output.empty()) {
+    std::fprintf(stderr, "nmbake: error: %s: give -o DIR, the folder of the pages\n", f.job.c_str());
+    return kBadInput;
+  }
+  std::vector<BakeJob> jobs;
+  if (const Status s = load_job_file(f.job, jobs); !s) return fail(s);
+  std::error_code ec;
+  std::filesystem::create_directories(f.output, ec);
+  if (ec) return fail(Status::io(f.output + ": cannot create the folder: " + ec.message()));
+  for (std::size_t i = 0; i < jobs.size(); ++i) {
+    const BakeJob& job = jobs[i];
+    ViewCommandFlags one = f;
+    one.job.clear();
+    one.low = job.options.low_path;
+    // The page shows one high mesh: a bake of several shows its first.
+    one.high = job.options.high_paths.empty() ? "" : job.options.high_paths.front();
+    one.report = job.report_path;
+    if (!one.report.empty() && !std::filesystem::exists(one.report)) one.report.clear();
+    one.maps = job_maps(job);
+    const std::string name = job.name.empty() ? "bake" + std::to_string(i + 1) : job.name;
+    one.output = (std::filesystem::path(f.output) / (name + ".html")).string();
+    if (const int code = run_view(one, global); code != kSuccess) return code;
+  }
+  return kSuccess;
+}
+
 int run_view(const ViewCommandFlags& f, const GlobalOptions& global) {
+  if (!f.job.empty()) return run_view_job(f, global);
+  if (f.low.empty() || f.maps.empty()) {
+    std::fprintf(stderr, "nmbake: error: give --low and --map (or a job file)\n");
+    return kBadInput;
+  }
   const auto start = std::chrono::steady_clock::now();
   if (f.serve) {
     // Blocked before any thread starts (TBB's workers inherit the mask), so
@@ -285,11 +343,11 @@ Runner add_view_command(CLI::App& app, const GlobalOptions& global) {
   auto flags = std::make_shared<ViewCommandFlags>();
   CLI::App* cmd = app.add_subcommand(
       "view", "review a bake in 3D: the low mesh wearing its maps as .glb, and a self-contained web page");
-  cmd->add_option("--low", flags->low, "the low mesh the maps were baked for (with UVs)")->required();
+  cmd->add_option("job", flags->job, "a job file (TOML): a page per bake, in the folder -o DIR");
+  cmd->add_option("--low", flags->low, "the low mesh the maps were baked for (with UVs)");
   cmd->add_option("--map", flags->maps,
                   "a baked map, FILE or KIND=FILE (repeat; FILE may carry <UDIM>); the kind from the report, "
-                  "else the file name, else normal for the first")
-      ->required();
+                  "else the file name, else normal for the first");
   cmd->add_option("--high", flags->high,
                   "the high mesh, shown beside the low (and framed as the preview frames it)");
   cmd->add_option("--report", flags->report, "the bake report (JSON): its figures and encoding in the page");
