@@ -127,10 +127,17 @@ TEST(View, MapSetGlbIsValid) {
   std::string maps;
   for (const char* m : {"normal", "ao", "height", "curvature", "miss"})
     maps += " --map " + quoted(dir.file(std::string("m_") + m + ".png"));
+  // Transfer maps as glTF packs them (any grey maps will do for the packing):
+  // roughness and metallic into metallicRoughnessTexture, emissive.
+  maps += " --map roughness=" + quoted(dir.file("m_ao.png")) +
+          " --map metallic=" + quoted(dir.file("m_miss.png")) +
+          " --map emissive=" + quoted(dir.file("m_normal.png"));
   run_ok("view -q --low " + quoted(dir.file("moon_low.obj")) + maps + " --report " +
          quoted(dir.file("report.json")) + " -o " + quoted(dir.file("set.html")));
   const nlohmann::json doc = glb_json(dir.file("set.glb"));
   EXPECT_TRUE(doc["materials"][0].contains("occlusionTexture"));
+  EXPECT_TRUE(doc["materials"][0].contains("emissiveTexture"));
+  EXPECT_TRUE(doc["materials"][0]["pbrMetallicRoughness"].contains("metallicRoughnessTexture"));
   // The maps glTF has no slot for are in the page, each kind named.
   std::ifstream in(dir.file("set.html"));
   const std::string html((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());

@@ -226,6 +226,7 @@ struct GltfMaterialTextures {
   std::string occlusion_png;           // occlusionTexture (red channel)
   std::string base_color_png;          // pbrMetallicRoughness.baseColorTexture (sRGB)
   std::string metallic_roughness_png;  // pbrMetallicRoughness.metallicRoughnessTexture (G roughness, B metal)
+  std::string emissive_png;            // emissiveTexture (sRGB), emissiveFactor 1
 };
 
 // `mesh` as one binary glTF (.glb bytes), written as save_mesh() writes a

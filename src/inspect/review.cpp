@@ -74,6 +74,7 @@ std::string material_slot(const std::string& kind) {
   if (kind == "normal") return "normal";
   if (kind == "ao") return "occlusion";
   if (kind == "base-color") return "base_color";
+  if (kind == "emissive") return "emissive";
   return "";
 }
 
@@ -183,6 +184,48 @@ std::string fill_template(const std::string& text,
   return out;
 }
 
+// glTF's metallicRoughnessTexture of each tile from the roughness and
+// metallic maps (the first of each kind given): G roughness (1 without a
+// roughness map, as glTF's factor), B metallic (0 without), R unused (1).
+// The maps stay in the page's own list too.
+Status pack_metallic_roughness(const std::vector<ReviewMap>& maps,
+                               std::map<int, GltfMaterialTextures>& materials) {
+  const ReviewMap* roughness = nullptr;
+  const ReviewMap* metallic = nullptr;
+  for (const ReviewMap& m : maps) {
+    if (m.kind == "roughness" && roughness == nullptr) roughness = &m;
+    if (m.kind == "metallic" && metallic == nullptr) metallic = &m;
+  }
+  if (roughness == nullptr && metallic == nullptr) return Status::ok();
+  for (auto& [tile, material] : materials) {
+    Image r, m;
+    if (roughness != nullptr) NMBAKE_TRY(read_image(udim_path(roughness->path, tile), r));
+    if (metallic != nullptr) NMBAKE_TRY(read_image(udim_path(metallic->path, tile), m));
+    if (roughness != nullptr && metallic != nullptr && (r.width != m.width || r.height != m.height)) {
+      return Status::bad_input(udim_path(metallic->path, tile) + ": " + std::to_string(m.width) + "x" +
+                               std::to_string(m.height) + ", but the roughness map " +
+                               udim_path(roughness->path, tile) + " is " + std::to_string(r.width) + "x" +
+                               std::to_string(r.height) + ": glTF packs them in one texture");
+    }
+    Image packed;
+    packed.width = roughness != nullptr ? r.width : m.width;
+    packed.height = roughness != nullptr ? r.height : m.height;
+    packed.channels = 3;
+    packed.pixels.resize(static_cast<std::size_t>(packed.width) * packed.height * 3);
+    for (int y = 0; y < packed.height; ++y) {
+      for (int x = 0; x < packed.width; ++x) {
+        float* p = packed.at(x, y);
+        p[0] = 1.0f;
+        p[1] = roughness != nullptr ? r.at(x, y)[0] : 1.0f;
+        p[2] = metallic != nullptr ? m.at(x, y)[0] : 0.0f;
+      }
+    }
+    const std::vector<std::uint8_t> bytes = image_detail::encode_png(packed, 8, /*dither=*/false);
+    material.metallic_roughness_png.assign(reinterpret_cast<const char*>(bytes.data()), bytes.size());
+  }
+  return Status::ok();
+}
+
 }  // namespace
 
 const char* review_map_kinds() {
@@ -288,6 +331,7 @@ Status build_review(const ReviewOptions& options, std::string& glb, std::string&
       std::string* target = slot == "normal"       ? &material.normal_png
                             : slot == "occlusion"  ? &material.occlusion_png
                             : slot == "base_color" ? &material.base_color_png
+                            : slot == "emissive"   ? &material.emissive_png
                                                    : nullptr;
       if (target != nullptr && target->empty()) {
         *target = std::move(png);
@@ -299,6 +343,7 @@ Status build_review(const ReviewOptions& options, std::string& glb, std::string&
     }
     maps.push_back(std::move(entry));
   }
+  NMBAKE_TRY(pack_metallic_roughness(options.maps, materials));
   std::vector<GltfMaterialTextures> material_list;
   for (auto& [tile, material] : materials) material_list.push_back(std::move(material));
   NMBAKE_TRY(encode_textured_glb(review, material_list, glb));

@@ -79,6 +79,8 @@ void add_textures(tinygltf::Model& model, const GltfMaterialTextures& textures,
   material.pbrMetallicRoughness.baseColorTexture.index = texture(textures.base_color_png, "base_color");
   material.pbrMetallicRoughness.metallicRoughnessTexture.index =
       texture(textures.metallic_roughness_png, "metallic_roughness");
+  material.emissiveTexture.index = texture(textures.emissive_png, "emissive");
+  if (!textures.emissive_png.empty()) material.emissiveFactor = {1.0, 1.0, 1.0};
   // Without a metallic-roughness map: a dielectric, moderately rough, so
   // the normal map reads in any glTF viewer.
   if (textures.metallic_roughness_png.empty()) {

@@ -272,7 +272,7 @@
 
   const lows = [];  // { mesh, tile, material, pbr, wire }
   const highs = [];
-  const slotOf = { normal: 'normalMap', occlusion: 'aoMap', base_color: 'map' };
+  const slotOf = { normal: 'normalMap', occlusion: 'aoMap', base_color: 'map', emissive: 'emissiveMap' };
 
   function mapTexture(index, tile) {
     const map = config.maps[index];
@@ -464,7 +464,7 @@
       const name = object.material && object.material.name ? object.material.name : 'tile_1001';
       const tile = name.replace(/^tile_/, '');
       const pbr = object.material;
-      ['normalMap', 'aoMap', 'map'].forEach(function (slot) {
+      ['normalMap', 'aoMap', 'map', 'emissiveMap'].forEach(function (slot) {
         if (pbr[slot]) asPreviewSamples(pbr[slot]);
       });
       const material = makeMaterial(tile, object.geometry.attributes.tangent !== undefined);
