@@ -1,8 +1,10 @@
 #!/bin/sh
-# Installs the node package the tangents test compares against (the npm
+# Installs the node packages of the tests, each with its committed
+# package-lock.json: the one the tangents test compares against (the npm
 # package `mikktspace`, a WASM build of the MikkTSpace reference) into
-# tests/mikktspace_ref/node_modules. Needs node and npm; uses the committed
-# package-lock.json when there is one.
+# tests/mikktspace_ref/node_modules, and the Khronos glTF validator (npm
+# `gltf-validator`) the view test runs on its .glb files into
+# tests/gltf_validator/node_modules. Needs node and npm.
 set -eu
 
 here=$(cd "$(dirname "$0")/.." && pwd)
@@ -24,3 +26,12 @@ node -e "require('mikktspace')" || {
   exit 1
 }
 echo "setup-npm.sh: reference tangents ready in $ref_dir"
+
+validator_dir="$here/tests/gltf_validator"
+cd "$validator_dir"
+npm ci --no-audit --no-fund
+node -e "require('gltf-validator')" || {
+  echo "setup-npm.sh: the gltf-validator package did not load from $validator_dir/node_modules" >&2
+  exit 1
+}
+echo "setup-npm.sh: glTF validator ready in $validator_dir"

@@ -217,6 +217,27 @@ Status check_mesh_file(const char* what, const std::string& path);
 // Used by the generators and by `nmbake unwrap`.
 Status save_mesh(const std::string& path, const Mesh& mesh);
 
+// The textures of one glTF PBR material of a review .glb (`nmbake view`):
+// the bytes of PNG files, embedded in the .glb's buffer; empty = no such
+// texture. `name` is the material range of Mesh::materials it dresses.
+struct GltfMaterialTextures {
+  std::string name;
+  std::string normal_png;              // normalTexture (tangent space, green up: glTF's convention)
+  std::string occlusion_png;           // occlusionTexture (red channel)
+  std::string base_color_png;          // pbrMetallicRoughness.baseColorTexture (sRGB)
+  std::string metallic_roughness_png;  // pbrMetallicRoughness.metallicRoughnessTexture (G roughness, B metal)
+  std::string emissive_png;            // emissiveTexture (sRGB), emissiveFactor 1
+};
+
+// `mesh` as one binary glTF (.glb bytes), written as save_mesh() writes a
+// .glb (one node per part, one primitive per material range), with each
+// material of `materials` a PBR material wearing its textures (embedded
+// PNG images, a linear sampler clamped at the borders, as the baker's
+// preview samples). A material range whose name is not in `materials` gets
+// a material with its name only. The mesh must pass validate_mesh().
+Status encode_textured_glb(const Mesh& mesh, const std::vector<GltfMaterialTextures>& materials,
+                           std::string& glb);
+
 // The versions of the mesh readers in use: Assimp's shared library ("5.2.5")
 // and tinygltf's header compiled into nmbake ("2.7.0", from its change log).
 std::string assimp_version();

@@ -91,4 +91,20 @@ void compute_tangents_file(const Mesh& mesh, std::vector<glm::vec4>& corner_tang
 void compute_tangents(const Mesh& mesh, TangentBasis basis, std::vector<glm::vec4>& corner_tangents,
                       TangentStats& stats);
 
+// MikkTSpace gives a tangent per corner; glTF stores one per vertex. The
+// mesh with Mesh::tangents per vertex: a vertex whose corners got different
+// tangents (where MikkTSpace splits its groups) becomes one vertex per
+// distinct tangent, so the per-vertex attribute is exact; positions,
+// normals and UVs are copied. `low` needs normals and UVs; `corner_tangents`
+// has 3 per triangle.
+//
+// `triangle_tile` (empty, or one UDIM tile per triangle, udim.hpp): vertices
+// are also split per tile, each tile's UVs shifted into [0, 1]^2 (exact, as
+// the bake shifts them), the triangles of each part ordered by tile (stable:
+// within a tile they keep their order; the triangulation is unchanged) and
+// Mesh::materials set to one range per (part, tile) named "tile_NNNN".
+// Without it the triangles keep their order and their material ranges.
+Mesh vertex_tangent_mesh(const Mesh& low, const std::vector<glm::vec4>& corner_tangents,
+                         const std::vector<int>& triangle_tile = {});
+
 }  // namespace nmbake

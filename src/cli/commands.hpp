@@ -62,6 +62,7 @@ Runner add_unwrap_command(CLI::App& app, const GlobalOptions& global);
 Runner add_merge_command(CLI::App& app, const GlobalOptions& global);  // merge_command.cpp
 Runner add_plan_command(CLI::App& app, const GlobalOptions& global);   // plan_command.cpp
 Runner add_serve_command(CLI::App& app, const GlobalOptions& global);  // serve_command.cpp
+Runner add_view_command(CLI::App& app, const GlobalOptions& global);   // view_command.cpp
 
 // `nmbake docs` (docs_command.cpp; not in --help): man pages, bash completion and
 // the Markdown reference from the app's own definitions. Register it last.

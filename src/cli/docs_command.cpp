@@ -63,6 +63,11 @@ const std::vector<CommandExamples>& command_examples() {
        {{"A Ninja file that bakes a job in parallel, one task a bake",
          "nmbake plan job.toml --ninja build.ninja"}}},
       {"serve", {{"A live session answering JSON lines", "nmbake serve --memory-budget 8G"}}},
+      {"view",
+       {{"A page to turn the low mesh wearing its maps in 3D (opens from disk, offline)",
+         "nmbake view --low low.obj --map normal.png --map ao.png --report report.json -o review.html"},
+        {"The same page served on 127.0.0.1, reloading the maps when a re-bake rewrites them",
+         "nmbake view --low low.obj --map normal.png -o review.html --serve --port 8790"}}},
   };
   return table;
 }

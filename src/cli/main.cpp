@@ -44,6 +44,7 @@ int main(int argc, char** argv) {
   const Runner merge = add_merge_command(app, global);
   const Runner plan = add_plan_command(app, global);
   const Runner serve = add_serve_command(app, global);
+  const Runner view = add_view_command(app, global);
   const Runner docs = add_docs_command(app, global);  // last: it walks the others
 
   try {
@@ -70,6 +71,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("merge")) return merge();
     if (app.got_subcommand("plan")) return plan();
     if (app.got_subcommand("serve")) return serve();
+    if (app.got_subcommand("view")) return view();
     if (app.got_subcommand("docs")) return docs();
   } catch (const std::exception& e) {
     std::fprintf(stderr, "nmbake: internal error: %s\n", nmbake::printable_text(e.what()).c_str());

@@ -6,10 +6,7 @@
 // tangents gets exactly the frame the map is baked in.
 #include <cctype>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
-#include <map>
-#include <tuple>
 
 #include "commands.hpp"
 #include "nmbake/image.hpp"
@@ -33,36 +30,6 @@ int fail(const Status& s) {
   return s.code() == StatusCode::internal ? kInternal : kBadInput;
 }
 
-// MikkTSpace gives a tangent per corner; glTF stores one per vertex. A
-// vertex whose corners got different tangents (where MikkTSpace splits its
-// groups) becomes one vertex per distinct tangent, so the per-vertex
-// attribute is exact. Positions, normals and UVs are copied unchanged.
-Mesh with_vertex_tangents(const Mesh& low, const std::vector<glm::vec4>& corner_tangents) {
-  Mesh out;
-  out.parts = low.parts;  // the triangles keep their order
-  out.materials = low.materials;
-  std::map<std::tuple<std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t>,
-           std::uint32_t>
-      ids;
-  out.indices.resize(low.indices.size());
-  for (std::size_t c = 0; c < low.indices.size(); ++c) {
-    const std::uint32_t v = low.indices[c];
-    const glm::vec4& t = corner_tangents[c];
-    std::uint32_t bits[4];
-    std::memcpy(bits, &t, sizeof(bits));
-    const auto [it, added] = ids.emplace(std::tuple(v, bits[0], bits[1], bits[2], bits[3]),
-                                         static_cast<std::uint32_t>(out.positions.size()));
-    if (added) {
-      out.positions.push_back(low.positions[v]);
-      out.normals.push_back(low.normals[v]);
-      out.uvs.push_back(low.uvs[v]);
-      out.tangents.push_back(t);
-    }
-    out.indices[c] = it->second;
-  }
-  return out;
-}
-
 int write_tangents(const TangentFlags& f, const GlobalOptions& global) {
   std::string extension = std::filesystem::path(f.write).extension().string();
   for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
@@ -83,7 +50,7 @@ int write_tangents(const TangentFlags& f, const GlobalOptions& global) {
   std::vector<glm::vec4> corner_tangents;
   TangentStats tangent_stats;
   compute_tangents(low, corner_tangents, tangent_stats);
-  const Mesh out = with_vertex_tangents(low, corner_tangents);
+  const Mesh out = vertex_tangent_mesh(low, corner_tangents);
   if (const Status s = save_mesh(f.write, out); !s) return fail(s);
   if (!global.quiet) {
     std::printf("tangents: %s: %zu vertices (%zu in %s), %zu triangles, %llu fallback tangents\n",

@@ -1,8 +1,9 @@
 // glTF 2.0 writer (tinygltf): positions, normals, UVs (TEXCOORD_0), tangents
 // (TANGENT), vertex colours (COLOR_0, linear) and indices of a Mesh as .glb, or as .gltf JSON with its buffer
 // for a .bin beside it; a node per part, a primitive per material range
-// within it (materials carry only their names); save_mesh() writes each to a temporary name and
-// renames it.
+// within it (materials carry only their names, or, for encode_textured_glb(),
+// PBR textures embedded as PNG images); save_mesh() writes each to a
+// temporary name and renames it.
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -46,9 +47,52 @@ int add_accessor(tinygltf::Model& model, int view, int component_type, int type,
   return static_cast<int>(model.accessors.size()) - 1;
 }
 
+// The material's textures as glTF images in the buffer (image/png), each
+// with its texture on the one shared sampler.
+void add_textures(tinygltf::Model& model, const GltfMaterialTextures& textures,
+                  tinygltf::Material& material) {
+  if (model.samplers.empty()) {
+    // Bilinear and clamped, as the baker's preview samples the map; mipmaps
+    // for minification.
+    tinygltf::Sampler sampler;
+    sampler.magFilter = TINYGLTF_TEXTURE_FILTER_LINEAR;
+    sampler.minFilter = TINYGLTF_TEXTURE_FILTER_LINEAR_MIPMAP_LINEAR;
+    sampler.wrapS = TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE;
+    sampler.wrapT = TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE;
+    model.samplers.push_back(sampler);
+  }
+  const auto texture = [&](const std::string& png, const char* what) {
+    if (png.empty()) return -1;
+    tinygltf::Image image;
+    image.name = material.name + "_" + what;
+    image.mimeType = "image/png";
+    image.bufferView = add_view(model, png.data(), png.size(), 0);
+    model.images.push_back(image);
+    tinygltf::Texture t;
+    t.sampler = 0;
+    t.source = static_cast<int>(model.images.size()) - 1;
+    model.textures.push_back(t);
+    return static_cast<int>(model.textures.size()) - 1;
+  };
+  material.normalTexture.index = texture(textures.normal_png, "normal");
+  material.occlusionTexture.index = texture(textures.occlusion_png, "occlusion");
+  material.pbrMetallicRoughness.baseColorTexture.index = texture(textures.base_color_png, "base_color");
+  material.pbrMetallicRoughness.metallicRoughnessTexture.index =
+      texture(textures.metallic_roughness_png, "metallic_roughness");
+  material.emissiveTexture.index = texture(textures.emissive_png, "emissive");
+  if (!textures.emissive_png.empty()) material.emissiveFactor = {1.0, 1.0, 1.0};
+  // Without a metallic-roughness map: a dielectric, moderately rough, so
+  // the normal map reads in any glTF viewer.
+  if (textures.metallic_roughness_png.empty()) {
+    material.pbrMetallicRoughness.metallicFactor = 0.0;
+    material.pbrMetallicRoughness.roughnessFactor = 0.6;
+  }
+}
+
 }  // namespace
 
-Status encode_gltf(const Mesh& mesh, const std::string& bin_uri, std::string& bytes, std::string& bin_bytes) {
+Status encode_gltf(const Mesh& mesh, const std::string& bin_uri, std::string& bytes, std::string& bin_bytes,
+                   const std::vector<GltfMaterialTextures>* textures) {
   const bool binary = bin_uri.empty();
   tinygltf::Model model;
   model.asset.version = "2.0";
@@ -119,6 +163,11 @@ Status encode_gltf(const Mesh& mesh, const std::string& bin_uri, std::string& by
     if (range.name.empty() || material_index.count(range.name) != 0) continue;
     tinygltf::Material material;
     material.name = range.name;
+    if (textures != nullptr) {
+      for (const GltfMaterialTextures& t : *textures) {
+        if (t.name == range.name) add_textures(model, t, material);
+      }
+    }
     model.materials.push_back(material);
     material_index[range.name] = static_cast<int>(model.materials.size()) - 1;
   }
@@ -181,3 +230,14 @@ Status encode_gltf(const Mesh& mesh, const std::string& bin_uri, std::string& by
 }
 
 }  // namespace nmbake::load_detail
+
+namespace nmbake {
+
+Status encode_textured_glb(const Mesh& mesh, const std::vector<GltfMaterialTextures>& materials,
+                           std::string& glb) {
+  NMBAKE_TRY(validate_mesh(mesh, "review glTF"));
+  std::string unused;
+  return load_detail::encode_gltf(mesh, "", glb, unused, &materials);
+}
+
+}  // namespace nmbake

@@ -175,7 +175,9 @@ Status load_gltf(const std::string& path, const LoadOptions& options, Mesh& out,
 // The mesh as glTF (gltf_save.cpp): with bin_uri empty a .glb in `bytes`;
 // else the .gltf JSON in `bytes`, naming its buffer bin_uri, and the
 // buffer's contents in `bin_bytes`.
-Status encode_gltf(const Mesh& mesh, const std::string& bin_uri, std::string& bytes, std::string& bin_bytes);
+// `textures` (may be null): the PBR materials of encode_textured_glb(), binary only.
+Status encode_gltf(const Mesh& mesh, const std::string& bin_uri, std::string& bytes, std::string& bin_bytes,
+                   const std::vector<GltfMaterialTextures>* textures = nullptr);
 
 // FBX, Collada, 3DS and STL through Assimp (assimp.cpp, in the module
 // libnmbake_assimp.so when it is built as one); opens the file itself.

@@ -22,9 +22,14 @@
 #include <cfloat>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <glm/geometric.hpp>
+#include <map>
 #include <numeric>
+#include <tuple>
 #include <vector>
+
+#include "nmbake/udim.hpp"
 
 namespace nmbake {
 namespace {
@@ -484,6 +489,64 @@ void compute_corner_uv_tangents(const Mesh& mesh, const std::vector<std::uint8_t
     for (std::size_t k = 0; k < 3; ++k)
       corner_tangents[3 * static_cast<std::size_t>(source[i]) + k] = tangents[3 * i + k];
   }
+}
+
+Mesh vertex_tangent_mesh(const Mesh& low, const std::vector<glm::vec4>& corner_tangents,
+                         const std::vector<int>& triangle_tile) {
+  const bool tiled = !triangle_tile.empty();
+  const std::size_t triangle_count = low.triangle_count();
+  // The source triangle of each output triangle: within each part, by tile.
+  std::vector<std::uint32_t> order(triangle_count);
+  std::iota(order.begin(), order.end(), 0u);
+  Mesh out;
+  out.parts = low.parts;  // the parts keep their ranges
+  if (tiled) {
+    const std::vector<MeshPart> parts =
+        low.parts.empty() ? std::vector<MeshPart>{MeshPart{"", 0, static_cast<std::uint32_t>(triangle_count)}}
+                          : low.parts;
+    for (const MeshPart& part : parts) {
+      const auto first = order.begin() + part.first_triangle;
+      const auto last = first + part.triangle_count;
+      std::stable_sort(first, last,
+                       [&](std::uint32_t a, std::uint32_t b) { return triangle_tile[a] < triangle_tile[b]; });
+      for (std::uint32_t t = part.first_triangle; t < part.first_triangle + part.triangle_count; ++t) {
+        const std::string name = "tile_" + std::to_string(triangle_tile[order[t]]);
+        if (!out.materials.empty() && out.materials.back().name == name &&
+            out.materials.back().first_triangle + out.materials.back().triangle_count == t) {
+          ++out.materials.back().triangle_count;
+        } else {
+          out.materials.push_back(MeshPart{name, t, 1});
+        }
+      }
+    }
+  } else {
+    out.materials = low.materials;
+  }
+  std::map<std::tuple<std::uint32_t, int, std::uint32_t, std::uint32_t, std::uint32_t, std::uint32_t>,
+           std::uint32_t>
+      ids;
+  out.indices.resize(low.indices.size());
+  for (std::size_t t = 0; t < triangle_count; ++t) {
+    const std::size_t source = order[t];
+    const int tile = tiled ? triangle_tile[source] : 1001;
+    for (std::size_t k = 0; k < 3; ++k) {
+      const std::size_t c = 3 * source + k;
+      const std::uint32_t v = low.indices[c];
+      const glm::vec4& tangent = corner_tangents[c];
+      std::uint32_t bits[4];
+      std::memcpy(bits, &tangent, sizeof(bits));
+      const auto [it, added] = ids.emplace(std::tuple(v, tile, bits[0], bits[1], bits[2], bits[3]),
+                                           static_cast<std::uint32_t>(out.positions.size()));
+      if (added) {
+        out.positions.push_back(low.positions[v]);
+        out.normals.push_back(low.normals[v]);
+        out.uvs.push_back(tiled ? low.uvs[v] - udim_offset(tile) : low.uvs[v]);
+        out.tangents.push_back(tangent);
+      }
+      out.indices[3 * t + k] = it->second;
+    }
+  }
+  return out;
 }
 
 }  // namespace nmbake
