@@ -136,52 +136,6 @@ bool FileReader::next_line_slow(std::string_view& line) {
   return true;
 }
 
-namespace {
-
-const char* skip_plus(const char* first, const char* last) {
-  // from_chars rejects a leading '+', which some exporters write.
-  if (last - first > 1 && *first == '+' && first[1] != '-' && first[1] != '+') return first + 1;
-  return first;
-}
-
-bool mentions_negative_exponent(const char* first, const char* last) {
-  for (const char* p = first; p + 1 < last; ++p) {
-    if ((*p == 'e' || *p == 'E') && p[1] == '-') return true;
-  }
-  return false;
-}
-
-template <typename Real>
-NumberError parse_real(const char* first, const char* last, Real& value) {
-  first = skip_plus(first, last);
-  Real parsed = 0;
-  const auto [end, error] = std::from_chars(first, last, parsed);
-  if (error == std::errc::invalid_argument || end != last) return NumberError::syntax;
-  if (error == std::errc::result_out_of_range) {
-    // libstdc++ reports underflow as out of range too; a coordinate of 1e-50 is
-    // a zero, not a broken file.
-    if (!mentions_negative_exponent(first, last)) return NumberError::overflow;
-    value = *first == '-' ? -Real(0) : Real(0);
-    long double wide = 0;
-    const auto [wide_end, wide_error] = std::from_chars(first, last, wide);
-    if (wide_error == std::errc{} && wide_end == last) value = static_cast<Real>(wide);
-    return NumberError::none;
-  }
-  if (!std::isfinite(parsed)) return NumberError::non_finite;
-  value = parsed;
-  return NumberError::none;
-}
-
-}  // namespace
-
-NumberError parse_float(const char* first, const char* last, float& value) {
-  return parse_real(first, last, value);
-}
-
-NumberError parse_double(const char* first, const char* last, double& value) {
-  return parse_real(first, last, value);
-}
-
 NumberError parse_int(const char* first, const char* last, std::int64_t& value) {
   first = skip_plus(first, last);
   const auto [end, error] = std::from_chars(first, last, value);

@@ -7,7 +7,10 @@
 // pages fault in once.
 #pragma once
 
+#include <fast_float/fast_float.h>
+
 #include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -121,11 +124,43 @@ inline const char* skip_token(const char* p, const char* end) {
 
 enum class NumberError : std::uint8_t { none, syntax, overflow, non_finite };
 
+// std::from_chars and fast_float reject a leading '+', which some exporters
+// write: skipped here (but not in "+-1" or "++1").
+inline const char* skip_plus(const char* first, const char* last) {
+  if (last - first > 1 && *first == '+' && first[1] != '-' && first[1] != '+') return first + 1;
+  return first;
+}
+
 // Parses all of [first, last) as a number (a leading '+' is accepted; for
 // reals an underflow becomes a signed zero, an overflow or "inf"/"nan" an
 // error, so no NaN/Inf enters a mesh).
-NumberError parse_float(const char* first, const char* last, float& value);
-NumberError parse_double(const char* first, const char* last, double& value);
+//
+// Reals through fast_float (libfast-float-dev, header-only), inline so the
+// OBJ parser's loops keep them: every result is the correctly rounded one,
+// what strtof/strtod give (tests/load_test.cpp, "ParseReal"). fast_float
+// gives +-Inf for a finite number too large and a signed zero or a
+// subnormal for one too small, as strtod does; "inf"/"nan" as from_chars.
+template <typename Real>
+NumberError parse_real(const char* first, const char* last, Real& value) {
+  first = skip_plus(first, last);
+  Real parsed = 0;
+  const auto [end, error] = fast_float::from_chars(first, last, parsed);
+  if (error != std::errc{} || end != last) return NumberError::syntax;
+  if (!std::isfinite(parsed)) {
+    // Digits that overflow, or a spelled-out "inf"/"nan".
+    const char* digits = first < last && *first == '-' ? first + 1 : first;
+    const bool numeral = digits < last && (*digits == '.' || (*digits >= '0' && *digits <= '9'));
+    return numeral ? NumberError::overflow : NumberError::non_finite;
+  }
+  value = parsed;
+  return NumberError::none;
+}
+inline NumberError parse_float(const char* first, const char* last, float& value) {
+  return parse_real(first, last, value);
+}
+inline NumberError parse_double(const char* first, const char* last, double& value) {
+  return parse_real(first, last, value);
+}
 NumberError parse_int(const char* first, const char* last, std::int64_t& value);
 // "bad number 'TOKEN'" and friends, for error messages.
 // A token of file content for a message: at most 64 bytes, then "...", and
