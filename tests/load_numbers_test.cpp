@@ -5,6 +5,7 @@
 // forms and errors the OBJ and PLY readers rely on.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdint>
@@ -103,6 +104,13 @@ TEST(ParseReal, SeededRandomTiesAndDecimalsMatchStrtod) {
     failures += matches_strto(buffer) ? 0 : 1;
     std::snprintf(buffer, sizeof buffer, "%.9g", static_cast<double>(below));
     failures += matches_strto(buffer) ? 0 : 1;
+    // The midpoint to 15-17 digits: often a decimal whose nearest double is
+    // the midpoint itself, where rounding through a double goes wrong.
+    for (const int digits : {15, 16, 17}) {
+      std::snprintf(buffer, sizeof buffer, "%.*f",
+                    std::max(0, digits - 1 - static_cast<int>(std::floor(std::log10(midpoint)))), midpoint);
+      failures += matches_strto(buffer) ? 0 : 1;
+    }
   }
   // Random digit strings of 1 to 30 digits, a point anywhere, exponents
   // from -70 to 39.

@@ -17,6 +17,7 @@
 #include <memory>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
 #include "nmbake/common.hpp"
@@ -140,12 +141,71 @@ inline const char* skip_plus(const char* first, const char* last) {
 // what strtof/strtod give (tests/load_test.cpp, "ParseReal"). fast_float
 // gives +-Inf for a finite number too large and a signed zero or a
 // subnormal for one too small, as strtod does; "inf"/"nan" as from_chars.
+//
+// The plain form most files are written in, "-?digits[.digits]" of at most
+// 19 digits with no exponent, first takes a shortcut (read_plain_decimal):
+// the digits m and the count e after the point are exact in a double, so
+// m / 10^e is the correctly rounded double (one IEEE division, Clinger's
+// fast path); a float rounded from that double is the correctly rounded
+// float unless the double falls exactly halfway between two floats (then
+// the shortcut is not taken) or below the normal floats (not taken either).
+inline constexpr double kExactPowersOfTen[] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,
+                                               1e8,  1e9,  1e10, 1e11, 1e12, 1e13, 1e14, 1e15,
+                                               1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
+
+// The end of the plain decimal at p (before `last`) and its value, or
+// nullptr when p does not start one the shortcut takes.
+template <typename Real>
+inline const char* read_plain_decimal(const char* p, const char* last, Real& value) {
+  const bool negative = p < last && *p == '-';
+  if (negative) ++p;
+  std::uint64_t mantissa = 0;
+  int digits = 0;
+  int fraction_digits = 0;
+  bool point = false;
+  for (; p < last; ++p) {
+    const auto digit = static_cast<unsigned>(*p - '0');
+    if (digit <= 9) {
+      mantissa = mantissa * 10 + digit;
+      ++digits;
+      fraction_digits += point ? 1 : 0;
+    } else if (*p == '.' && !point) {
+      point = true;
+    } else {
+      break;
+    }
+  }
+  if (digits == 0 || digits > 19 || mantissa > (std::uint64_t{1} << 53)) return nullptr;
+  if (p < last && (*p == 'e' || *p == 'E')) return nullptr;
+  const double exact = static_cast<double>(mantissa) / kExactPowersOfTen[fraction_digits];
+  if constexpr (std::is_same_v<Real, float>) {
+    if (exact != 0.0) {
+      if (exact < 0x1p-126) return nullptr;
+      std::uint64_t bits = 0;
+      std::memcpy(&bits, &exact, sizeof bits);
+      // The 29 bits a float drops: exactly half of its last place.
+      if ((bits & ((std::uint64_t{1} << 29) - 1)) == (std::uint64_t{1} << 28)) return nullptr;
+    }
+  }
+  const auto rounded = static_cast<Real>(exact);
+  value = negative ? -rounded : rounded;
+  return p;
+}
+
+// A real at the start of [first, last) (no '+'): its end and value, or
+// nullptr for no number (from_chars' rules).
+template <typename Real>
+inline const char* read_real_prefix(const char* first, const char* last, Real& value) {
+  if (const char* end = read_plain_decimal(first, last, value)) return end;
+  const auto [end, error] = fast_float::from_chars(first, last, value);
+  return error == std::errc{} ? end : nullptr;
+}
+
 template <typename Real>
 NumberError parse_real(const char* first, const char* last, Real& value) {
   first = skip_plus(first, last);
   Real parsed = 0;
-  const auto [end, error] = fast_float::from_chars(first, last, parsed);
-  if (error != std::errc{} || end != last) return NumberError::syntax;
+  if (read_real_prefix(first, last, parsed) != last) return NumberError::syntax;
   if (!std::isfinite(parsed)) {
     // Digits that overflow, or a spelled-out "inf"/"nan".
     const char* digits = first < last && *first == '-' ? first + 1 : first;
