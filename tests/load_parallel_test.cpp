@@ -572,6 +572,31 @@ TEST(LoadParallelObj, EveryLineSpellingMatchesTheReference) {
   }
 }
 
+// Lines longer than the room the reader keeps for a block's unread tail
+// when it joins the bytes read ahead (64 KiB, FileReader::join_ahead()),
+// falling across block ends: the same mesh as the serial reference.
+TEST(LoadParallelObj, LongLinesAcrossReadAheadBlocksMatchTheReference) {
+  TempDir dir;
+  const std::string path = dir.file("long.obj");
+  GridObj grid;
+  grid.side = 60;
+  const std::vector<std::string> lines = grid.lines();
+  std::string text;
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    if (i % 100 == 50) text += "# " + std::string(100000 + i, 'x') + "\n";
+    text += lines[i] + "\n";
+  }
+  ASSERT_GT(text.size(), std::size_t{8} << 20);  // twice the reader's buffer
+  write_text(path, text);
+  const Loaded reference = load(path, true, 1, 0);
+  ASSERT_TRUE(reference.status.is_ok()) << reference.status.message();
+  for (const std::size_t block :
+       {std::size_t{70000}, std::size_t{150000}, std::size_t{333333}, std::size_t{0}}) {
+    SCOPED_TRACE("block " + std::to_string(block));
+    expect_same(reference, load(path, false, 2, block));
+  }
+}
+
 TEST(LoadParallelObj, ErrorsInLateSlicesNameTheSameLine) {
   TempDir dir;
   const std::string path = dir.file("bad.obj");

@@ -74,6 +74,7 @@ class FileReader {
   // time. The request is capped at what the file still holds, so a small
   // file keeps a small buffer.
   std::size_t peek(std::size_t count, const char*& bytes) {
+    if (ahead_pending_) join_ahead();
     const std::uint64_t unread = file_size_ - std::min(file_size_, offset());
     count = static_cast<std::size_t>(std::min<std::uint64_t>(count, std::max<std::uint64_t>(unread, 1)));
     if (end_ - pos_ < (count + 1) / 2) fill(count);
@@ -82,6 +83,12 @@ class FileReader {
   }
   // Consumes `count` bytes of what peek() returned.
   void consume(std::size_t count) { pos_ += count; }
+  // Blocks: reads up to `count` bytes after the buffered ones into a second
+  // buffer, which the next peek() (or any refill) joins behind the unread
+  // bytes. Meant to run on another thread while the caller decodes what
+  // peek() returned: it touches only that second buffer and the file
+  // position, so nothing else of the reader may be used until it returns.
+  void read_ahead(std::size_t count);
   // Text blocks: counts the lines the caller consumed through peek().
   void add_lines(std::uint64_t count) { line_number_ += count; }
 
@@ -96,19 +103,29 @@ class FileReader {
   bool next_line_slow(std::string_view& line);
   // Makes at least `count` bytes available after pos_; false at end of file.
   bool fill(std::size_t count);
+  // Puts the read_ahead() bytes behind the unread ones.
+  void join_ahead();
 
   std::string path_;
   int fd_ = -1;
   std::uint64_t file_size_ = 0;
   std::unique_ptr<char[]> buffer_;  // not zero-filled: pages fault in only when read into
-  std::size_t capacity_ = 0;
-  char* data_ = nullptr;
+  std::size_t buffer_bytes_ = 0;    // its size
+  std::size_t capacity_ = 0;        // bytes from data_ to the end of buffer_
+  char* data_ = nullptr;            // in buffer_ (after the room for an unread tail, see join_ahead())
   std::size_t pos_ = 0;
   std::size_t end_ = 0;
   std::uint64_t buffer_offset_ = 0;  // file offset of buffer_[0]
   std::uint64_t line_number_ = 0;
   bool eof_ = false;
   Status read_status_;
+  // read_ahead(): its bytes at ahead_[kAheadRoom, kAheadRoom + ahead_end_).
+  std::unique_ptr<char[]> ahead_;
+  std::size_t ahead_bytes_ = 0;
+  std::size_t ahead_end_ = 0;
+  bool ahead_pending_ = false;
+  bool ahead_eof_ = false;
+  Status ahead_status_;
 };
 
 // ---- token helpers shared by the text parsers ----
