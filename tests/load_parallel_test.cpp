@@ -483,7 +483,7 @@ TEST(LoadParallelObj, EveryLineSpellingMatchesTheReference) {
         std::snprintf(text, sizeof text, "%.3e", x);
         break;
       case 1:
-        std::snprintf(text, sizeof text, "%s%.9g", x >= 0 ? "+" : "", x);
+        std::snprintf(text, sizeof text, "%s%.9g", std::signbit(x) ? "" : "+", x);
         break;
       case 2:
         std::snprintf(text, sizeof text, "%.25f", x);
