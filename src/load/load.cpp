@@ -32,6 +32,9 @@ namespace {
 // territory and fault in once.
 constexpr std::size_t kBufferBytes = std::size_t{4} << 20;
 constexpr std::uint64_t kMinBufferBytes = 4096;
+// Room before read_ahead()'s bytes for the unread tail of the buffer (the
+// last, incomplete line of a block), so joining them copies only that.
+constexpr std::size_t kAheadRoom = std::size_t{64} << 10;
 }  // namespace
 
 FileReader::~FileReader() {
@@ -56,11 +59,83 @@ Status FileReader::open(const std::string& path) {
   capacity_ =
       static_cast<std::size_t>(std::clamp<std::uint64_t>(file_size_ + 1, kMinBufferBytes, kBufferBytes));
   buffer_ = std::make_unique_for_overwrite<char[]>(capacity_);
+  buffer_bytes_ = capacity_;
   data_ = buffer_.get();
   return Status::ok();
 }
 
+void FileReader::read_ahead(std::size_t count) {
+  // Only when the buffer holds little more than the block being decoded (a
+  // refill would follow): else the join would copy the unread rest.
+  if (eof_ || ahead_pending_ || end_ - pos_ > count + kAheadRoom) return;
+  const std::uint64_t read_so_far = buffer_offset_ + end_;
+  count = static_cast<std::size_t>(
+      std::min<std::uint64_t>(count, file_size_ - std::min(file_size_, read_so_far)));
+  if (count == 0) return;
+  if (ahead_bytes_ < kAheadRoom + count) {
+    ahead_bytes_ = kAheadRoom + count;
+    ahead_ = std::make_unique_for_overwrite<char[]>(ahead_bytes_);
+  }
+  char* into = ahead_.get() + kAheadRoom;
+  const std::size_t room = ahead_bytes_ - kAheadRoom;
+  ahead_end_ = 0;
+  ahead_eof_ = false;
+  while (ahead_end_ < count) {
+    const ssize_t got = ::read(fd_, into + ahead_end_, room - ahead_end_);
+    if (got < 0) {
+      if (errno == EINTR) continue;
+      ahead_status_ = Status::io(path_ + ": read failed: " + std::strerror(errno));
+      ahead_eof_ = true;
+      break;
+    }
+    if (got == 0) {
+      ahead_eof_ = true;
+      break;
+    }
+    ahead_end_ += static_cast<std::size_t>(got);
+  }
+  ahead_pending_ = true;
+}
+
+void FileReader::join_ahead() {
+  ahead_pending_ = false;
+  const std::size_t tail = end_ - pos_;
+  if (tail <= kAheadRoom) {
+    // The buffers change places: the tail goes just before the new bytes.
+    std::memcpy(ahead_.get() + kAheadRoom - tail, data_ + pos_, tail);
+    buffer_offset_ += pos_;
+    std::swap(buffer_, ahead_);
+    std::swap(buffer_bytes_, ahead_bytes_);
+    data_ = buffer_.get() + (kAheadRoom - tail);
+    capacity_ = buffer_bytes_ - (kAheadRoom - tail);
+    pos_ = 0;
+    end_ = tail + ahead_end_;
+  } else {
+    // A long unread tail (a line longer than the room): the new bytes are
+    // copied behind it.
+    std::memmove(buffer_.get(), data_ + pos_, tail);
+    buffer_offset_ += pos_;
+    data_ = buffer_.get();
+    capacity_ = buffer_bytes_;
+    pos_ = 0;
+    end_ = tail;
+    if (end_ + ahead_end_ > capacity_) {
+      auto bigger = std::make_unique_for_overwrite<char[]>(end_ + ahead_end_);
+      std::memcpy(bigger.get(), data_, end_);
+      buffer_ = std::move(bigger);
+      buffer_bytes_ = capacity_ = end_ + ahead_end_;
+      data_ = buffer_.get();
+    }
+    std::memcpy(data_ + end_, ahead_.get() + kAheadRoom, ahead_end_);
+    end_ += ahead_end_;
+  }
+  ahead_end_ = 0;
+  if (ahead_eof_) eof_ = true;
+  if (!ahead_status_.is_ok()) read_status_ = ahead_status_;
+}
+
 bool FileReader::fill(std::size_t count) {
+  if (ahead_pending_) join_ahead();
   if (eof_) return false;
   // Keep the unread tail, move it to the front, and read behind it.
   const std::size_t kept = end_ - pos_;
@@ -75,7 +150,7 @@ bool FileReader::fill(std::size_t count) {
     auto bigger = std::make_unique_for_overwrite<char[]>(grown);
     std::memcpy(bigger.get(), data_, end_);
     buffer_ = std::move(bigger);
-    capacity_ = grown;
+    buffer_bytes_ = capacity_ = grown;
     data_ = buffer_.get();
   }
   while (end_ < capacity_) {
@@ -134,52 +209,6 @@ bool FileReader::next_line_slow(std::string_view& line) {
   ++line_number_;
   if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
   return true;
-}
-
-namespace {
-
-const char* skip_plus(const char* first, const char* last) {
-  // from_chars rejects a leading '+', which some exporters write.
-  if (last - first > 1 && *first == '+' && first[1] != '-' && first[1] != '+') return first + 1;
-  return first;
-}
-
-bool mentions_negative_exponent(const char* first, const char* last) {
-  for (const char* p = first; p + 1 < last; ++p) {
-    if ((*p == 'e' || *p == 'E') && p[1] == '-') return true;
-  }
-  return false;
-}
-
-template <typename Real>
-NumberError parse_real(const char* first, const char* last, Real& value) {
-  first = skip_plus(first, last);
-  Real parsed = 0;
-  const auto [end, error] = std::from_chars(first, last, parsed);
-  if (error == std::errc::invalid_argument || end != last) return NumberError::syntax;
-  if (error == std::errc::result_out_of_range) {
-    // libstdc++ reports underflow as out of range too; a coordinate of 1e-50 is
-    // a zero, not a broken file.
-    if (!mentions_negative_exponent(first, last)) return NumberError::overflow;
-    value = *first == '-' ? -Real(0) : Real(0);
-    long double wide = 0;
-    const auto [wide_end, wide_error] = std::from_chars(first, last, wide);
-    if (wide_error == std::errc{} && wide_end == last) value = static_cast<Real>(wide);
-    return NumberError::none;
-  }
-  if (!std::isfinite(parsed)) return NumberError::non_finite;
-  value = parsed;
-  return NumberError::none;
-}
-
-}  // namespace
-
-NumberError parse_float(const char* first, const char* last, float& value) {
-  return parse_real(first, last, value);
-}
-
-NumberError parse_double(const char* first, const char* last, double& value) {
-  return parse_real(first, last, value);
 }
 
 NumberError parse_int(const char* first, const char* last, std::int64_t& value) {

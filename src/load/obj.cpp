@@ -37,12 +37,14 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 #include <glm/vec4.hpp>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
 #include "base/huge_pages.hpp"
@@ -155,6 +157,24 @@ struct ObjSlice {
   const char* stop = nullptr;  // first line the slice parser did not take, or nullptr
   std::uint64_t stop_line = 0;
 
+  // What apply_slice needs to take the faces whole (the identity layout of
+  // high meshes): while `simple`, every corner's indices are positive and
+  // its kept vt and vn equal its v, every corner has one layout, and
+  // `triangles` holds the fan triangulation as file vertex numbers (v - 1).
+  // The reaches are the largest index minus the elements of the slice
+  // before its face: every index is in range when each reach is at most the
+  // count of elements before the slice.
+  bool simple = true;
+  bool layout_set = false;
+  bool layout_vt = false;
+  bool layout_vn = false;
+  std::int64_t reach_v = 0;
+  std::int64_t reach_vt = 0;
+  std::int64_t reach_vn = 0;
+  std::vector<std::uint32_t> triangles;
+  std::uint64_t polygons = 0;
+  std::uint64_t degenerate_faces = 0;
+
   void clear() {
     positions.clear();
     colors.clear();
@@ -169,6 +189,16 @@ struct ObjSlice {
     line_count = 0;
     stop = nullptr;
     stop_line = 0;
+    simple = true;
+    layout_set = false;
+    layout_vt = false;
+    layout_vn = false;
+    reach_v = 0;
+    reach_vt = 0;
+    reach_vn = 0;
+    triangles.clear();
+    polygons = 0;
+    degenerate_faces = 0;
   }
 };
 
@@ -237,6 +267,8 @@ class ObjParser {
     // Advised for 2 MB pages before the first touch, as the PLY loader's.
     detail::reserve_huge_pages(positions_, static_cast<std::size_t>(bytes / 80));
     detail::reserve_huge_pages(out_.indices, static_cast<std::size_t>(bytes / 14));
+    if (options_.keep_normals) detail::reserve_huge_pages(normals_, static_cast<std::size_t>(bytes / 80));
+    if (read_vt()) detail::reserve_huge_pages(texcoords_, static_cast<std::size_t>(bytes / 80));
 
     if (options_.serial) {
       std::string_view line;
@@ -553,9 +585,21 @@ class ObjParser {
         }
         begin = slice.end;
       }
-      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, slice_count, 1),
+      // Two more tasks beside the slices: reading the next block
+      // (FileReader::read_ahead(): the copy out of the page cache is ~8% of
+      // the work) and faulting in the output pages this block will likely
+      // append to (prefault()).
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, slice_count + 2, 1),
                         [&](const tbb::blocked_range<std::size_t>& range) {
-                          for (std::size_t s = range.begin(); s != range.end(); ++s) parse_slice(slices_[s]);
+                          for (std::size_t s = range.begin(); s != range.end(); ++s) {
+                            if (s < slice_count) {
+                              parse_slice(slices_[s]);
+                            } else if (s == slice_count) {
+                              reader_.read_ahead(group_bytes);
+                            } else {
+                              prefault();
+                            }
+                          }
                         });
       std::uint64_t line = reader_.line_number() + 1;
       for (ObjSlice& slice : slices_) {
@@ -568,24 +612,228 @@ class ObjParser {
     return Status::ok();
   }
 
+  // The appends of the slices (apply_slice) run on one thread, and the first
+  // touch of a 2 MB page costs up to ~4 ms on these machines (huge_pages.hpp):
+  // while the slices of a block are parsed, another task faults in the
+  // reserved (untouched) pages the block will likely fill, as much as the
+  // previous block appended to each array. Raw storage beyond size(), as
+  // detail::size_output() touches it; the contents are unchanged.
+  struct Prefaulted {
+    const void* data = nullptr;  // the allocation `bytes` refers to
+    std::size_t bytes = 0;       // faulted in from data
+    std::size_t last_size = 0;   // the array's size at the previous block
+  };
+  template <typename T>
+  static void prefault_array(std::vector<T>& v, Prefaulted& mark) {
+    static_assert(std::is_trivially_copyable_v<T>, "raw storage is written before the elements exist");
+    if (mark.data != v.data()) {
+      mark.data = v.data();
+      mark.bytes = 0;
+    }
+    const std::size_t grown = v.size() - std::min(v.size(), mark.last_size);
+    mark.last_size = v.size();
+    const std::size_t from = std::max(mark.bytes, v.size() * sizeof(T));
+    const std::size_t to = std::min(v.capacity(), v.size() + grown + grown / 4) * sizeof(T);
+    if (to <= from) return;
+    auto* bytes = reinterpret_cast<unsigned char*>(v.data());
+    constexpr std::size_t page = 4096;
+    for (std::size_t i = (from + page - 1) / page * page; i < to; i += page) bytes[i] = 0;
+    mark.bytes = to;
+  }
+  void prefault() {
+    prefault_array(positions_, prefaulted_[0]);
+    prefault_array(out_.indices, prefaulted_[1]);
+    prefault_array(normals_, prefaulted_[2]);
+    prefault_array(texcoords_, prefaulted_[3]);
+  }
+
   // Runs on any thread: reads only the slice and the options.
   void parse_slice(ObjSlice& slice) const {
     slice.clear();
     const char* p = slice.begin;
     std::uint64_t line = 0;
     while (p < slice.end) {
-      const auto* newline =
-          static_cast<const char*>(std::memchr(p, '\n', static_cast<std::size_t>(slice.end - p)));
-      if (!parse_line_records(p, line_content_end(p, newline), line, slice)) {
-        slice.stop = p;
-        slice.stop_line = line;
-        line += static_cast<std::uint64_t>(std::count(p, slice.end, '\n'));
-        break;
+      const char* next = read_common_line(p, line, slice);
+      if (next == nullptr) {
+        const auto* newline =
+            static_cast<const char*>(std::memchr(p, '\n', static_cast<std::size_t>(slice.end - p)));
+        if (!parse_line_records(p, line_content_end(p, newline), line, slice)) {
+          slice.stop = p;
+          slice.stop_line = line;
+          line += static_cast<std::uint64_t>(std::count(p, slice.end, '\n'));
+          break;
+        }
+        next = newline + 1;
       }
-      p = newline + 1;
+      p = next;
       ++line;
     }
     slice.line_count = line;
+  }
+
+  // ------------------------------------------------------- common lines
+  //
+  // The lines big files are made of, read in one pass without first cutting
+  // the line into tokens: "v x y z", "vn x y z", "vt u [v]", "f" with
+  // corners a, a/b, a//c, a/b/c, and comments. They give the records
+  // parse_line_records gives (the same number reader on the same tokens,
+  // the same arguments ignored); anything else or unusual (a leading blank,
+  // a '+', a '#' after a statement, too few numbers, a vertex colour to
+  // keep) returns nullptr with nothing recorded, and parse_line_records
+  // takes the line. Lines of a slice end with '\n', so every read stops
+  // before the slice's end.
+
+  static bool ends_token(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n'; }
+  static const char* skip_spaces(const char* p) {
+    while (*p == ' ' || *p == '\t' || *p == '\r') ++p;
+    return p;
+  }
+  // Past the line's '\n'.
+  static const char* next_line(const char* p, const char* end) {
+    if (*p == '\n') return p + 1;
+    return static_cast<const char*>(std::memchr(p, '\n', static_cast<std::size_t>(end - p))) + 1;
+  }
+
+  // `count` reals (at least `required`), the rest of the line ignored as
+  // read_reals ignores it; nullptr where read_reals might say otherwise.
+  static const char* read_line_reals(const char* p, const char* end, float* values, int required, int count) {
+    for (int i = 0; i < count; ++i) {
+      p = skip_spaces(p);
+      if (*p == '\n') return i >= required ? p + 1 : nullptr;
+      float value = 0.0f;
+      const char* token_end = read_real_prefix(p, end, value);
+      if (token_end == nullptr || !ends_token(*token_end) || !std::isfinite(value)) return nullptr;
+      values[i] = value;
+      p = token_end;
+    }
+    return next_line(p, end);
+  }
+
+  // A plain index "-?digits" (18 digits at most, not 0), as read_index reads it.
+  static const char* read_line_index(const char* p, std::int64_t& value) {
+    const bool negative = *p == '-';
+    if (negative) ++p;
+    const char* first = p;
+    std::uint64_t magnitude = 0;  // exact up to 18 digits; longer ones are refused
+    for (auto digit = static_cast<unsigned>(*p - '0'); digit <= 9; digit = static_cast<unsigned>(*p - '0')) {
+      magnitude = magnitude * 10 + digit;
+      ++p;
+    }
+    if (p == first || p - first > 18 || magnitude == 0) return nullptr;
+    value = negative ? -static_cast<std::int64_t>(magnitude) : static_cast<std::int64_t>(magnitude);
+    return p;
+  }
+
+  const char* read_common_line(const char* p, std::uint64_t line, ObjSlice& slice) const {
+    const char* end = slice.end;
+    if (*p == '\n') return p + 1;
+    if (*p == '#') return next_line(p, end);
+    if (*p == 'v') {
+      const char c = p[1];
+      if (c == ' ' || c == '\t') {
+        if (options_.keep_colors) return nullptr;
+        glm::vec3 position{0.0f};
+        const char* next = read_line_reals(p + 2, end, &position.x, 3, 3);
+        if (next != nullptr) slice.positions.push_back(position);
+        return next;
+      }
+      if ((c != 'n' && c != 't') || (p[2] != ' ' && p[2] != '\t')) return nullptr;
+      if (c == 'n') {
+        if (!options_.keep_normals) {
+          ++slice.normal_count;
+          return next_line(p + 2, end);
+        }
+        glm::vec3 normal{0.0f};
+        const char* next = read_line_reals(p + 3, end, &normal.x, 3, 3);
+        if (next == nullptr) return nullptr;
+        slice.normals.push_back(normal);
+        ++slice.normal_count;
+        return next;
+      }
+      if (!read_vt()) {
+        ++slice.texcoord_count;
+        return next_line(p + 2, end);
+      }
+      glm::vec2 uv{0.0f};
+      const char* next = read_line_reals(p + 3, end, &uv.x, 1, 2);
+      if (next == nullptr) return nullptr;
+      slice.texcoords.push_back(uv);
+      ++slice.texcoord_count;
+      return next;
+    }
+    if (*p != 'f' || (p[1] != ' ' && p[1] != '\t')) return nullptr;
+    RawFace face;
+    face.first_corner = static_cast<std::uint32_t>(slice.corners.size());
+    face.v_before = slice.positions.size();
+    face.vt_before = slice.texcoord_count;
+    face.vn_before = slice.normal_count;
+    face.line = line;
+    face.line_begin = p;
+    const char* q = p + 2;
+    for (;;) {
+      q = skip_spaces(q);
+      if (*q == '\n') break;
+      RawCorner corner;
+      q = read_line_index(q, corner.v);
+      if (q != nullptr && *q == '/') {
+        std::int64_t index = 0;
+        if (q[1] != '/') {
+          q = read_line_index(q + 1, index);
+          if (q != nullptr && read_vt()) corner.vt = index;
+        } else {
+          ++q;  // "a//c"
+          if (q[1] == '/' || ends_token(q[1])) q = nullptr;
+        }
+        if (q != nullptr && *q == '/') {
+          q = read_line_index(q + 1, index);
+          if (options_.keep_normals) corner.vn = index;
+        }
+      }
+      if (q == nullptr || !ends_token(*q)) {
+        slice.corners.resize(face.first_corner);
+        return nullptr;
+      }
+      slice.corners.push_back(corner);
+    }
+    face.corner_count = static_cast<std::uint32_t>(slice.corners.size() - face.first_corner);
+    slice.faces.push_back(face);
+    note_face(slice, face);
+    return q + 1;
+  }
+
+  // Keeps the slice's `simple` record (ObjSlice) up to date with a new face.
+  void note_face(ObjSlice& slice, const RawFace& face) const {
+    if (!slice.simple) return;
+    const RawCorner* corners = slice.corners.data() + face.first_corner;
+    for (std::uint32_t c = 0; c < face.corner_count; ++c) {
+      const RawCorner& corner = corners[c];
+      const bool has_vt = corner.vt != 0;
+      const bool has_vn = corner.vn != 0;
+      if (corner.v <= 0 || (has_vt && corner.vt != corner.v) || (has_vn && corner.vn != corner.v) ||
+          (slice.layout_set && (has_vt != slice.layout_vt || has_vn != slice.layout_vn))) {
+        slice.simple = false;
+        return;
+      }
+      slice.layout_set = true;
+      slice.layout_vt = has_vt;
+      slice.layout_vn = has_vn;
+      slice.reach_v = std::max(slice.reach_v, corner.v - static_cast<std::int64_t>(face.v_before));
+      if (has_vt)
+        slice.reach_vt = std::max(slice.reach_vt, corner.vt - static_cast<std::int64_t>(face.vt_before));
+      if (has_vn)
+        slice.reach_vn = std::max(slice.reach_vn, corner.vn - static_cast<std::int64_t>(face.vn_before));
+    }
+    if (face.corner_count < 3) {
+      ++slice.degenerate_faces;
+      return;
+    }
+    ++slice.polygons;
+    const auto first = static_cast<std::uint32_t>(corners[0].v - 1);
+    for (std::uint32_t c = 1; c + 1 < face.corner_count; ++c) {
+      slice.triangles.push_back(first);
+      slice.triangles.push_back(static_cast<std::uint32_t>(corners[c].v - 1));
+      slice.triangles.push_back(static_cast<std::uint32_t>(corners[c + 1].v - 1));
+    }
   }
 
   // parse_line as records; false where the serial parser might report an
@@ -641,6 +889,7 @@ class ObjParser {
       }
       face.corner_count = static_cast<std::uint32_t>(slice.corners.size() - face.first_corner);
       slice.faces.push_back(face);
+      note_face(slice, face);
     } else if (NameKind kind; name_kind(keyword, kind)) {
       slice.names.push_back(NameStatement{kind, statement_name(keyword_end, end), slice.faces.size()});
     }
@@ -692,6 +941,7 @@ class ObjParser {
     normals_.insert(normals_.end(), slice.normals.begin(), slice.normals.end());
     texcoord_count_ += slice.texcoord_count;
     normal_count_ += slice.normal_count;
+    if (take_whole(slice, base_v, base_vt, base_vn)) return Status::ok();
     if (split_) first_vertex_.resize(positions_.size(), kNone);
     std::size_t next_name = 0;
     // Names recorded before face `f` of the slice.
@@ -752,6 +1002,30 @@ class ObjParser {
     if (slice.stop != nullptr)
       return parse_lines_serially(slice.stop, slice.end, first_line + slice.stop_line);
     return Status::ok();
+  }
+
+  // The faces of a `simple` slice at once, when what add_face() would do with
+  // them is only to append their triangles: no split, no corner UVs, no
+  // names, every index in range and the layout the file's. False (nothing
+  // changed) otherwise.
+  bool take_whole(const ObjSlice& slice, std::uint64_t base_v, std::uint64_t base_vt, std::uint64_t base_vn) {
+    if (!slice.simple || split_ || options_.corner_uvs || !slice.names.empty() || slice.stop != nullptr)
+      return false;
+    if (slice.reach_v > static_cast<std::int64_t>(base_v) ||
+        slice.reach_vt > static_cast<std::int64_t>(base_vt) ||
+        slice.reach_vn > static_cast<std::int64_t>(base_vn)) {
+      return false;
+    }
+    if (slice.layout_set) {
+      if (layout_known_ && (slice.layout_vt != has_vt_ || slice.layout_vn != has_vn_)) return false;
+      layout_known_ = true;
+      has_vt_ = slice.layout_vt;
+      has_vn_ = slice.layout_vn;
+    }
+    out_.indices.insert(out_.indices.end(), slice.triangles.begin(), slice.triangles.end());
+    stats_.polygons += slice.polygons;
+    stats_.degenerate_faces += slice.degenerate_faces;
+    return true;
   }
 
   // Complete lines [p, end) through parse_line, the first numbered `line`.
@@ -856,6 +1130,7 @@ class ObjParser {
   std::vector<Corner> corners_;       // scratch of the current face
   std::uint64_t line_number_ = 0;     // of the line being parsed, for messages
   std::vector<ObjSlice> slices_;      // of the parallel path
+  Prefaulted prefaulted_[4];          // positions_, out_.indices, normals_, texcoords_
 };
 
 }  // namespace
