@@ -5,7 +5,8 @@ Docs.ExamplesRun):
   tests/docs/run_examples.py NMBAKE NMBAKE_GEN SOURCE_ROOT
 
 A runnable example is a ```sh block right after a line `<!-- runnable -->`
-in README.md or docs/**/*.md. Each runs with bash -e in a fresh folder
+in README.md or docs/**/*.md (docs/index.md, the README's copy, left
+out). Each runs with bash -e in a fresh folder
 holding the generated scenes of tests/docs/fixture.py (low.obj, high.ply,
 moon_low.obj, body_low.obj, rifle_low.obj, game.obj, job.toml, ...), with
 the built nmbake first on PATH. An example that exits non-zero fails the
@@ -27,7 +28,8 @@ MIN_EXAMPLES = 20
 
 
 def examples(root):
-    pages = [root / "README.md"] + sorted((root / "docs").rglob("*.md"))
+    # docs/index.md is the README re-rooted (tools/docs-tables): its examples run once, as the README's.
+    pages = [root / "README.md"] + sorted(p for p in (root / "docs").rglob("*.md") if p != root / "docs/index.md")
     found = []
     for page in pages:
         lines = page.read_text().split("\n")
