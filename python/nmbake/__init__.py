@@ -6,7 +6,7 @@
 bake() runs one bake (a temporary job file and `nmbake bake`), Job writes
 job files and bake_job() runs them, Session keeps an `nmbake serve`
 process for many bakes. Errors are the exit codes as exceptions, all
-subclasses of nmbake.Error. Standard library only; see the README, "Python".
+subclasses of nmbake.Error. Standard library only; see docs/guide/python.md.
 """
 
 __version__ = "0.1.0"

@@ -1,6 +1,6 @@
 """The exceptions of the nmbake package, one per exit code of the CLI.
 
-README "Exit codes": 0 success, 1 a gate failed, 2 bad input or usage,
+docs/reference/exit-codes.md: 0 success, 1 a gate failed, 2 bad input or usage,
 3 internal error, 128 + N ended by signal N (130 Ctrl-C, 143 SIGTERM).
 """
 

@@ -1,6 +1,6 @@
 """One-shot bakes through the `nmbake` binary: bake(), bake_job() and Job.
 
-bake() writes a temporary job file (README "Job files") and runs
+bake() writes a temporary job file (docs/reference/job-files.md) and runs
 `nmbake bake JOB -q`; the job file's keys are the option table's
 (src/bake/options.cpp), so every option nmbake has is a keyword here.
 """

@@ -46,7 +46,7 @@ const std::vector<CommandExamples>& command_examples() {
          "nmbake bake --low low.obj --high high.ply -o normal.png"},
         {"The map set for Unreal, with a report",
          "nmbake bake --low low.fbx --high high.ply --map normal,ao,curvature --preset unreal "
-         "-o out/asset_<MAP>.png --report out/report.json"},
+         "-o 'out/asset_<MAP>.png' --report out/report.json"},
         {"Every bake of a job file, going on past a failed one", "nmbake bake job.toml --keep-going"}}},
       {"preview",
        {{"The sheet [high | low+map | error] of a bake",

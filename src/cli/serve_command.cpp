@@ -1,4 +1,4 @@
-// `nmbake serve`: a live bake session (README, "Live sessions"). Requests
+// `nmbake serve`: a live bake session (docs/guide/live.md). Requests
 // are JSON lines on stdin, answers JSON lines on stdout (protocol 1). A
 // reader thread reads stdin all the time, so that status and cancel are
 // answered while a bake runs; the bakes run one at a time, in request
@@ -346,7 +346,7 @@ Runner add_serve_command(CLI::App& app, const GlobalOptions& global) {
   (void)global;
   auto flags = std::make_shared<ServeFlags>();
   CLI::App* cmd = app.add_subcommand(
-      "serve", "a live bake session: JSON requests on stdin, JSON answers on stdout (README: Live sessions)");
+      "serve", "a live bake session: JSON requests on stdin, JSON answers on stdout (docs/guide/live.md)");
   cmd->add_option("--memory-budget", flags->memory_budget,
                   "memory for the high meshes and BVHs kept between requests, e.g. 8G (default: half of "
                   "the memory available at start)");

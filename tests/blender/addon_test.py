@@ -8,7 +8,7 @@ Installs and enables the add-on zip, builds a low sphere and a high one
      with the same options (both tangent modes), and the second bake reused
      the session's high;
  (b) Blender's MikkTSpace tangents (calc_tangents) of the low equal nmbake's
-     (`nmbake tangents --write`) within 1e-4, and, the README's finding, on
+     (`nmbake tangents --write`) within 1e-4, and, the finding of docs/guide/blender.md, on
      a quad low with unequal UV diagonals they do not (MikkTSpace splits
      quads on the shorter UV diagonal, loop_triangles on 0-2), while the
      same low with a Triangulate modifier agrees;
@@ -43,7 +43,7 @@ ZIP, NMBAKE, WORK = sys.argv[sys.argv.index("--") + 1:][:3]
 
 # (c)'s bounds in degrees, on the angle between the rendered shading
 # normals of low+map and high (160x160 pixels, ~10500 covered by both).
-# Measured (README "Baking from Blender"): mean 1.17, p95 4.27 with the
+# Measured (docs/guide/blender.md): mean 1.17, p95 4.27 with the
 # map (what is left is parallax: the high's bumps stand up to 0.04 off the
 # low, and a 256x256 map); mean 6.15, p95 12.06 without it.
 BOUND_MEAN = 2.0
@@ -299,7 +299,7 @@ def quads(s, sphere_low, sphere_high):
     high = skewed_quad("quad_high", tilt=20.0)
     diff, _ = tangent_difference(low, "quad_low")
     log("(d) skewed quad: max |T_blender - T_nmbake| = %.3f" % diff)
-    check(diff > 0.05, "(d) the quad's tangents agree: the README's tangent finding is out of date")
+    check(diff > 0.05, "(d) the quad's tangents agree: the tangent finding of docs/guide/blender.md is out of date")
     s.low_object, s.high_object = low, high
     scene = bpy.context.scene
     scene.camera.location, scene.camera.rotation_euler = (0.0, 0.0, 4.0), (0.0, 0.0, 0.0)
@@ -545,7 +545,7 @@ def main():
     tri_diff, tri_signs = tangent_difference(cube, "cube_triangulated")
     log("(b) bevelled cube: quads max |dT| = %.3f; with a Triangulate modifier %.2e (sign differences %d)"
         % (quad_diff, tri_diff, tri_signs))
-    check(quad_diff > 1e-2, "quads now agree: the README's tangent finding is out of date")
+    check(quad_diff > 1e-2, "quads now agree: the tangent finding of docs/guide/blender.md is out of date")
     check(tri_diff <= 1e-4 and tri_signs == 0, "(b) triangulated cube: tangents differ")
     bpy.data.objects.remove(cube)
 
