@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Runs every shell example the documentation marks as runnable (ctest
-Docs.ExamplesRun):
+Docs.ExamplesRunHeavy):
 
   tests/docs/run_examples.py NMBAKE NMBAKE_GEN SOURCE_ROOT
 
