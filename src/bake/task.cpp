@@ -169,6 +169,48 @@ std::string bake_key_text(const BakeOptions& o) {
 
 namespace {
 
+// Why reading a file failed: it is not a regular file (a folder, a FIFO, a
+// device: opened without blocking, so a FIFO is refused, not waited on), or
+// the system's reason, or it changed size while it was read.
+enum class ReadFailure { none, open, not_regular, read, changed };
+
+// Reads the regular file `path` in 1 MiB chunks: `take_size(size)` once its
+// size is known, then `take(bytes, count)` for each chunk. `error` is the
+// system's reason for an open or read failure.
+template <typename TakeSize, typename Take>
+ReadFailure read_regular_file(const std::string& path, TakeSize&& take_size, Take&& take,
+                              std::string& error) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) {
+    error = std::strerror(errno);
+    return ReadFailure::open;
+  }
+  struct stat info {};
+  if (::fstat(fd, &info) != 0 || !S_ISREG(info.st_mode)) {
+    ::close(fd);
+    return ReadFailure::not_regular;
+  }
+  const auto size = static_cast<std::uint64_t>(info.st_size);
+  take_size(size);
+  constexpr std::size_t kChunk = std::size_t{1} << 20;
+  const auto buffer = std::make_unique_for_overwrite<char[]>(kChunk);
+  std::uint64_t total = 0;
+  for (;;) {
+    const ssize_t got = ::read(fd, buffer.get(), kChunk);
+    if (got < 0 && errno == EINTR) continue;
+    if (got < 0) {
+      error = std::strerror(errno);
+      ::close(fd);
+      return ReadFailure::read;
+    }
+    if (got == 0) break;
+    take(buffer.get(), static_cast<std::size_t>(got));
+    total += static_cast<std::uint64_t>(got);
+  }
+  ::close(fd);
+  return total == size ? ReadFailure::none : ReadFailure::changed;
+}
+
 // Streams a file into the hash; its length first, so that two files cannot
 // trade bytes across their border.
 Status hash_file(XXH3_state_t* state, const std::string& path, const char* role) {
@@ -177,69 +219,48 @@ Status hash_file(XXH3_state_t* state, const std::string& path, const char* role)
     XXH3_128bits_update(state, &none, sizeof none);
     return Status::ok();
   }
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) return Status::bad_input(path + ": cannot read the " + role + " mesh: " + std::strerror(errno));
-  struct stat info {};
-  if (::fstat(fd, &info) != 0 || !S_ISREG(info.st_mode)) {
-    ::close(fd);
-    return Status::bad_input(path + ": the " + role + " mesh is not a regular file");
+  std::string error;
+  const ReadFailure failure = read_regular_file(
+      path, [&](std::uint64_t size) { XXH3_128bits_update(state, &size, sizeof size); },
+      [&](const char* bytes, std::size_t count) { XXH3_128bits_update(state, bytes, count); }, error);
+  const std::string mesh = std::string("the ") + role + " mesh";
+  switch (failure) {
+    case ReadFailure::none:
+      return Status::ok();
+    case ReadFailure::not_regular:
+      return Status::bad_input(path + ": " + mesh + " is not a regular file");
+    case ReadFailure::changed:
+      return Status::bad_input(path + ": " + mesh + " changed while it was read");
+    case ReadFailure::open:
+    case ReadFailure::read:
+      break;
   }
-  const auto size = static_cast<std::uint64_t>(info.st_size);
-  XXH3_128bits_update(state, &size, sizeof size);
-  constexpr std::size_t kChunk = std::size_t{1} << 20;
-  const auto buffer = std::make_unique_for_overwrite<char[]>(kChunk);
-  std::uint64_t total = 0;
-  for (;;) {
-    const ssize_t got = ::read(fd, buffer.get(), kChunk);
-    if (got < 0 && errno == EINTR) continue;
-    if (got < 0) {
-      const int error = errno;
-      ::close(fd);
-      return Status::bad_input(path + ": cannot read the " + role + " mesh: " + std::strerror(error));
-    }
-    if (got == 0) break;
-    XXH3_128bits_update(state, buffer.get(), static_cast<std::size_t>(got));
-    total += static_cast<std::uint64_t>(got);
-  }
-  ::close(fd);
-  if (total != size) return Status::bad_input(path + ": the " + role + " mesh changed while it was read");
-  return Status::ok();
+  return Status::bad_input(path + ": cannot read " + mesh + ": " + error);
 }
 
 }  // namespace
 
 std::string hash_file_contents(const std::string& path, std::uint64_t& size, std::uint64_t& hash) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
-  struct stat info {};
-  if (fd < 0) return path + ": " + std::strerror(errno);
-  const auto close_fd = [fd] { ::close(fd); };
-  if (::fstat(fd, &info) != 0 || !S_ISREG(info.st_mode)) {
-    close_fd();
-    return path + ": not a regular file";
-  }
-  size = static_cast<std::uint64_t>(info.st_size);
   std::unique_ptr<XXH3_state_t, decltype(&XXH3_freeState)> state(XXH3_createState(), &XXH3_freeState);
   NMBAKE_CHECK(state != nullptr, "xxHash state");
   XXH3_64bits_reset(state.get());
-  constexpr std::size_t kChunk = std::size_t{1} << 20;
-  const auto buffer = std::make_unique_for_overwrite<char[]>(kChunk);
-  std::uint64_t total = 0;
-  for (;;) {
-    const ssize_t got = ::read(fd, buffer.get(), kChunk);
-    if (got < 0 && errno == EINTR) continue;
-    if (got < 0) {
-      const int error = errno;
-      close_fd();
-      return path + ": " + std::strerror(error);
-    }
-    if (got == 0) break;
-    XXH3_64bits_update(state.get(), buffer.get(), static_cast<std::size_t>(got));
-    total += static_cast<std::uint64_t>(got);
+  std::string error;
+  const ReadFailure failure = read_regular_file(
+      path, [&](std::uint64_t file_size) { size = file_size; },
+      [&](const char* bytes, std::size_t count) { XXH3_64bits_update(state.get(), bytes, count); }, error);
+  switch (failure) {
+    case ReadFailure::none:
+      hash = XXH3_64bits_digest(state.get());
+      return "";
+    case ReadFailure::not_regular:
+      return path + ": not a regular file";
+    case ReadFailure::changed:
+      return path + ": changed while it was read";
+    case ReadFailure::open:
+    case ReadFailure::read:
+      break;
   }
-  close_fd();
-  if (total != size) return path + ": changed while it was read";
-  hash = XXH3_64bits_digest(state.get());
-  return "";
+  return path + ": " + error;
 }
 
 Status bake_key(const BakeOptions& o, BakeKey& key) {

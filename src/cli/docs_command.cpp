@@ -42,7 +42,7 @@ struct CommandExamples {
 const std::vector<CommandExamples>& command_examples() {
   static const std::vector<CommandExamples> table = {
       {"bake",
-       {{"A normal map with every default (2048\\(mu2048, 4 samples a texel, MikkTSpace, green up)",
+       {{"A normal map with every default (2048 by 2048, 4 samples a texel, MikkTSpace, green up)",
          "nmbake bake --low low.obj --high high.ply -o normal.png"},
         {"The map set for Unreal, with a report",
          "nmbake bake --low low.fbx --high high.ply --map normal,ao,curvature --preset unreal "
@@ -163,16 +163,9 @@ std::vector<const CLI::App*> commands_of(const CLI::App& app) {
 // they are flags, a leading dot or quote made harmless.
 std::string roff(const std::string& text) {
   std::string out;
-  for (std::size_t i = 0; i < text.size(); ++i) {
-    const char c = text[i];
+  for (char c : text) {
     if (c == '\\') {
-      // \(mu (a multiplication sign) passes through, written by the examples table.
-      if (text.compare(i, 4, "\\(mu") == 0) {
-        out += "\\(mu";
-        i += 3;
-      } else {
-        out += "\\e";
-      }
+      out += "\\e";
     } else if (c == '-') {
       out += "\\-";
     } else {
@@ -180,19 +173,6 @@ std::string roff(const std::string& text) {
     }
   }
   if (!out.empty() && (out[0] == '.' || out[0] == '\'')) out.insert(0, "\\&");
-  return out;
-}
-
-std::string plain(const std::string& text) {
-  std::string out;
-  for (std::size_t i = 0; i < text.size(); ++i) {
-    if (text.compare(i, 4, "\\(mu") == 0) {
-      out += "x";
-      i += 3;
-    } else {
-      out += text[i];
-    }
-  }
   return out;
 }
 
@@ -393,7 +373,7 @@ void write_bash(std::ostream& out, const CLI::App& app) {
 
 std::string md_cell(const std::string& text) {
   std::string out;
-  for (char c : plain(text)) {
+  for (char c : text) {
     if (c == '|') {
       out += "\\|";
     } else if (c == '<' || c == '>') {
@@ -407,7 +387,7 @@ std::string md_cell(const std::string& text) {
 
 void write_markdown(const fs::path& file, const CLI::App& command) {
   std::ofstream out(file, std::ios::binary);
-  out << "# nmbake " << command.get_name() << "\n\n" << plain(command.get_description()) << ".\n\n";
+  out << "# nmbake " << command.get_name() << "\n\n" << command.get_description() << ".\n\n";
   out << "<!-- Written by `nmbake docs --markdown` from the program's own flags: edit the source, not this "
          "page. -->\n\n";
   out << "| flag | value | meaning |\n|---|---|---|\n";
@@ -425,7 +405,7 @@ void write_markdown(const fs::path& file, const CLI::App& command) {
   if (const std::vector<Example>* examples = examples_of(command.get_name())) {
     out << "\n## Examples\n";
     for (const Example& example : *examples) {
-      out << "\n" << plain(example.what) << ":\n\n```sh\n" << example.command << "\n```\n";
+      out << "\n" << example.what << ":\n\n```sh\n" << example.command << "\n```\n";
     }
   }
 }

@@ -230,11 +230,11 @@ std::vector<std::string> job_maps(const BakeJob& job) {
 // `nmbake view JOB.toml -o DIR`: DIR/NAME.html and NAME.glb for every bake.
 int run_view_job(const ViewCommandFlags& f, const GlobalOptions& global) {
   if (f.serve) {
-    std::fprintf(stderr, "nmbake: error: --serve reviews one bake: give --low and --map, not a job file\n");
+    print_error("--serve reviews one bake: give --low and --map, not a job file");
     return kBadInput;
   }
   if (f.output.empty()) {
-    std::fprintf(stderr, "nmbake: error: %s: give -o DIR, the folder of the pages\n", f.job.c_str());
+    print_error(f.job + ": give -o DIR, the folder of the pages");
     return kBadInput;
   }
   std::vector<BakeJob> jobs;
@@ -262,7 +262,7 @@ int run_view_job(const ViewCommandFlags& f, const GlobalOptions& global) {
 int run_view(const ViewCommandFlags& f, const GlobalOptions& global) {
   if (!f.job.empty()) return run_view_job(f, global);
   if (f.low.empty() || f.maps.empty()) {
-    std::fprintf(stderr, "nmbake: error: give --low and --map (or a job file)\n");
+    print_error("give --low and --map (or a job file)");
     return kBadInput;
   }
   const auto start = std::chrono::steady_clock::now();
@@ -274,11 +274,11 @@ int run_view(const ViewCommandFlags& f, const GlobalOptions& global) {
   }
   std::string extension = std::filesystem::path(f.output).extension().string();
   if (f.output.empty() && !f.serve) {
-    std::fprintf(stderr, "nmbake: error: give -o review.html, or --serve\n");
+    print_error("give -o review.html, or --serve");
     return kBadInput;
   }
   if (!f.output.empty() && extension != ".html" && extension != ".htm") {
-    std::fprintf(stderr, "nmbake: error: %s: the review page is written as .html\n", f.output.c_str());
+    print_error(f.output + ": the review page is written as .html");
     return kBadInput;
   }
   ReviewOptions options;
